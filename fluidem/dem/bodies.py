@@ -1,0 +1,259 @@
+"""Rigid convex polygons for the DEM: shape, mass properties and initial state.
+
+A :class:`Body` holds its outline in *body coordinates* with the centre of mass at the
+origin, the mass and the moment of inertia about the centre of mass (uniform areal
+density, 2D: mass per unit area), and its initial pose and velocity.  The time-dependent
+state lives in the :class:`fluidem.dem.DEM` arrays, not here, so that the step works on
+arrays of bodies.
+
+Mass properties come from :mod:`fluidem.geometry` (shoelace area and centroid, polygon
+polar moment ``J``); the inertia about the centroid is ``ρ (J_0 − A |c|²)`` (parallel
+axis theorem).
+
+Units: lengths in metres, areal density in kg/m², mass in kg, inertia in kg·m², angles in
+radians (any consistent unit system works; CGS cases use cm, g, s).
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from fluidem import geometry as geo
+
+__all__ = ["Body", "MOTIONS", "random_convex_vertices"]
+
+#: The kinds of motion a body may have.
+MOTIONS = ("free", "fixed", "prescribed")
+
+
+def _vec2(value, what: str) -> np.ndarray:
+    try:
+        v = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what} must be a pair of numbers, got {value!r}") from exc
+    if v.shape != (2,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{what} must be a pair of finite numbers, got {value!r}")
+    return v
+
+
+def _finite(value, what: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what} must be a number, got {value!r}") from exc
+    if not np.isfinite(x):
+        raise ValueError(f"{what} must be finite, got {value!r}")
+    return x
+
+
+def random_convex_vertices(size: float, n_vertices: int = 6, elongation: float = 1.0,
+                           jitter: float = 0.5, rng=None) -> np.ndarray:
+    """Random convex polygon of diameter about ``size``, CCW, shape ``(n_vertices, 2)``.
+
+    Vertices sit on an ellipse with axes ``size/2`` and ``size/(2·elongation)`` at angles
+    ``2πk/n`` shifted by a uniform random fraction ``jitter`` of the angular spacing, and
+    the whole shape is turned by a random angle.  Points on an ellipse in angular order
+    always form a convex polygon.
+
+    Parameters
+    ----------
+    size : float
+        Diameter of the circumscribing ellipse along its long axis, metres.
+    n_vertices : int
+        Number of corners, ≥ 3.
+    elongation : float
+        Aspect ratio of the ellipse (≥ 1).
+    jitter : float
+        Angular perturbation as a fraction of ``2π/n`` (0 gives a regular, stretched shape).
+    rng : numpy.random.Generator or int or None
+        Random source.
+    """
+    rng = np.random.default_rng(rng)
+    if not (np.isfinite(size) and size > 0):
+        raise ValueError(f"size must be a positive number, got {size!r}")
+    if int(n_vertices) != n_vertices or n_vertices < 3:
+        raise ValueError(f"n_vertices must be an integer >= 3, got {n_vertices!r}")
+    if not (elongation >= 1.0):
+        raise ValueError(f"elongation must be >= 1, got {elongation!r}")
+    if not (0.0 <= jitter < 1.0):
+        raise ValueError(f"jitter must be in [0, 1), got {jitter!r}")
+    n = int(n_vertices)
+    t = 2.0 * np.pi * (np.arange(n) + jitter * (rng.random(n) - 0.5)) / n
+    v = 0.5 * size * np.column_stack([np.cos(t), np.sin(t) / elongation])
+    return v @ geo.rotation_matrix(rng.uniform(0, 2 * np.pi)).T
+
+
+class Body:
+    """A rigid convex polygon with uniform areal density.
+
+    Build bodies with :meth:`polygon`, :meth:`disk`, :meth:`rectangle` or
+    :meth:`random_convex`; the constructor takes the same arguments as :meth:`polygon`.
+
+    Attributes
+    ----------
+    vertices : (n, 2) float
+        Outline in body coordinates (m), counter-clockwise, centre of mass at the origin.
+    area : float
+        Polygon area, m².
+    density : float
+        Areal density, kg/m².
+    mass : float
+        ``density · area``, kg.
+    inertia : float
+        Moment of inertia about the centre of mass, kg·m².
+    radius : float
+        Bounding radius: largest distance of a vertex from the centre of mass, m.
+    position : (2,) float
+        Initial position of the centre of mass, m.
+    angle : float
+        Initial orientation, rad (world = rotate(angle) · body + position).
+    velocity : (2,) float
+        Initial velocity of the centre of mass, m/s.
+    omega : float
+        Initial angular velocity, rad/s (counter-clockwise positive).
+    motion : {"free", "fixed", "prescribed"}
+        ``free`` bodies obey Newton's laws; ``fixed`` ones never move; ``prescribed`` ones
+        follow ``path``.
+    path : callable or None
+        For prescribed motion, ``path(t) -> (position (2,), angle)``, with t in s.
+    """
+
+    def __init__(self, vertices, density: float = 1.0, position=(0.0, 0.0), angle: float = 0.0,
+                 velocity=(0.0, 0.0), omega: float = 0.0, motion="free",
+                 path: Callable | None = None, name: str = "body"):
+        v = geo.validate_polygon(vertices, name=name, require_convex=True)
+        try:
+            rho = float(density)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{name}: density must be a number, got {density!r}") from exc
+        if not (np.isfinite(rho) and rho > 0):
+            raise ValueError(f"{name}: density must be positive and finite (kg/m²), got {density!r}")
+        if callable(motion):
+            path, motion = motion, "prescribed"
+        if motion not in MOTIONS:
+            raise ValueError(f"{name}: motion must be one of {MOTIONS} or a callable, got {motion!r}")
+        if motion == "prescribed" and not callable(path):
+            raise ValueError(f"{name}: prescribed motion needs path(t) -> (position, angle), got {path!r}")
+        area = geo.polygon_area(v)
+        c = geo.polygon_centroid(v)
+        j0 = geo.polygon_polar_moment(v)
+        self.vertices = v - c
+        self.area = area
+        self.density = rho
+        self.mass = rho * area
+        self.inertia = rho * (j0 - area * float(c @ c))
+        self.radius = float(np.sqrt((self.vertices**2).sum(axis=1)).max())
+        self.position = _vec2(position, f"{name}: position")
+        self.angle = _finite(angle, f"{name}: angle")
+        self.velocity = _vec2(velocity, f"{name}: velocity")
+        self.omega = _finite(omega, f"{name}: omega")
+        self.motion = motion
+        self.path = path
+        self.name = name
+        if motion == "prescribed":
+            p, a = self.pose_at(0.0)
+            self.position, self.angle = p, a
+
+    # ---- constructors -----------------------------------------------------------------
+    @classmethod
+    def polygon(cls, vertices, density: float = 1.0, position=(0.0, 0.0), angle: float = 0.0,
+                velocity=(0.0, 0.0), omega: float = 0.0, motion="free",
+                path: Callable | None = None) -> "Body":
+        """Convex polygon body.
+
+        Parameters
+        ----------
+        vertices : (n, 2) array_like
+            Counter-clockwise outline (m).  It is shifted so that its centroid is the
+            origin of body coordinates; ``position`` then places that centroid.
+        density : float
+            Areal density, kg/m², > 0.
+        position : (2,) array_like
+            Centre of mass, m.
+        angle : float
+            Orientation, rad.
+        velocity : (2,) array_like
+            m/s.
+        omega : float
+            rad/s.
+        motion : {"free", "fixed", "prescribed"} or callable
+            A callable is taken as ``path`` with ``motion="prescribed"``.
+        path : callable, optional
+            ``path(t) -> (position, angle)`` for prescribed motion.
+
+        Raises
+        ------
+        ValueError
+            Clockwise, self-intersecting or non-convex outline; density ≤ 0; bad motion.
+        """
+        return cls(vertices, density=density, position=position, angle=angle,
+                   velocity=velocity, omega=omega, motion=motion, path=path)
+
+    @classmethod
+    def disk(cls, radius: float, segments: int = 16, density: float = 1.0, **kwargs) -> "Body":
+        """Regular ``segments``-gon inscribed in a circle of ``radius`` (m); other keywords as :meth:`polygon`."""
+        return cls(geo.regular_polygon(radius, segments), density=density, **kwargs)
+
+    @classmethod
+    def rectangle(cls, width: float, height: float, density: float = 1.0, **kwargs) -> "Body":
+        """Rectangle ``width`` × ``height`` (m) centred on its centre of mass; keywords as :meth:`polygon`."""
+        return cls(geo.rectangle(width, height), density=density, **kwargs)
+
+    @classmethod
+    def random_convex(cls, size: float, n_vertices: int = 6, elongation: float = 1.0,
+                      jitter: float = 0.5, rng=None, density: float = 1.0, **kwargs) -> "Body":
+        """Random convex polygon, see :func:`random_convex_vertices`; keywords as :meth:`polygon`."""
+        v = random_convex_vertices(size, n_vertices, elongation, jitter, rng)
+        return cls(v, density=density, **kwargs)
+
+    @classmethod
+    def random_packing(cls, n: int, box, sizes=(1.0, 1.0), n_vertices=(5, 8),
+                       elongation=(1.0, 1.5), spacing: float = 1.05, rng=None,
+                       density: float = 1.0) -> list["Body"]:
+        """``n`` random convex polygons placed on a loose square lattice inside ``box``.
+
+        Sizes are uniform in ``sizes`` (m); corners uniform integers in ``n_vertices``;
+        elongation uniform in ``elongation``.  Lattice spacing is ``spacing`` × the largest
+        size, filled row by row from the bottom left of ``box = (xmin, xmax, ymin, ymax)``,
+        so bodies never overlap at start.
+
+        Raises
+        ------
+        ValueError
+            When ``n`` bodies do not fit in ``box``.
+        """
+        rng = np.random.default_rng(rng)
+        xmin, xmax, ymin, ymax = (float(b) for b in box)
+        dmax = float(max(sizes))
+        h = spacing * dmax
+        nx = int(np.floor((xmax - xmin) / h))
+        ny = int(np.floor((ymax - ymin) / h))
+        if nx * ny < n:
+            raise ValueError(f"{n} bodies of size up to {dmax} do not fit in box {box} "
+                             f"(room for {max(nx, 0) * max(ny, 0)})")
+        out = []
+        for k in range(n):
+            iy, ix = divmod(k, nx)
+            p = (xmin + (ix + 0.5) * h, ymin + (iy + 0.5) * h)
+            size = rng.uniform(*sizes)
+            nv = int(rng.integers(n_vertices[0], n_vertices[1] + 1))
+            el = rng.uniform(*elongation)
+            out.append(cls.random_convex(size, nv, el, rng=rng, density=density, position=p))
+        return out
+
+    # ---- prescribed motion ------------------------------------------------------------
+    def pose_at(self, t: float) -> tuple[np.ndarray, float]:
+        """Position (2,) and angle of a prescribed body at time ``t`` (s)."""
+        p, a = self.path(t)
+        return _vec2(p, f"{self.name}: path({t}) position"), _finite(a, f"{self.name}: path({t}) angle")
+
+    def world_vertices(self, position=None, angle=None) -> np.ndarray:
+        """Outline in world coordinates (m), shape ``(n, 2)``, at the given or initial pose."""
+        return geo.transform(self.vertices, self.position if position is None else position,
+                             self.angle if angle is None else angle)
+
+    def __repr__(self) -> str:
+        return (f"Body({len(self.vertices)}-gon, mass={self.mass:.4g} kg, inertia={self.inertia:.4g} kg·m², "
+                f"position={self.position.tolist()}, motion={self.motion!r})")
