@@ -1,0 +1,81 @@
+"""Result container and registry shared by the built-in benchmark cases."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Callable
+
+__all__ = ["CaseResult", "CASES", "register_case", "get_case"]
+
+
+@dataclass
+class CaseResult:
+    """Outcome of a benchmark case: quantities, their references and what they cost.
+
+    ``quantities`` and ``reference`` map names (``cd``, ``cl``, ``dp``, ``st``, ...) to
+    numbers; ``timings`` holds wall seconds per phase (``mesh``, ``assembly``, ``solve``);
+    ``wall_s`` is their sum (imports excluded).
+    """
+
+    case: str
+    element: str
+    level: int
+    dofs: int
+    quantities: dict
+    reference: dict
+    timings: dict
+    geometry: str = "curved"
+    dt: float | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def wall_s(self) -> float:
+        return float(sum(self.timings.values()))
+
+    def relative_errors(self) -> dict:
+        return {k: abs(self.quantities[k] - r) / abs(r) for k, r in self.reference.items() if k in self.quantities}
+
+    def to_dict(self) -> dict:
+        d = {"case": self.case, "element": self.element, "level": self.level, "dofs": self.dofs,
+             "geometry": self.geometry, "dt": self.dt, "wall_s": self.wall_s}
+        d.update({f"time_{k}_s": v for k, v in self.timings.items()})
+        d.update(self.quantities)
+        d.update({f"ref_{k}": v for k, v in self.reference.items()})
+        d.update({f"err_{k}": v for k, v in self.relative_errors().items()})
+        d.update(self.extra)
+        return d
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), default=lambda o: o.item() if hasattr(o, "item") else str(o))
+
+    def __str__(self) -> str:
+        lines = [f"{self.case}: element {self.element}, level {self.level}, {self.dofs} DOFs, "
+                 f"{self.geometry} geometry" + (f", dt = {self.dt:g}" if self.dt else "")]
+        errs = self.relative_errors()
+        for k, v in self.quantities.items():
+            if k in self.reference:
+                lines.append(f"  {k:8s} = {v: .10g}   reference {self.reference[k]: .10g}   "
+                             f"relative error {errs[k]:.2e}")
+            else:
+                lines.append(f"  {k:8s} = {v: .10g}")
+        split = ", ".join(f"{k} {v:.2f} s" for k, v in self.timings.items())
+        lines.append(f"  wall time {self.wall_s:.2f} s ({split})")
+        return "\n".join(lines)
+
+
+CASES: dict[str, Callable] = {}
+
+
+def register_case(name: str):
+    def deco(fn):
+        CASES[name] = fn
+        return fn
+    return deco
+
+
+def get_case(name: str) -> Callable:
+    try:
+        return CASES[name]
+    except KeyError:
+        raise ValueError(f"unknown case {name!r}; allowed: {', '.join(sorted(CASES))}") from None

@@ -1,0 +1,161 @@
+"""DFG "flow around a cylinder" benchmarks 2D-1, 2D-2, 2D-3 (Schäfer & Turek 1996).
+
+Channel [0, 2.2] × [0, 0.41], cylinder of diameter D = 0.1 centred at (0.2, 0.2), ν = 1e-3,
+ρ = 1; inflow u(0, y) = 4 U(t) y (0.41 − y) / 0.41², no-slip on walls and cylinder,
+do-nothing outflow at x = 2.2.  c_D = 2 F_D / (Ū² D), c_L likewise, Ū = 2 U / 3,
+Δp = p(0.15, 0.2) − p(0.25, 0.2).
+
+Reference values: 2D-1 from Nabh (1998) / the FeatFlow benchmark page; 2D-2 from the FeatFlow
+Q2/P1disc level-6 series; 2D-3 from John (2004), *Int. J. Numer. Meth. Fluids* 44, 777–788:
+c_D,max = 2.950921575, c_L,max = 0.47795, Δp(t = 8) = −0.1116.
+
+Mesh levels: the cylinder outline and the cells next to it have size h₀ = 0.02 / 2^level,
+cells grow by a factor 1.15 per cell away from the cylinder up to h_max = 0.08 / 2^level
+(paper Sec. 2.3); every level halves the cell size.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..fluid.forces import body_loads, periodic_stats
+from ..fluid.navier_stokes import BDF2Stepper, FlowProblem, solve_steady
+from ..fluid.space import FlowSpace, RigidMotion, VelocityBC
+from ..geometry import regular_polygon
+from ..mesh.background import GradedSize
+from ..mesh.triangulate import Obstacle, to_skfem, triangulate_box
+from .base import CaseResult, register_case
+
+__all__ = ["dfg_mesh", "dfg_problem", "dfg_2d1", "dfg_2d2", "dfg_2d3", "REFERENCE"]
+
+H, L, D, CENTER, NU = 0.41, 2.2, 0.1, (0.2, 0.2), 1e-3
+
+REFERENCE = {
+    "dfg-2d1": {"cd": 5.57953523384, "cl": 0.010618948146, "dp": 0.11752016697},
+    "dfg-2d2": {"cd_max": 3.2274, "cd_min": 3.1643, "cl_max": 0.9866, "cl_min": -1.0213, "st": 0.30184},
+    "dfg-2d3": {"cd_max": 2.950921575, "cl_max": 0.47795, "dp_end": -0.1116},
+}
+
+
+def _check_level(level):
+    if int(level) != level or not 0 <= level <= 6:
+        raise ValueError(f"mesh level must be an integer from 0 to 6, got {level!r}")
+    return int(level)
+
+
+def dfg_mesh(level: int = 1, curved: bool = True, growth: float = 1.15):
+    """Graded mesh of the DFG channel at ``level`` (each level halves the cell size)."""
+    level = _check_level(level)
+    h0 = 0.02 / 2**level
+    n_seg = max(16, int(np.ceil(np.pi * D / h0)))
+    cyl = Obstacle(regular_polygon(D / 2, n_seg) + np.array(CENTER), "cylinder", circle=(*CENTER, D / 2),
+                   refine_outline=False)
+    size = GradedSize(h_min=h0, growth=growth, h_max=0.08 / 2**level, region=[cyl.vertices])
+    return to_skfem(triangulate_box((0.0, L, 0.0, H), [cyl], size), curved=curved)
+
+
+def dfg_problem(mesh, element: str, U, nu: float = NU, cylinder_motion=None) -> FlowProblem:
+    """Flow problem in the DFG channel; ``U(t)`` is the maximum inflow velocity."""
+    def inflow(x, y, t):
+        return np.array([4.0 * U(t) * y * (H - y) / H**2, 0.0 * y])
+
+    bcs = [
+        VelocityBC(("bottom", "top"), (0.0, 0.0)),
+        VelocityBC("cylinder", cylinder_motion or (0.0, 0.0)),
+        VelocityBC("left", inflow),
+    ]
+    return FlowProblem(FlowSpace(mesh, element), nu, bcs)
+
+
+def _coefficients(space, residual, Ubar):
+    load = body_loads(space, residual, "cylinder", center=CENTER)
+    scale = 2.0 / (Ubar**2 * D)
+    return scale * load.fx, scale * load.fy
+
+
+@register_case("dfg-2d1")
+def dfg_2d1(element: str = "p3", level: int = 2, curved: bool = True, solver=None, verbose: bool = False) -> CaseResult:
+    """Steady DFG 2D-1 (U = 0.3, Re = 20): c_D, c_L, Δp by Newton's method."""
+    t0 = time.perf_counter()
+    mesh = dfg_mesh(level, curved)
+    t_mesh = time.perf_counter() - t0
+    pr = dfg_problem(mesh, element, lambda t: 0.3)
+    state = solve_steady(pr, solver=solver, verbose=verbose)
+    t1 = time.perf_counter()
+    cd, cl = _coefficients(pr.space, pr.steady_residual(state.x), 0.2)
+    p = pr.space.probe_matrix([[0.15, 0.2], [0.25, 0.2]]) @ state.p
+    t_post = time.perf_counter() - t1
+    return CaseResult("dfg-2d1", element, level, pr.space.n_dofs,
+                      {"cd": cd, "cl": cl, "dp": float(p[0] - p[1])}, REFERENCE["dfg-2d1"],
+                      {"mesh": t_mesh, "assembly": pr.timings.assembly + t_post, "solve": pr.timings.solve},
+                      "curved" if curved else "polygonal",
+                      extra={"newton_iterations": len(state.residual_history) - 1,
+                             "final_residual": state.residual_history[-1]})
+
+
+def _run_unsteady(pr, dt, t_end, U_of_t, Ubar_of_t, convection, record_dp=False, kick=None, progress=None):
+    stepper = BDF2Stepper(pr, dt, convection=convection)
+    n = int(round(t_end / dt))
+    ts, cds, cls_, dps = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    probe = pr.space.probe_matrix([[0.15, 0.2], [0.25, 0.2]]) if record_dp else None
+    for k in range(n):
+        stepper.step()
+        res = stepper.last_residual()
+        ub = Ubar_of_t(stepper.t)
+        cd, cl = _coefficients(pr.space, res, ub) if ub > 0 else (np.nan, np.nan)
+        ts[k], cds[k], cls_[k] = stepper.t, cd, cl
+        if probe is not None:
+            p = probe @ stepper.state.p
+            dps[k] = p[0] - p[1]
+        if progress and (k + 1) % max(1, n // 20) == 0:
+            progress(k + 1, n, stepper.t)
+    return ts, cds, cls_, dps, stepper
+
+
+def _kick(t_kick: float, omega: float):
+    """Brief rotation of the cylinder that breaks the symmetry so shedding starts early."""
+    return RigidMotion(omega=lambda t: omega * np.sin(np.pi * t / t_kick) if t < t_kick else 0.0, center=CENTER)
+
+
+@register_case("dfg-2d2")
+def dfg_2d2(element: str = "th", level: int = 2, dt: float = 0.005, t_end: float = 8.0, window: float = 2.0,
+            convection: str = "semi-implicit", curved: bool = True, progress=None) -> CaseResult:
+    """Periodic DFG 2D-2 (U = 1.5, Re = 100): St, c_D and c_L max/min on the last ``window`` time units.
+
+    The run starts from rest with a short cylinder rotation (t < 0.5) that triggers
+    shedding, and is measured on ``[t_end − window, t_end]``.
+    """
+    level = _check_level(level)
+    t0 = time.perf_counter()
+    mesh = dfg_mesh(level, curved)
+    t_mesh = time.perf_counter() - t0
+    pr = dfg_problem(mesh, element, lambda t: 1.5, cylinder_motion=_kick(0.5, 4.0))
+    ts, cd, cl, _, st_ = _run_unsteady(pr, dt, t_end, None, lambda t: 1.0, convection, progress=progress)
+    sd = periodic_stats(ts, cd, t_end - window)
+    sl = periodic_stats(ts, cl, t_end - window)
+    q = {"st": D / (sl.period * 1.0), "cd_max": sd.max, "cd_min": sd.min, "cl_max": sl.max, "cl_min": sl.min}
+    return CaseResult("dfg-2d2", element, level, pr.space.n_dofs, q, REFERENCE["dfg-2d2"],
+                      {"mesh": t_mesh, "assembly": pr.timings.assembly, "solve": pr.timings.solve},
+                      "curved" if curved else "polygonal", dt,
+                      extra={"steps": st_.n_steps, "periods_measured": sl.n_periods, "convection": convection})
+
+
+@register_case("dfg-2d3")
+def dfg_2d3(element: str = "th", level: int = 2, dt: float = 0.005, convection: str = "semi-implicit",
+            curved: bool = True, progress=None) -> CaseResult:
+    """DFG 2D-3 (U(t) = 1.5 sin(π t / 8), t ∈ [0, 8]): c_D,max, c_L,max and Δp(8)."""
+    t0 = time.perf_counter()
+    mesh = dfg_mesh(level, curved)
+    t_mesh = time.perf_counter() - t0
+    U = lambda t: 1.5 * np.sin(np.pi * t / 8.0)  # noqa: E731
+    pr = dfg_problem(mesh, element, U)
+    ts, cd, cl, dp, st_ = _run_unsteady(pr, dt, 8.0, U, lambda t: 2.0 * U(t) / 3.0, convection, record_dp=True,
+                                        progress=progress)
+    icd, icl = int(np.nanargmax(cd)), int(np.nanargmax(cl))
+    q = {"cd_max": float(cd[icd]), "cl_max": float(cl[icl]), "dp_end": float(dp[-1]),
+         "t_cd_max": float(ts[icd]), "t_cl_max": float(ts[icl])}
+    return CaseResult("dfg-2d3", element, level, pr.space.n_dofs, q, REFERENCE["dfg-2d3"],
+                      {"mesh": t_mesh, "assembly": pr.timings.assembly, "solve": pr.timings.solve},
+                      "curved" if curved else "polygonal", dt, extra={"steps": st_.n_steps, "convection": convection})

@@ -1,0 +1,410 @@
+"""Stokes, steady Navier–Stokes (Newton) and unsteady Navier–Stokes (BDF2) on one mesh.
+
+Equations, in kinematic form (pressure p divided by the density ρ), on the fluid domain Ω:
+
+    ∂u/∂t + (b · ∇) u − ν Δu + ∇p = f,     div u = 0,
+
+with b = u on a fixed mesh and b = u − w (w: mesh velocity) on a moving one (ALE).  Velocity
+Dirichlet data on walls, inflow and obstacles; the do-nothing condition ν ∂u/∂n − p n = 0 on
+every boundary without a velocity condition.
+
+Time stepping: BDF2 with a BDF1 first step (Hairer & Wanner, *Solving ODEs II*, Sec. V.1),
+convection either
+
+* ``"semi-implicit"``: linear in u^{n+1} with the extrapolated convecting velocity
+  b = 2u^n − u^{n−1} (one linear solve per step, second order; Simo & Armero 1994), or
+* ``"newton"``: fully implicit, solved by Newton's method each step.
+
+Steady Navier–Stokes: Newton's method from a Stokes start (Girault & Raviart 1986, Ch. IV),
+with a stop on the residual norm (the lift coefficient of DFG 2D-1 needs ≲ 1e-11).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import asm
+
+from . import forms
+from .solvers import DirectSolver, LaggedLUSolver, SolverError
+from .space import FlowSpace, VelocityBC
+
+__all__ = ["FlowProblem", "FlowState", "NewtonError", "solve_stokes", "solve_steady", "BDF2Stepper", "Timings"]
+
+
+class NewtonError(RuntimeError):
+    """Newton's method did not converge; ``history`` holds the residual norms."""
+
+    def __init__(self, message, history):
+        super().__init__(message + "; residual history: " + ", ".join(f"{r:.3e}" for r in history))
+        self.history = list(history)
+
+
+@dataclass
+class Timings:
+    """Wall-clock seconds spent per phase (accumulated)."""
+
+    assembly: float = 0.0
+    solve: float = 0.0
+
+    def add(self, other: "Timings"):
+        self.assembly += other.assembly
+        self.solve += other.solve
+
+
+@dataclass
+class FlowState:
+    """A velocity/pressure solution: ``x = [u, p]`` with ``u`` (n_u,) and ``p`` (n_p,)."""
+
+    x: np.ndarray
+    n_u: int
+    t: float = 0.0
+    residual_history: list = field(default_factory=list)
+
+    @property
+    def u(self) -> np.ndarray:
+        return self.x[: self.n_u]
+
+    @property
+    def p(self) -> np.ndarray:
+        return self.x[self.n_u:]
+
+
+class FlowProblem:
+    """An incompressible flow problem on a fixed mesh.
+
+    Parameters
+    ----------
+    space : FlowSpace
+        Mesh and element pair.
+    nu : float
+        Kinematic viscosity, length²/time, > 0.
+    bcs : sequence of VelocityBC
+        Velocity conditions; boundaries not named get the do-nothing condition.
+    rho : float
+        Density, mass/length³ (2D: mass/length²); forces are ρ times the kinematic ones.
+    body_force : (2,) float
+        Body force per unit mass, length/time².
+    """
+
+    def __init__(self, space: FlowSpace, nu: float, bcs: Sequence[VelocityBC] = (), rho: float = 1.0,
+                 body_force=(0.0, 0.0)):
+        if not (np.isfinite(nu) and nu > 0):
+            raise ValueError(f"viscosity nu must be a positive number, got {nu!r}")
+        if not (np.isfinite(rho) and rho > 0):
+            raise ValueError(f"density rho must be a positive number, got {rho!r}")
+        self.space = space
+        self.nu = float(nu)
+        self.rho = float(rho)
+        self.bcs = list(bcs)
+        self.body_force = np.asarray(body_force, dtype=float)
+        named = set()
+        for bc in self.bcs:
+            for name in bc.names:
+                space._check_boundary(name)
+                named.add(name)
+            for c in bc.components:
+                if c not in (0, 1):
+                    raise ValueError(f"velocity components must be 0 or 1, got {bc.components!r}")
+        self.natural_boundaries = [b for b in space.boundary_names if b not in named]
+        self._dirichlet_dofs = self._collect_dirichlet_dofs()
+        n = space.n_dofs
+        # With no natural boundary the pressure is fixed only up to a constant: pin one DOF
+        # (the pressure is shifted to zero mean afterwards).
+        self.pressure_pinned = not self.natural_boundaries
+        fixed = self._dirichlet_dofs
+        if self.pressure_pinned:
+            fixed = np.concatenate([fixed, [space.n_u]])
+        self.fixed = np.unique(fixed)
+        mask = np.ones(n, dtype=bool)
+        mask[self.fixed] = False
+        self.free = np.flatnonzero(mask)
+        self.timings = Timings()
+        t0 = time.perf_counter()
+        ub, pb = space.ub, space.pb
+        self.A = (self.nu * asm(forms.viscous, ub)).tocsr()
+        self.B = asm(forms.divergence, ub, pb).tocsr()
+        self.M = asm(forms.mass, ub).tocsr()
+        self._f = self._body_force_vector()
+        self.timings.assembly += time.perf_counter() - t0
+
+    # -- boundary data -------------------------------------------------------------------
+    def _collect_dirichlet_dofs(self):
+        parts = []
+        for bc in self.bcs:
+            for name in bc.names:
+                for c in bc.components:
+                    parts.append(self.space.velocity_dofs(name, c))
+        return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
+
+    def dirichlet_values(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(dofs, values) of all velocity conditions at time ``t`` (later ones win on corners)."""
+        x = np.zeros(self.space.n_u)
+        for bc in self.bcs:
+            for name in bc.names:
+                for c in bc.components:
+                    d = self.space.velocity_dofs(name, c)
+                    x[d] = bc.evaluate(self.space.dof_locations(d), t)[c]
+        return self._dirichlet_dofs, x[self._dirichlet_dofs]
+
+    def _body_force_vector(self):
+        if not np.any(self.body_force):
+            return np.zeros(self.space.n_u)
+        f = self.body_force
+        return asm(forms.body_force, self.space.ub, f=f[:, None, None] * np.ones((1,) + self.space.ub.dx.shape))
+
+    # -- operators -----------------------------------------------------------------------
+    def stokes_matrix(self, extra_velocity_block=None) -> sp.csr_matrix:
+        """Saddle-point matrix [[A + extra, Bᵀ], [B, 0]] on all DOFs, CSR."""
+        Auu = self.A if extra_velocity_block is None else self.A + extra_velocity_block
+        return sp.bmat([[Auu, self.B.T], [self.B, None]], format="csr")
+
+    def convection_matrix(self, b: np.ndarray) -> sp.csr_matrix:
+        """Matrix of ((b · ∇) u) · v for the convecting velocity coefficients ``b`` (n_u,)."""
+        return asm(forms.convection, self.space.ub, b=self.space.ub.interpolate(b)).tocsr()
+
+    def newton_matrix(self, a: np.ndarray) -> sp.csr_matrix:
+        """Jacobian of the convection (a·∇)a at ``a``: ((a·∇)δu + (δu·∇)a) · v."""
+        return asm(forms.convection_jacobian, self.space.ub, a=self.space.ub.interpolate(a)).tocsr()
+
+    def convection_vector(self, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
+        """Vector ((b · ∇) a) · v (b = a when omitted)."""
+        af = self.space.ub.interpolate(a)
+        bf = af if b is None else self.space.ub.interpolate(b)
+        return asm(forms.convection_residual, self.space.ub, a=af, b=bf)
+
+    def steady_residual(self, x: np.ndarray, convection: bool = True) -> np.ndarray:
+        """Residual of the (Navier–)Stokes equations at ``x`` on all DOFs, no conditions applied."""
+        u, p = x[: self.space.n_u], x[self.space.n_u:]
+        r = np.empty_like(x)
+        r[: self.space.n_u] = self.A @ u + self.B.T @ p - self._f
+        if convection:
+            r[: self.space.n_u] += self.convection_vector(u)
+        r[self.space.n_u:] = self.B @ u
+        return r
+
+    def normalise_pressure(self, x: np.ndarray) -> None:
+        """Shift the pressure to zero mean when it is defined only up to a constant."""
+        if self.pressure_pinned:
+            one = np.ones(self.space.n_p)
+            pm = self.space.pb
+            area = pm.dx.sum()
+            mean = (pm.interpolate(x[self.space.n_u:]).value * pm.dx).sum() / area
+            x[self.space.n_u:] -= mean * one
+
+    def initial_vector(self, t: float = 0.0) -> np.ndarray:
+        x = np.zeros(self.space.n_dofs)
+        d, v = self.dirichlet_values(t)
+        x[d] = v
+        return x
+
+
+def _solve_free(problem: FlowProblem, K: sp.csr_matrix, rhs_full: np.ndarray, solver) -> np.ndarray:
+    """Solve K δ = rhs on the free DOFs (δ = 0 on fixed ones)."""
+    f = problem.free
+    Kff = K[f][:, f].tocsr()
+    solver.factorize(Kff)
+    out = np.zeros_like(rhs_full)
+    out[f] = solver.solve(rhs_full[f])
+    return out
+
+
+def solve_stokes(problem: FlowProblem, t: float = 0.0, solver=None) -> FlowState:
+    """Stokes solution (no convection) with the velocity conditions at time ``t``."""
+    solver = solver or DirectSolver()
+    x = problem.initial_vector(t)
+    t0 = time.perf_counter()
+    K = problem.stokes_matrix()
+    r = problem.steady_residual(x, convection=False)
+    problem.timings.assembly += time.perf_counter() - t0
+    t0 = time.perf_counter()
+    x -= _solve_free(problem, K, r, solver)
+    problem.timings.solve += time.perf_counter() - t0
+    problem.normalise_pressure(x)
+    return FlowState(x, problem.space.n_u, t)
+
+
+def solve_steady(problem: FlowProblem, tol: float = 1e-11, max_iter: int = 25, start: FlowState | None = None,
+                 solver=None, verbose: bool = False) -> FlowState:
+    """Steady Navier–Stokes by Newton's method.
+
+    Parameters
+    ----------
+    tol : float
+        Stop when the Euclidean norm of the residual on free DOFs is below ``tol``.
+    start : FlowState, optional
+        Initial guess; by default the Stokes solution.
+
+    Raises
+    ------
+    NewtonError
+        If the residual does not fall below ``tol`` within ``max_iter`` iterations or grows
+        beyond 1e8 times its initial value; the message carries the residual history.
+    """
+    solver = solver or DirectSolver()
+    state = start or solve_stokes(problem, solver=solver)
+    x = state.x.copy()
+    d, v = problem.dirichlet_values(0.0)
+    x[d] = v
+    history = []
+    f = problem.free
+    for it in range(max_iter + 1):
+        t0 = time.perf_counter()
+        r = problem.steady_residual(x)
+        res = float(np.linalg.norm(r[f]))
+        history.append(res)
+        if verbose:
+            print(f"  Newton {it:2d}: |R| = {res:.3e}")
+        if res < tol:
+            problem.timings.assembly += time.perf_counter() - t0
+            problem.normalise_pressure(x)
+            return FlowState(x, problem.space.n_u, 0.0, history)
+        if not np.isfinite(res) or res > 1e8 * max(history[0], tol):
+            break
+        J = problem.stokes_matrix(problem.newton_matrix(x[: problem.space.n_u]))
+        problem.timings.assembly += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        x -= _solve_free(problem, J, r, solver)
+        problem.timings.solve += time.perf_counter() - t0
+    raise NewtonError(f"steady Navier-Stokes did not converge to |R| < {tol:g} in {max_iter} Newton iterations",
+                      history)
+
+
+class BDF2Stepper:
+    """Unsteady Navier–Stokes with BDF2 (BDF1 on the first step).
+
+    Parameters
+    ----------
+    problem : FlowProblem
+    dt : float
+        Time step (time units), > 0.
+    convection : {"semi-implicit", "newton"}
+        Linearisation of the convection term, see module docstring.
+    solver : object with ``factorize(K)`` and ``solve(b)``
+        Default: an LU reused as a GMRES preconditioner across steps, refactorised when
+        the iteration count grows (:class:`~fluidem.fluid.solvers.LaggedLUSolver`).
+    newton_tol : float
+        Residual tolerance of the Newton iteration per step (``"newton"`` only).
+
+    The state advances with :meth:`step`; ``self.state`` holds the newest solution and
+    ``self.residual(...)`` the discrete residual used for forces.
+    """
+
+    CONVECTION = ("semi-implicit", "newton")
+
+    def __init__(self, problem: FlowProblem, dt: float, convection: str = "semi-implicit", solver=None,
+                 start: FlowState | None = None, t0: float = 0.0, newton_tol: float = 1e-9,
+                 mesh_velocity: np.ndarray | None = None):
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"time step dt must be a positive number, got {dt!r}")
+        if convection not in self.CONVECTION:
+            raise ValueError(f"convection must be one of {self.CONVECTION}, got {convection!r}")
+        self.problem = problem
+        self.dt = float(dt)
+        self.convection = convection
+        self.solver = solver or LaggedLUSolver()
+        self.newton_tol = newton_tol
+        self.t = float(t0)
+        x0 = start.x.copy() if start is not None else problem.initial_vector(t0)
+        self.state = FlowState(x0, problem.space.n_u, self.t)
+        self._u_prev = None  # u^{n-1}
+        self.mesh_velocity = mesh_velocity
+        self.n_steps = 0
+        self.last_b = None
+
+    def _bdf(self):
+        """Coefficients (a0, a1, a2) of (a0 u^{n+1} + a1 u^n + a2 u^{n-1}) / dt."""
+        if self._u_prev is None:
+            return 1.0, -1.0, 0.0
+        return 1.5, -2.0, 0.5
+
+    def _history_term(self, a1, a2):
+        un = self.state.u
+        h = a1 * un
+        if a2:
+            h = h + a2 * self._u_prev
+        return self.problem.M @ h / self.dt
+
+    def _convecting_velocity(self, u_new=None):
+        un = self.state.u
+        b = un if self._u_prev is None else 2.0 * un - self._u_prev
+        if u_new is not None:
+            b = u_new
+        if self.mesh_velocity is not None:
+            b = b - self.mesh_velocity
+        return b
+
+    def residual(self, x: np.ndarray, a0: float, hist: np.ndarray, b: np.ndarray | None) -> np.ndarray:
+        """Unsteady residual on all DOFs: M(a0 u)/dt + hist + A u + C(b)u + Bᵀp − f, and B u."""
+        pr = self.problem
+        n_u = pr.space.n_u
+        r = pr.steady_residual(x, convection=False)
+        u = x[:n_u]
+        r[:n_u] += pr.M @ (a0 * u) / self.dt + hist
+        if b is not None:
+            r[:n_u] += pr.convection_vector(u, b)
+        return r
+
+    def step(self) -> FlowState:
+        """Advance one time step; returns the new state."""
+        pr = self.problem
+        n_u = pr.space.n_u
+        a0, a1, a2 = self._bdf()
+        t_new = self.t + self.dt
+        tm = Timings()
+        t0 = time.perf_counter()
+        hist = self._history_term(a1, a2)
+        x = self.state.x.copy()
+        if self._u_prev is not None:
+            x[:n_u] = 2.0 * self.state.u - self._u_prev  # extrapolated guess
+        d, v = pr.dirichlet_values(t_new)
+        x[d] = v
+        base = pr.M * (a0 / self.dt)
+        if self.convection == "semi-implicit":
+            b = self._convecting_velocity()
+            C = pr.convection_matrix(b)
+            K = pr.stokes_matrix(base + C)
+            r = self.residual(x, a0, hist, b)
+            tm.assembly += time.perf_counter() - t0
+            t0 = time.perf_counter()
+            x -= _solve_free(pr, K, r, self.solver)
+            tm.solve += time.perf_counter() - t0
+            self.last_b = b
+        else:
+            f = pr.free
+            for it in range(30):
+                t0 = time.perf_counter()
+                b = x[:n_u] if self.mesh_velocity is None else x[:n_u] - self.mesh_velocity
+                r = self.residual(x, a0, hist, b)
+                res = np.linalg.norm(r[f])
+                if res < self.newton_tol:
+                    tm.assembly += time.perf_counter() - t0
+                    break
+                Juu = base + pr.newton_matrix(x[:n_u])
+                if self.mesh_velocity is not None:  # ALE: ((u − w)·∇)δu + (δu·∇)u
+                    Juu = Juu - pr.convection_matrix(self.mesh_velocity)
+                J = pr.stokes_matrix(Juu)
+                tm.assembly += time.perf_counter() - t0
+                t0 = time.perf_counter()
+                x -= _solve_free(pr, J, r, self.solver)
+                tm.solve += time.perf_counter() - t0
+            else:
+                raise NewtonError(f"Newton did not converge in time step {self.n_steps + 1} (t = {t_new:g})", [res])
+            self.last_b = b
+        pr.normalise_pressure(x)
+        pr.timings.add(tm)
+        self._last = (a0, hist)
+        self._u_prev = self.state.u.copy()
+        self.state = FlowState(x, n_u, t_new)
+        self.t = t_new
+        self.n_steps += 1
+        return self.state
+
+    def last_residual(self) -> np.ndarray:
+        """Residual of the last step's equations at the new state (for forces)."""
+        a0, hist = self._last
+        return self.residual(self.state.x, a0, hist, self.last_b)

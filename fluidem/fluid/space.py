@@ -1,0 +1,201 @@
+"""Velocity/pressure finite element spaces on a mesh, boundary degrees of freedom, point values.
+
+The unknown vector is ``x = [u, p]``: ``n_u`` velocity coefficients first (scikit-fem's
+``ElementVector`` numbering), then ``n_p`` pressure coefficients.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+from skfem import Basis, ElementVector, MeshTri, MeshTri2
+
+from .elements import ElementPair, element_pair
+
+__all__ = ["FlowSpace", "VelocityBC", "RigidMotion"]
+
+
+@dataclass(frozen=True)
+class RigidMotion:
+    """Rigid-body velocity U + ω × (x − X) on an obstacle outline (no-slip on a moving body).
+
+    ``velocity`` (2,) in length/time, ``omega`` in rad/time, ``center`` (2,) in length.
+    Both may be callables of time ``t``.
+    """
+
+    velocity: Sequence[float] | Callable = (0.0, 0.0)
+    omega: float | Callable = 0.0
+    center: Sequence[float] = (0.0, 0.0)
+
+    def __call__(self, x, y, t):
+        U = np.asarray(self.velocity(t) if callable(self.velocity) else self.velocity, dtype=float)
+        om = float(self.omega(t) if callable(self.omega) else self.omega)
+        cx, cy = self.center
+        return np.array([U[0] - om * (y - cy), U[1] + om * (x - cx)])
+
+
+@dataclass(frozen=True)
+class VelocityBC:
+    """Dirichlet condition on the velocity of one or more named boundaries.
+
+    Parameters
+    ----------
+    boundary : str or sequence of str
+        Boundary names of the mesh (``mesh.boundaries``).
+    value : (ux, uy), callable ``(x, y, t) -> (2, n)`` array, or :class:`RigidMotion`
+        Prescribed velocity; ``(0, 0)`` is no-slip on a fixed wall.
+    components : tuple of int
+        Which velocity components are prescribed: ``(0, 1)`` both, ``(1,)`` only the normal
+        component of a horizontal wall (free slip / symmetry), ``(0,)`` of a vertical one.
+    """
+
+    boundary: str | Sequence[str]
+    value: object = (0.0, 0.0)
+    components: tuple = (0, 1)
+
+    @property
+    def names(self) -> tuple:
+        return (self.boundary,) if isinstance(self.boundary, str) else tuple(self.boundary)
+
+    def evaluate(self, xy: np.ndarray, t: float) -> np.ndarray:
+        """Velocity at points ``xy`` (2, n) and time ``t``, shape (2, n)."""
+        if callable(self.value):
+            out = np.asarray(self.value(xy[0], xy[1], t), dtype=float)
+            return np.broadcast_to(out, (2, xy.shape[1]))
+        return np.broadcast_to(np.asarray(self.value, dtype=float)[:, None], (2, xy.shape[1]))
+
+
+class FlowSpace:
+    """Bases and degree-of-freedom bookkeeping for one mesh and one element pair.
+
+    Parameters
+    ----------
+    mesh : skfem.MeshTri or skfem.MeshTri2
+        With named boundaries (``mesh.boundaries``).  A :class:`skfem.MeshTri2` gives
+        isoparametric (curved) geometry.
+    element : str
+        Element pair name, see :mod:`fluidem.fluid.elements`.
+    """
+
+    def __init__(self, mesh, element: str = "p2b", intorder: int | None = None):
+        self.pair: ElementPair = element_pair(element)
+        self.mesh = mesh
+        self.curved = isinstance(mesh, MeshTri2)
+        order = intorder or self.pair.quadrature_order
+        self.ub = Basis(mesh, ElementVector(self.pair.velocity()), intorder=order)
+        self.pb = Basis(mesh, self.pair.pressure(), quadrature=self.ub.quadrature)
+        self.n_u = self.ub.N
+        self.n_p = self.pb.N
+        self._boundary_cache: dict = {}
+
+    @property
+    def n_dofs(self) -> int:
+        return self.n_u + self.n_p
+
+    @property
+    def element(self) -> str:
+        return self.pair.name
+
+    @property
+    def boundary_names(self) -> list:
+        return sorted((self.mesh.boundaries or {}).keys())
+
+    def _check_boundary(self, name):
+        if name not in (self.mesh.boundaries or {}):
+            raise ValueError(f"unknown boundary {name!r}; the mesh has {self.boundary_names}")
+
+    def velocity_dofs(self, boundary: str, component: int) -> np.ndarray:
+        """Velocity DOF indices of one component (0 = x, 1 = y) on a named boundary."""
+        key = (boundary, component)
+        if key not in self._boundary_cache:
+            self._check_boundary(boundary)
+            self._boundary_cache[key] = self.ub.get_dofs(boundary).all(f"u^{component + 1}")
+        return self._boundary_cache[key]
+
+    def dof_locations(self, dofs: np.ndarray) -> np.ndarray:
+        """Coordinates (2, k) of velocity DOFs (on curved meshes: the mapped positions)."""
+        return self.ub.doflocs[:, dofs]
+
+    def rigid_test_vector(self, boundary: str, mode: str, center=(0.0, 0.0)) -> np.ndarray:
+        """Velocity coefficient vector equal to a rigid mode on ``boundary`` and zero elsewhere.
+
+        ``mode`` is ``"x"``, ``"y"`` (unit translations) or ``"rot"`` (e_z × (x − center)).
+        Used to evaluate forces and torques as volume integrals of the residual
+        (John 2004, Sec. 3; exact for rigid modes since they lie in the velocity space).
+        """
+        v = np.zeros(self.n_u)
+        dx, dy = self.velocity_dofs(boundary, 0), self.velocity_dofs(boundary, 1)
+        if mode == "x":
+            v[dx] = 1.0
+        elif mode == "y":
+            v[dy] = 1.0
+        elif mode == "rot":
+            px, py = self.dof_locations(dx), self.dof_locations(dy)
+            v[dx] = -(px[1] - center[1])
+            v[dy] = py[0] - center[0]
+        else:
+            raise ValueError(f"mode must be 'x', 'y' or 'rot', got {mode!r}")
+        return v
+
+    def probe_matrix(self, points, field: str = "pressure") -> sp.csr_matrix:
+        """Sparse matrix mapping coefficients to values at ``points`` (m, 2).
+
+        A point on an element boundary (a vertex, say) belongs to several elements; for a
+        discontinuous field the values of all of them are averaged.  Raises ``ValueError``
+        for a point outside the fluid domain.
+        """
+        basis = self.pb if field == "pressure" else self.ub
+        pts = np.atleast_2d(np.asarray(points, dtype=float))
+        cells, refs, owners = _locate(self.mesh, pts)
+        rows, cols, vals = [], [], []
+        weights = np.bincount(owners, minlength=len(pts)).astype(float)
+        ncomp = 1 if field == "pressure" else 2
+        for k in range(basis.Nbfun):
+            phi = basis.elem.gbasis(basis.mapping, refs[:, :, None], k, tind=cells)[0]
+            val = np.asarray(phi.value)[..., 0]  # (ncomp, m) or (m,)
+            val = val.reshape(ncomp, -1)
+            for c in range(ncomp):
+                rows.append(owners * ncomp + c)
+                cols.append(basis.element_dofs[k, cells])
+                vals.append(val[c] / weights[owners])
+        shape = (len(pts) * ncomp, basis.N)
+        return sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=shape).tocsr()
+
+
+def _locate(mesh, pts, k_near: int = 12, tol: float = 1e-9):
+    """All cells containing each point: (cells, reference coords (2, n), owner point index).
+
+    Candidate cells come from a k-d tree of cell centres; reference coordinates from the
+    affine map (exact for straight elements; for curved ones refined by the isoparametric
+    Newton inversion of scikit-fem).
+    """
+    p, t = mesh.p, mesh.t
+    nt = t.shape[1]
+    centres = p[:, t].mean(axis=1).T
+    tree = cKDTree(centres)
+    _, cand = tree.query(pts, k=min(k_near, nt))
+    cand = np.atleast_2d(cand)
+    owner = np.repeat(np.arange(len(pts)), cand.shape[1])
+    cc = cand.ravel()
+    a, b, c = p[:, t[0, cc]], p[:, t[1, cc]], p[:, t[2, cc]]
+    d1, d2 = b - a, c - a
+    det = d1[0] * d2[1] - d1[1] * d2[0]
+    r = pts[owner].T - a
+    X = (d2[1] * r[0] - d2[0] * r[1]) / det
+    Y = (-d1[1] * r[0] + d1[0] * r[1]) / det
+    inside = (X >= -tol) & (Y >= -tol) & (X + Y <= 1 + tol)
+    missing = np.setdiff1d(np.arange(len(pts)), owner[inside])
+    if len(missing):
+        raise ValueError(f"point(s) {pts[missing].tolist()} lie outside the fluid mesh")
+    cells, owner = cc[inside], owner[inside]
+    refs = np.vstack([np.clip(X[inside], 0, 1), np.clip(Y[inside], 0, 1)])
+    if isinstance(mesh, MeshTri2):
+        from skfem.mapping import MappingIsoparametric  # noqa: F401 - mapping of the mesh
+        mapping = mesh._mapping()
+        refs = mapping.invF(pts[owner].T[:, :, None], tind=cells)[:, :, 0]
+    return cells, refs, owner
