@@ -193,7 +193,7 @@ class FlowProblem:
             one = np.ones(self.space.n_p)
             pm = self.space.pb
             area = pm.dx.sum()
-            mean = (pm.interpolate(x[self.space.n_u:]).value * pm.dx).sum() / area
+            mean = (np.asarray(pm.interpolate(x[self.space.n_u:])) * pm.dx).sum() / area
             x[self.space.n_u:] -= mean * one
 
     def initial_vector(self, t: float = 0.0) -> np.ndarray:

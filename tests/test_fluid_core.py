@@ -1,0 +1,141 @@
+"""Fluid core against analytic solutions and the DFG 2D-1 reference values."""
+
+import numpy as np
+import pytest
+
+from fluidem.cases.dfg import REFERENCE, dfg_2d1, dfg_mesh, dfg_problem
+from fluidem.fluid.elements import element_pair
+from fluidem.fluid.forces import periodic_stats
+from fluidem.fluid.navier_stokes import BDF2Stepper, FlowProblem, solve_steady, solve_stokes
+from fluidem.fluid.space import FlowSpace, VelocityBC
+from fluidem.mesh.background import GradedSize
+from fluidem.mesh.triangulate import Obstacle, to_skfem, triangulate_box
+from fluidem.geometry import rectangle
+
+H, L, U, NU = 1.0, 3.0, 1.0, 0.05
+
+
+def poiseuille(x, y, t=0.0):
+    return np.array([4 * U * y * (H - y) / H**2, 0 * y])
+
+
+def channel_problem(element, h=0.2):
+    mesh = to_skfem(triangulate_box((0, L, 0, H), [], h))
+    bcs = [VelocityBC(("bottom", "top"), (0, 0)), VelocityBC("left", poiseuille)]
+    return FlowProblem(FlowSpace(mesh, element), NU, bcs)
+
+
+@pytest.mark.parametrize("element", ["p2b", "th", "p3"])
+def test_poiseuille_is_reproduced_exactly(element):
+    """Plane Poiseuille flow is a quadratic Navier–Stokes solution with do-nothing outflow:
+    quadratic velocity spaces reproduce it to round-off, pressure p = 8νU(L − x)/H²."""
+    pr = channel_problem(element)
+    st = solve_steady(pr)
+    xy = pr.space.ub.doflocs
+    ux = pr.space.ub.get_dofs().all("u^1")
+    np.testing.assert_allclose(st.u[ux], poiseuille(*xy[:, ux])[0], atol=1e-10)
+    pts = np.array([[0.5, 0.3], [1.5, 0.7], [2.5, 0.5]])
+    p = pr.space.probe_matrix(pts) @ st.p
+    np.testing.assert_allclose(p, 8 * NU * U * (L - pts[:, 0]) / H**2, atol=1e-9)
+    # divergence-free: B u = 0 on every pressure test function
+    assert np.abs(pr.B @ st.u).max() < 1e-12
+
+
+def test_mini_converges_on_poiseuille():
+    """MINI is first order: the velocity error falls when h is halved."""
+    errs = []
+    for h in (0.2, 0.1):
+        pr = channel_problem("mini", h)
+        st = solve_stokes(pr)
+        d = pr.space.ub.get_dofs().nodal["u^1"]
+        errs.append(np.abs(st.u[d] - poiseuille(*pr.space.ub.doflocs[:, d])[0]).max())
+    assert errs[1] < 0.6 * errs[0]
+
+
+def test_unsteady_reaches_steady_poiseuille():
+    """BDF2 from rest with steady data converges to the steady solution."""
+    pr = channel_problem("th")
+    steady = solve_steady(pr)
+    stepper = BDF2Stepper(pr, dt=0.5)
+    for _ in range(60):
+        stepper.step()
+    assert np.abs(stepper.state.u - steady.u).max() < 1e-8
+
+
+def test_bdf2_is_second_order_in_time():
+    """Start-up flow with inflow U(t) = sin(t): halving dt divides the error by ~4."""
+    mesh = to_skfem(triangulate_box((0, 2, 0, 1), [], 0.25))
+    ramp = lambda x, y, t: np.array([4 * np.sin(t) * y * (1 - y), 0 * y])  # noqa: E731
+    pr = FlowProblem(FlowSpace(mesh, "th"), 0.1, [VelocityBC(("bottom", "top"), (0, 0)), VelocityBC("left", ramp)])
+
+    def run(dt):
+        s = BDF2Stepper(pr, dt)
+        for _ in range(int(round(1.0 / dt))):
+            s.step()
+        return s.state.u
+
+    ref = run(1 / 320)
+    e1 = np.abs(run(1 / 20) - ref).max()
+    e2 = np.abs(run(1 / 40) - ref).max()
+    assert 3.0 < e1 / e2 < 5.0
+
+
+@pytest.mark.parametrize(
+    "element, level, tol",
+    # tolerances: 2.5x the errors measured at these levels (p3/1: 1.8e-6, 8.2e-5, 1.9e-4;
+    # p2b/1: 6.5e-5, 1.3e-3, 3.3e-3; th/1: 5.8e-5, 5.2e-3, 1.2e-2)
+    [("p3", 1, {"cd": 5e-6, "cl": 2e-4, "dp": 5e-4}),
+     ("p2b", 1, {"cd": 1.6e-4, "cl": 3.3e-3, "dp": 8.3e-3}),
+     ("th", 1, {"cd": 1.5e-4, "cl": 1.3e-2, "dp": 3e-2})],
+)
+def test_dfg_2d1_against_reference(element, level, tol):
+    res = dfg_2d1(element, level)
+    errs = res.relative_errors()
+    for k, t in tol.items():
+        assert errs[k] < t, (k, res.quantities[k], REFERENCE["dfg-2d1"][k], errs[k])
+    assert res.extra["final_residual"] < 1e-11
+
+
+def test_dfg_2d1_polygon_error_follows_4_over_n2():
+    """A straight-sided cylinder with N segments holds c_D about 4/N² (relative) low."""
+    curved = dfg_2d1("p3", 1, curved=True).quantities["cd"]
+    poly = dfg_2d1("p3", 1, curved=False).quantities["cd"]
+    n = 32  # segments at level 1
+    rel = (curved - poly) / curved
+    assert 2.0 / n**2 < rel < 6.0 / n**2
+
+
+def test_periodic_stats_of_a_sine():
+    t = np.arange(0, 10, 0.01)
+    y = 0.3 + 1.2 * np.sin(2 * np.pi * t / 0.33130)
+    s = periodic_stats(t, y, t_start=2.0)
+    assert s.period == pytest.approx(0.33130, rel=1e-6)
+    assert s.max == pytest.approx(1.5, abs=1e-5) and s.min == pytest.approx(-0.9, abs=1e-5)
+    assert s.rms == pytest.approx(1.2 / np.sqrt(2), rel=2e-3)
+    with pytest.raises(ValueError, match="full period"):
+        periodic_stats(t, y, t_start=9.8)
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ValueError, match="unknown element pair 'q9'.*'p2b'"):
+        element_pair("q9")
+    mesh = dfg_mesh(0)
+    with pytest.raises(ValueError, match="viscosity nu must be a positive number, got -1"):
+        dfg_problem(mesh, "th", lambda t: 1.0, nu=-1.0)
+    with pytest.raises(ValueError, match="not inside the domain"):
+        triangulate_box((0, 1, 0, 1), [Obstacle(rectangle(0.5, 0.5) + [0.9, 0.5], "box")], 0.1)
+    pr = dfg_problem(mesh, "th", lambda t: 1.0)
+    with pytest.raises(ValueError, match="time step dt must be a positive number, got 0"):
+        BDF2Stepper(pr, 0.0)
+    with pytest.raises(ValueError, match="unknown boundary 'inlet'"):
+        FlowProblem(pr.space, 1e-3, [VelocityBC("inlet", (1, 0))])
+    with pytest.raises(ValueError, match="mesh level must be an integer"):
+        dfg_mesh(-1)
+    with pytest.raises(ValueError, match="h_min must be a positive number"):
+        GradedSize(h_min=0.0, growth=1.2, h_max=1.0, region=(0, 1, 0, 1))
+
+
+def test_probe_outside_domain_is_an_error():
+    pr = channel_problem("th")
+    with pytest.raises(ValueError, match="outside the fluid mesh"):
+        pr.space.probe_matrix([[5.0, 0.5]])
