@@ -1,0 +1,255 @@
+"""Benchmarks of the saddle-point solvers in :mod:`fluidem.fluid.solvers`.
+
+Direct LU vs block-preconditioned GMRES vs lagged LU, for Stokes, Oseen and
+unsteady (backward-Euler-type, mass-dominated) systems with the default
+element pair "p2b" (P2+bubble velocity, P1-discontinuous pressure) on the
+unit square, at about 10k, 50k and 200k DOFs.
+
+Run (one BLAS thread, results are wall-clock and therefore noisy on a shared
+machine)::
+
+    OPENBLAS_NUM_THREADS=1 python -m pytest benchmarks/bench_solvers.py \
+        --benchmark-only --benchmark-columns=median,min,rounds -p no:cacheprovider
+
+Each benchmark stores ``n_dofs``, ``iterations`` and ``us_per_dof`` in
+``extra_info``.  A benchmark round is ``factorize`` + ``solve`` (setup
+included), except for "lagged", where the LU of a nearby matrix is built once
+outside the timing and each round is ``factorize`` (no new LU) + ``solve``.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")  # PARDISO (optional) on one thread too
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+import scipy.sparse as sp  # noqa: E402
+from skfem import (  # noqa: E402
+    Basis,
+    BilinearForm,
+    ElementTriP1,
+    ElementTriP1DG,
+    ElementTriP2,
+    ElementTriP2B,
+    ElementVector,
+    FacetBasis,
+    LinearForm,
+    MeshTri,
+)
+from skfem.helpers import ddot, div, dot, grad, mul  # noqa: E402
+
+from fluidem.fluid.solvers import (  # noqa: E402
+    BlockKrylovSolver,
+    DirectSolver,
+    LaggedLUSolver,
+)
+
+
+# ---------------------------------------------------------------- problems
+def _g(s):
+    return s**2 * (1 - s) ** 2
+
+
+def _g1(s):
+    return 2 * s * (1 - s) * (1 - 2 * s)
+
+
+def _g2(s):
+    return 2 * (1 - 6 * s + 6 * s**2)
+
+
+def _g3(s):
+    return 12 * (2 * s - 1)
+
+
+def wind(x):
+    """Divergence-free convecting field (curl of sin^2(pi x) sin^2(pi y)), (2, ...)."""
+    sx, sy = np.sin(np.pi * x[0]), np.sin(np.pi * x[1])
+    cx, cy = np.cos(np.pi * x[0]), np.cos(np.pi * x[1])
+    return np.array([2 * np.pi * sx**2 * sy * cy, -2 * np.pi * sx * cx * sy**2])
+
+
+def wind_gradient(x):
+    """Gradient of :func:`wind`, G[i, j] = d wind_i / d x_j, (2, 2, ...)."""
+    s2x, s2y = np.sin(2 * np.pi * x[0]), np.sin(2 * np.pi * x[1])
+    sx, sy = np.sin(np.pi * x[0]), np.sin(np.pi * x[1])
+    p2 = np.pi**2
+    return np.array([
+        [p2 * s2x * s2y, 2 * p2 * sx**2 * np.cos(2 * np.pi * x[1])],
+        [-2 * p2 * np.cos(2 * np.pi * x[0]) * sy**2, -p2 * s2x * s2y],
+    ])
+
+
+def saddle_point_problem(m, pair="p2b", nu=1.0, dt=None, peclet=0.0, alpha=1.0,
+                         outflow=True, newton=False):
+    """Condensed saddle-point system on an m x m unit-square grid.
+
+    Stokes with the manufactured solution u = curl(x^2(1-x)^2 y^2(1-y)^2),
+    p = x^3 + y^3 - 1/2.  ``outflow=True``: u = 0 on three sides and the
+    exact traction nu du/dn - p n on x = 1 (natural boundary, K non-singular);
+    ``outflow=False``: u = 0 on the whole boundary and one pressure DOF
+    pinned.  ``peclet > 0`` adds Oseen convection by ``peclet * wind``
+    (the load is then not that of the manufactured solution), ``newton=True``
+    also the Newton reaction term ((u . grad) wind) (a Navier--Stokes Jacobian
+    at the state ``peclet * wind``); ``dt`` adds
+    ``(alpha/dt) M_u`` to the velocity block.
+
+    Returns a dict with K (CSR), b, n_u, Mp, Mu (condensed), and the bases.
+    """
+    mesh = MeshTri.init_tensor(np.linspace(0, 1, m + 1), np.linspace(0, 1, m + 1))
+    eu = ElementVector(ElementTriP2B() if pair == "p2b" else ElementTriP2())
+    ep = ElementTriP1DG() if pair == "p2b" else ElementTriP1()
+    ub = Basis(mesh, eu, intorder=4)
+    pb = ub.with_element(ep)
+
+    @BilinearForm
+    def viscous(u, v, w):
+        return nu * ddot(grad(u), grad(v))
+
+    @BilinearForm
+    def convection(u, v, w):
+        return peclet * dot(mul(grad(u), wind(w.x)), v)
+
+    @BilinearForm
+    def reaction(u, v, w):
+        return peclet * dot(mul(wind_gradient(w.x), u), v)
+
+    @BilinearForm
+    def mass(u, v, w):
+        return dot(u, v)
+
+    @BilinearForm
+    def divergence(u, q, w):
+        return -div(u) * q
+
+    @BilinearForm
+    def pmass(p, q, w):
+        return p * q
+
+    @LinearForm
+    def load(v, w):
+        x, y = w.x
+        f1 = -nu * (_g2(x) * _g1(y) + _g(x) * _g3(y)) + 3 * x**2
+        f2 = nu * (_g3(x) * _g(y) + _g1(x) * _g2(y)) + 3 * y**2
+        return f1 * v[0] + f2 * v[1]
+
+    @LinearForm
+    def traction(v, w):
+        y = w.x[1]
+        return -(0.5 + y**3) * v[0] - 2 * nu * _g(y) * v[1]
+
+    A = viscous.assemble(ub)
+    Mu = mass.assemble(ub)
+    if peclet:
+        A = A + convection.assemble(ub)
+    if newton:
+        A = A + reaction.assemble(ub)
+    if dt is not None:
+        A = A + (alpha / dt) * Mu
+    B = divergence.assemble(ub, pb)
+    Mp = pmass.assemble(pb)
+    K = sp.bmat([[A, B.T], [B, None]], format="csr")
+    b = np.concatenate([load.assemble(ub), np.zeros(pb.N)])
+    if outflow:
+        right = mesh.facets_satisfying(lambda x: np.isclose(x[0], 1.0), boundaries_only=True)
+        b[: ub.N] += traction.assemble(FacetBasis(mesh, eu, facets=right, intorder=6))
+        walls = mesh.facets_satisfying(lambda x: ~np.isclose(x[0], 1.0), boundaries_only=True)
+        D = ub.get_dofs(walls).all()
+    else:
+        D = np.concatenate([ub.get_dofs().all(), [ub.N]])  # walls + pinned pressure DOF
+    interior = np.setdiff1d(np.arange(K.shape[0]), D)
+    iu = interior[interior < ub.N]
+    ip = interior[interior >= ub.N] - ub.N
+    return dict(
+        K=K[interior][:, interior].tocsr(),
+        b=b[interior],
+        n_u=iu.size,
+        Mp=Mp[ip][:, ip].tocsr(),
+        Mu=Mu[iu][:, iu].tocsr(),
+        ub=ub, pb=pb, iu=iu, ip=ip,
+        h=1.0 / m,
+    )
+
+
+# ---------------------------------------------------------------- cases
+# grid sizes giving about 10k, 50k and 200k DOFs for "p2b" (n = 18 m^2)
+SIZES = {"10k": 24, "50k": 53, "200k": 105}
+KINDS = {
+    "stokes": dict(),
+    "oseen": dict(peclet=20.0),
+    "newton": dict(peclet=20.0, newton=True),
+    # mass-dominated velocity block: nu dt / h^2 = 0.06 at 10k DOFs, 1.1 at 200k
+    "unsteady": dict(nu=1e-3, dt=1e-2, peclet=0.2),
+}
+_cache: dict = {}
+
+
+def _problem(kind, size):
+    key = (kind, size)
+    if key not in _cache:
+        _cache.clear()
+        _cache[key] = saddle_point_problem(SIZES[size], **KINDS[kind])
+    return _cache[key]
+
+
+def _iterative(kind, P):
+    kw = KINDS[kind]
+    return BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], nu=kw.get("nu", 1.0),
+                             dt=kw.get("dt"), velocity_mass=P["Mu"], rtol=1e-8)
+
+
+def _record(benchmark, P, solver):
+    info = solver.last_info
+    n = P["K"].shape[0]
+    median = benchmark.stats.stats.median
+    benchmark.extra_info.update(
+        n_dofs=n, iterations=info.iterations, relative_residual=info.relative_residual,
+        setup_s=info.setup_s, us_per_dof=median / n * 1e6)
+
+
+def _pardiso():
+    try:
+        import pypardiso  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+@pytest.mark.parametrize("size", list(SIZES))
+@pytest.mark.parametrize("kind", list(KINDS))
+@pytest.mark.parametrize("method", ["direct", "pardiso", "iterative", "lagged"])
+def test_solver(benchmark, method, kind, size):
+    if method == "pardiso" and not _pardiso():
+        pytest.skip("pypardiso is not installed")
+    P = _problem(kind, size)
+    K, b = P["K"], P["b"]
+    if method in ("direct", "pardiso"):
+        backend = "superlu" if method == "direct" else "pardiso"
+
+        def run():
+            s = DirectSolver(backend=backend).factorize(K)
+            s.solve(b)
+            return s
+    elif method == "iterative":
+        def run():
+            s = _iterative(kind, P)
+            s.factorize(K)
+            s.solve(b)
+            return s
+    else:
+        # LU of a nearby matrix (velocity block scaled by 1 %, as a few time steps ago)
+        n_u = P["n_u"]
+        scale = sp.diags(np.r_[np.full(n_u, 1.01), np.ones(K.shape[0] - n_u)])
+        lagged = LaggedLUSolver(max_iterations_before_refactor=10**6, rtol=1e-8)
+        lagged.factorize((scale @ K).tocsr())
+
+        def run():
+            lagged.factorize(K)
+            lagged.solve(b)
+            return lagged
+    rounds = 1 if size == "200k" else 3
+    s = benchmark.pedantic(run, rounds=rounds, iterations=1, warmup_rounds=0)
+    _record(benchmark, P, s)

@@ -1,0 +1,475 @@
+"""Tests of fluidem.fluid.solvers on Stokes, Oseen and unsteady systems built with scikit-fem.
+
+Manufactured Stokes solution on the unit square (nu = 1 unless stated):
+u = curl psi, psi = x^2 (1-x)^2 y^2 (1-y)^2, p = x^3 + y^3 - 1/2.
+"""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from skfem import (
+    Basis,
+    BilinearForm,
+    ElementTriP1,
+    ElementTriP1DG,
+    ElementTriP2,
+    ElementTriP2B,
+    ElementVector,
+    FacetBasis,
+    Functional,
+    LinearForm,
+    MeshTri,
+)
+from skfem.helpers import ddot, div, dot, grad, mul
+
+from fluidem.fluid import solvers
+from fluidem.fluid.solvers import (
+    AutoSolver,
+    BlockKrylovSolver,
+    DirectSolver,
+    LaggedLUSolver,
+    SolveInfo,
+    SolverError,
+    choose_method,
+    make_solver,
+)
+
+
+# ---------------------------------------------------------------- problem
+def _g(s):
+    return s**2 * (1 - s) ** 2
+
+
+def _g1(s):
+    return 2 * s * (1 - s) * (1 - 2 * s)
+
+
+def _g2(s):
+    return 2 * (1 - 6 * s + 6 * s**2)
+
+
+def _g3(s):
+    return 12 * (2 * s - 1)
+
+
+def exact_u(x):
+    return np.array([_g(x[0]) * _g1(x[1]), -_g1(x[0]) * _g(x[1])])
+
+
+def exact_p(x):
+    return x[0] ** 3 + x[1] ** 3 - 0.5
+
+
+def wind(x):
+    sx, sy = np.sin(np.pi * x[0]), np.sin(np.pi * x[1])
+    cx, cy = np.cos(np.pi * x[0]), np.cos(np.pi * x[1])
+    return np.array([2 * np.pi * sx**2 * sy * cy, -2 * np.pi * sx * cx * sy**2])
+
+
+def problem(m, pair="p2b", nu=1.0, dt=None, peclet=0.0, outflow=True):
+    """Condensed saddle-point system; see benchmarks/bench_solvers.py for the same builder."""
+    mesh = MeshTri.init_tensor(np.linspace(0, 1, m + 1), np.linspace(0, 1, m + 1))
+    eu = ElementVector(ElementTriP2B() if pair == "p2b" else ElementTriP2())
+    ep = ElementTriP1DG() if pair == "p2b" else ElementTriP1()
+    ub = Basis(mesh, eu, intorder=4)
+    pb = ub.with_element(ep)
+
+    @BilinearForm
+    def viscous(u, v, w):
+        return nu * ddot(grad(u), grad(v))
+
+    @BilinearForm
+    def convection(u, v, w):
+        return peclet * dot(mul(grad(u), wind(w.x)), v)
+
+    @BilinearForm
+    def mass(u, v, w):
+        return dot(u, v)
+
+    @BilinearForm
+    def divergence(u, q, w):
+        return -div(u) * q
+
+    @BilinearForm
+    def pmass(p, q, w):
+        return p * q
+
+    @LinearForm
+    def load(v, w):
+        x, y = w.x
+        f1 = -nu * (_g2(x) * _g1(y) + _g(x) * _g3(y)) + 3 * x**2
+        f2 = nu * (_g3(x) * _g(y) + _g1(x) * _g2(y)) + 3 * y**2
+        return f1 * v[0] + f2 * v[1]
+
+    @LinearForm
+    def traction(v, w):
+        y = w.x[1]
+        return -(0.5 + y**3) * v[0] - 2 * nu * _g(y) * v[1]
+
+    A = viscous.assemble(ub)
+    Mu = mass.assemble(ub)
+    if peclet:
+        A = A + convection.assemble(ub)
+    if dt is not None:
+        A = A + Mu / dt
+    B = divergence.assemble(ub, pb)
+    Mp = pmass.assemble(pb)
+    K = sp.bmat([[A, B.T], [B, None]], format="csr")
+    b = np.concatenate([load.assemble(ub), np.zeros(pb.N)])
+    if outflow:
+        right = mesh.facets_satisfying(lambda x: np.isclose(x[0], 1.0), boundaries_only=True)
+        b[: ub.N] += traction.assemble(FacetBasis(mesh, eu, facets=right, intorder=6))
+        walls = mesh.facets_satisfying(lambda x: ~np.isclose(x[0], 1.0), boundaries_only=True)
+        D = ub.get_dofs(walls).all()
+    else:
+        D = np.concatenate([ub.get_dofs().all(), [ub.N]])  # walls + pinned pressure DOF
+    interior = np.setdiff1d(np.arange(K.shape[0]), D)
+    iu = interior[interior < ub.N]
+    ip = interior[interior >= ub.N] - ub.N
+    return dict(K=K[interior][:, interior].tocsr(), b=b[interior], n_u=iu.size,
+                Mp=Mp[ip][:, ip].tocsr(), Mu=Mu[iu][:, iu].tocsr(),
+                ub=ub, pb=pb, iu=iu, ip=ip, Mp_full=Mp)
+
+
+def l2_errors(P, x):
+    """L2 errors of velocity and of pressure (mean removed) against the exact solution."""
+    ub, pb = P["ub"], P["pb"]
+    u = np.zeros(ub.N)
+    u[P["iu"]] = x[: P["n_u"]]
+    p = np.zeros(pb.N)
+    p[P["ip"]] = x[P["n_u"]:]
+
+    @Functional
+    def eu(w):
+        e = w["uh"] - exact_u(w.x)
+        return dot(e, e)
+
+    @Functional
+    def mean_p(w):
+        return w["ph"]
+
+    @Functional
+    def ep(w):
+        e = w["ph"] - w["c"] - exact_p(w.x)
+        return e * e
+
+    ph = pb.interpolate(p)
+    c = mean_p.assemble(pb, ph=ph)  # unit square: mean = integral
+    return (np.sqrt(eu.assemble(ub, uh=ub.interpolate(u))),
+            np.sqrt(ep.assemble(pb, ph=ph, c=c)))
+
+
+def relres(K, x, b):
+    return np.linalg.norm(b - K @ x) / np.linalg.norm(b)
+
+
+def reldiff(x, y):
+    return np.linalg.norm(x - y) / np.linalg.norm(y)
+
+
+@pytest.fixture(scope="module")
+def stokes_p2b():
+    return problem(10)
+
+
+# ---------------------------------------------------------------- direct
+def test_direct_converges_to_manufactured_solution():
+    """P2+bubble/P1-disc: velocity L2 error O(h^3), pressure O(h^2)."""
+    errs = []
+    for m in (4, 8):
+        P = problem(m)
+        x = DirectSolver().factorize(P["K"]).solve(P["b"])
+        errs.append(l2_errors(P, x))
+    (eu4, ep4), (eu8, ep8) = errs
+    assert eu8 < 1e-4 and ep8 < 1e-2
+    assert eu4 / eu8 > 6.0  # rate > 2.6
+    assert ep4 / ep8 > 2.5  # rate > 1.3 (pre-asymptotic for P1-disc pressure)
+
+
+def test_direct_info_and_refactorize(stokes_p2b):
+    P = stokes_p2b
+    s = DirectSolver().factorize(P["K"])
+    x = s.solve(P["b"])
+    info = s.last_info
+    assert isinstance(info, SolveInfo)
+    assert info.method == "superlu" and info.iterations == 0
+    assert info.relative_residual < 1e-12
+    assert "superlu" in str(info) and "relative_residual" in str(info)
+    assert s.refactorize_if_changed(P["K"].copy()) is False
+    assert s.factorizations == 1
+    assert s.refactorize_if_changed(P["K"] * 2.0) is True
+    assert s.factorizations == 2
+    np.testing.assert_allclose(s.solve(2.0 * P["b"]), x, rtol=1e-10, atol=1e-14)
+    # multiple right-hand sides
+    X = s.solve(np.column_stack([P["b"], P["b"]]))
+    assert X.shape == (P["K"].shape[0], 2)
+
+
+def test_direct_as_preconditioner_one_iteration(stokes_p2b):
+    P = stokes_p2b
+    M = DirectSolver().factorize(P["K"]).as_preconditioner()
+    count = []
+    x, info = spla.gmres(P["K"], P["b"], M=M, rtol=1e-10, callback=count.append,
+                         callback_type="pr_norm")
+    assert info == 0 and len(count) <= 2
+
+
+def test_singular_enclosed_flow_raises_and_pinning_fixes_it():
+    """All-Dirichlet velocity: K is singular unless one pressure DOF is pinned."""
+    P = problem(6, outflow=False)  # one pressure DOF condensed out (pinned)
+    x = DirectSolver().factorize(P["K"]).solve(P["b"])
+    eu, ep = l2_errors(P, x)
+    assert eu < 1e-3 and ep < 5e-2
+    K = _unpinned_enclosed(6)
+    b = np.random.default_rng(0).standard_normal(K.shape[0])
+    with pytest.raises(SolverError, match="pin one pressure DOF"):
+        DirectSolver().factorize(K).solve(b)
+
+
+def _unpinned_enclosed(m):
+    mesh = MeshTri.init_tensor(np.linspace(0, 1, m + 1), np.linspace(0, 1, m + 1))
+    ub = Basis(mesh, ElementVector(ElementTriP2B()), intorder=4)
+    pb = ub.with_element(ElementTriP1DG())
+
+    @BilinearForm
+    def viscous(u, v, w):
+        return ddot(grad(u), grad(v))
+
+    @BilinearForm
+    def divergence(u, q, w):
+        return -div(u) * q
+
+    K = sp.bmat([[viscous.assemble(ub), divergence.assemble(ub, pb).T],
+                 [divergence.assemble(ub, pb), None]], format="csr")
+    interior = np.setdiff1d(np.arange(K.shape[0]), ub.get_dofs().all())
+    return K[interior][:, interior].tocsr()
+
+
+# ---------------------------------------------------------------- iterative
+CASES = {
+    "stokes-p2b": (dict(pair="p2b"), dict()),
+    "stokes-th": (dict(pair="th"), dict()),
+    "oseen-p2b": (dict(pair="p2b", peclet=10.0), dict()),
+    "oseen-lsc-th": (dict(pair="th", peclet=10.0), dict(schur="lsc")),
+    "unsteady-p2b": (dict(pair="p2b", nu=1e-3, dt=1e-2, peclet=0.2),
+                     dict(nu=1e-3, dt=1e-2, schur="cahouet-chabard")),
+    "unsteady-th": (dict(pair="th", nu=1e-3, dt=1e-2, peclet=0.2),
+                    dict(nu=1e-3, dt=1e-2, schur="cahouet-chabard")),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_iterative_agrees_with_direct(case):
+    pkw, skw = CASES[case]
+    P = problem(10, **pkw)
+    K, b = P["K"], P["b"]
+    x_direct = DirectSolver().factorize(K).solve(b)
+    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], velocity_mass=P["Mu"],
+                          rtol=1e-10, **skw).factorize(K)
+    x = s.solve(b)
+    info = s.last_info
+    assert info.relative_residual <= 1e-10
+    assert relres(K, x, b) <= 1e-10
+    assert 0 < info.iterations < 200
+    assert info.residuals[0] == pytest.approx(1.0)
+    # agreement of the fields: residual 1e-10 times a moderate condition number
+    assert reldiff(x, x_direct) < 1e-7
+    n_u = P["n_u"]
+    assert reldiff(x[n_u:], x_direct[n_u:]) < 1e-7
+
+
+def test_iterative_matches_manufactured_solution():
+    P = problem(8)
+    x = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], rtol=1e-10).factorize(P["K"]).solve(P["b"])
+    x_direct = DirectSolver().factorize(P["K"]).solve(P["b"])
+    e_it, e_dir = l2_errors(P, x), l2_errors(P, x_direct)
+    np.testing.assert_allclose(e_it, e_dir, rtol=1e-5)
+
+
+@pytest.mark.parametrize("mass_solve", ["exact", "diag"])
+def test_minres_block_diagonal_stokes(stokes_p2b, mass_solve):
+    P = stokes_p2b
+    x_direct = DirectSolver().factorize(P["K"]).solve(P["b"])
+    s = BlockKrylovSolver(P["n_u"], schur="mass", pressure_mass=P["Mp"], krylov="minres",
+                          mass_solve=mass_solve, rtol=1e-10).factorize(P["K"])
+    x = s.solve(P["b"])
+    assert s.last_info.method.startswith("minres")
+    assert relres(P["K"], x, P["b"]) <= 1e-10
+    assert reldiff(x, x_direct) < 1e-7
+
+
+def test_minres_rejects_nonsymmetric():
+    P = problem(4, peclet=5.0)
+    with pytest.raises(ValueError, match="symmetric"):
+        BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], krylov="minres").factorize(P["K"])
+
+
+def test_cahouet_chabard_beats_mass_for_small_time_step():
+    P = problem(10, nu=1e-3, dt=1e-2)
+    its = {}
+    for schur in ("cahouet-chabard", "mass"):
+        s = BlockKrylovSolver(P["n_u"], schur=schur, pressure_mass=P["Mp"], nu=1e-3, dt=1e-2,
+                              velocity_mass=P["Mu"], rtol=1e-8, maxiter=400)
+        try:
+            s.factorize(P["K"]).solve(P["b"])
+        except SolverError:
+            pass
+        its[schur] = s.last_info.iterations
+    assert its["cahouet-chabard"] < 60
+    assert its["mass"] > 2 * its["cahouet-chabard"]
+
+
+def test_cahouet_chabard_without_velocity_mass():
+    """D_u = diag(A) when no velocity mass matrix is given."""
+    P = problem(8, nu=1e-3, dt=1e-2)
+    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], nu=1e-3, dt=1e-2, rtol=1e-10)
+    assert s.schur == "cahouet-chabard"
+    x = s.factorize(P["K"]).solve(P["b"])
+    assert relres(P["K"], x, P["b"]) <= 1e-10 and s.last_info.iterations < 100
+
+
+# ---------------------------------------------------------------- failures
+def test_maxiter_raises_solver_error(stokes_p2b):
+    P = stokes_p2b
+    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], rtol=1e-10, maxiter=2)
+    s.factorize(P["K"])
+    with pytest.raises(SolverError, match="maxiter=2") as err:
+        s.solve(P["b"])
+    info = err.value.info
+    assert info.iterations == 2 and info.relative_residual > 1e-10
+    assert "relative residual history" in str(err.value)
+    assert s.last_info is info
+
+
+def test_stagnation_raises_solver_error(stokes_p2b):
+    """A useless preconditioner (Schur part off by 1e8) with short restarts stagnates."""
+    P = stokes_p2b
+    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"] * 1e8, rtol=1e-10, restart=2,
+                          maxiter=10_000, stagnation=0.9)
+    s.factorize(P["K"])
+    with pytest.raises(SolverError, match="stagnation"):
+        s.solve(P["b"])
+    assert s.last_info.iterations < 10_000
+
+
+def test_minres_maxiter_raises(stokes_p2b):
+    P = stokes_p2b
+    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], krylov="minres", maxiter=3)
+    with pytest.raises(SolverError):
+        s.factorize(P["K"]).solve(P["b"])
+
+
+def test_bad_options():
+    with pytest.raises(ValueError, match="dt"):
+        BlockKrylovSolver(10, schur="cahouet-chabard", pressure_mass=sp.eye(2))
+    with pytest.raises(ValueError, match="pressure_mass"):
+        BlockKrylovSolver(10, schur="mass")
+    with pytest.raises(ValueError, match="unknown schur"):
+        BlockKrylovSolver(10, schur="pcd")
+    with pytest.raises(ValueError, match="MMD_AT_PLUS_A"):
+        DirectSolver(permc_spec="MMD_AT_PLUS_A")
+
+
+# ---------------------------------------------------------------- reuse
+def test_amg_reuse(stokes_p2b):
+    P = stokes_p2b
+    K = P["K"]
+    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], rtol=1e-10).factorize(K)
+    ml = s._ml_A
+    s.factorize(K.copy())
+    assert s._ml_A is ml and s.solve(P["b"]) is not None and s.last_info.reused_setup
+    s.factorize(K * 1.01)  # values changed: rebuilt with reuse="values"
+    assert s._ml_A is not ml
+    lagged = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], rtol=1e-10,
+                               reuse="structure").factorize(K)
+    ml = lagged._ml_A
+    x = lagged.factorize(K * 1.01).solve(P["b"])
+    assert lagged._ml_A is ml and lagged.last_info.reused_setup
+    assert relres(K * 1.01, x, P["b"]) <= 1e-10
+    lagged.factorize(K * 1.01, rebuild=True)
+    assert lagged._ml_A is not ml
+
+
+def test_lagged_lu_solves_perturbed_matrix_in_few_iterations():
+    """LU of the unsteady matrix at dt preconditions the one at 1.05 dt and a changed wind."""
+    P0 = problem(10, nu=1e-3, dt=1e-2, peclet=0.2)
+    P1 = problem(10, nu=1e-3, dt=1.05e-2, peclet=0.25)
+    s = LaggedLUSolver(max_iterations_before_refactor=8, rtol=1e-10)
+    x0 = s.factorize(P0["K"]).solve(P0["b"])
+    assert s.last_info.iterations == 0 and s.factorizations == 1
+    x1 = s.factorize(P1["K"]).solve(P1["b"])
+    info = s.last_info
+    assert s.factorizations == 1
+    assert 1 <= info.iterations <= 8
+    assert relres(P1["K"], x1, P1["b"]) <= 1e-10
+    assert reldiff(x1, DirectSolver().factorize(P1["K"]).solve(P1["b"])) < 1e-8
+    assert not np.allclose(x0, x1)
+    # a tight threshold makes the next factorize refactorise
+    s.max_iterations_before_refactor = 0
+    s.factorize(P1["K"]).solve(P1["b"])
+    assert "refactorization due" in s.last_info.note
+    s.factorize(P1["K"])
+    assert s.factorizations == 2
+    s.solve(P1["b"])
+    assert s.last_info.iterations == 0
+    assert s.solves == 4 and s.total_iterations >= 2
+
+
+def test_lagged_lu_falls_back_to_fresh_lu():
+    P0 = problem(6)
+    K1 = P0["K"].copy()  # very different values, same pattern
+    K1.data *= np.random.default_rng(0).uniform(0.5, 1.5, K1.nnz)
+    s = LaggedLUSolver(rtol=1e-10, maxiter=3)
+    s.factorize(P0["K"])
+    x = s.factorize(K1).solve(P0["b"])
+    assert s.factorizations == 2 and "refactorized" in s.last_info.note
+    assert relres(K1, x, P0["b"]) <= 1e-10
+
+
+# ---------------------------------------------------------------- choice
+def test_make_solver_registry(stokes_p2b):
+    P = stokes_p2b
+    assert isinstance(make_solver("direct"), DirectSolver)
+    assert isinstance(make_solver("lagged"), LaggedLUSolver)
+    assert isinstance(make_solver("iterative", n_u=P["n_u"], pressure_mass=P["Mp"]),
+                      BlockKrylovSolver)
+    with pytest.raises(ValueError, match="unknown solver 'umfpack'"):
+        make_solver("umfpack")
+    with pytest.raises(ValueError, match="n_u"):
+        make_solver("iterative")
+
+
+def test_auto_choice_by_size(stokes_p2b, monkeypatch):
+    P = stokes_p2b
+    s = make_solver("auto", n_u=P["n_u"], pressure_mass=P["Mp"], rtol=1e-10)
+    assert isinstance(s, AutoSolver)
+    x = s.factorize(P["K"]).solve(P["b"])
+    assert s.chosen == "direct" and s.last_info.method == "superlu"
+    monkeypatch.setattr(solvers, "DIRECT_MAX_DOFS", 100)
+    y = s.factorize(P["K"]).solve(P["b"])
+    assert s.chosen == "iterative" and s.last_info.iterations > 0
+    assert reldiff(y, x) < 1e-7
+    assert "DOFs" in s.reason
+    # without n_u the iterative path is impossible: stays direct
+    t = make_solver("auto").factorize(P["K"])
+    assert t.chosen == "direct"
+
+
+def test_choose_method_thresholds():
+    small, big = 1000, 10**7
+    assert choose_method(small)[0] == "direct"
+    assert choose_method(big)[0] == "iterative"
+    assert choose_method(big, convective=True)[0] == "iterative"
+    between = (solvers.DIRECT_MAX_DOFS + solvers.DIRECT_MAX_DOFS_CONVECTIVE) // 2
+    assert choose_method(between)[0] == "iterative"
+    assert choose_method(between, convective=True)[0] == "direct"
+    assert choose_method(between, convective=True, dt=0.01)[0] == "iterative"
+
+
+@pytest.mark.skipif(not solvers._pardiso_available(), reason="pypardiso not installed")
+def test_pardiso_backend_agrees(stokes_p2b):
+    P = stokes_p2b
+    x = DirectSolver(backend="pardiso").factorize(P["K"]).solve(P["b"])
+    y = DirectSolver().factorize(P["K"]).solve(P["b"])
+    assert reldiff(x, y) < 1e-9
