@@ -253,7 +253,7 @@ def grid_pairs(centers: np.ndarray, radii: np.ndarray, cell: float, movable: np.
 # narrow phase: vectorised convex clipping
 # ---------------------------------------------------------------------------------------
 def clip_convex(subj: np.ndarray, n_subj: np.ndarray, edge_a: np.ndarray, edge_d: np.ndarray,
-                capacity: int):
+                capacity: int, n_edges: np.ndarray | None = None):
     """Clip convex polygons by half-planes (Sutherland–Hodgman), vectorised over rows.
 
     Parameters
@@ -264,9 +264,13 @@ def clip_convex(subj: np.ndarray, n_subj: np.ndarray, edge_a: np.ndarray, edge_d
         Vertex counts.
     edge_a, edge_d : (P, K, 2) float
         Clip edges: start point and direction; the kept side is the left one
-        (``cross(d, x − a) ≥ 0``).  A zero direction keeps everything (padding).
+        (``cross(d, x − a) ≥ 0``).
     capacity : int
         Width of the work arrays, ≥ ``W0`` + ``K``.
+    n_edges : (P,) int, optional
+        Number of clip edges used per row (the first ones); default all ``K``.  Edge
+        ``k`` touches only the rows with ``n_edges > k``, so rows cut by few edges cost
+        little.
 
     Returns
     -------
@@ -279,48 +283,69 @@ def clip_convex(subj: np.ndarray, n_subj: np.ndarray, edge_a: np.ndarray, edge_d
         the intersection points of the two outlines.
     """
     P, W0, _ = subj.shape
+    K = edge_a.shape[1]
     W = capacity
-    S = np.zeros((P, W, 2))
-    S[:, :W0] = subj
+    # x and y in separate contiguous arrays: numpy is much faster on them than on (..., 2)
+    SX = np.empty((P, W))
+    SY = np.empty((P, W))
+    SX[:, :W0], SY[:, :W0] = subj[..., 0], subj[..., 1]
+    SX[:, W0:], SY[:, W0:] = subj[:, :1, 0], subj[:, :1, 1]
     n = n_subj.astype(np.int64).copy()
     on_subj = np.ones((P, W), bool)     # edge following the vertex lies on the subject outline
     cross = np.zeros((P, W), bool)
-    m = np.arange(W)
-    rows = np.arange(P)[:, None]
-    for k in range(edge_a.shape[1]):
-        a = edge_a[:, k, None, :]
-        e = edge_d[:, k, None, :]
-        d = e[..., 0] * (S[..., 1] - a[..., 1]) - e[..., 1] * (S[..., 0] - a[..., 0])
-        valid = m < n[:, None]
-        nxt = np.where(m + 1 < n[:, None], m + 1, 0)
-        dn = d[rows, nxt]
-        Sn = S[rows, nxt]
-        ins = d >= 0.0
-        insn = dn >= 0.0
-        keep0 = valid & ins
-        keep1 = valid & (ins != insn)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            t = np.where(keep1, d / np.where(keep1, d - dn, 1.0), 0.0)
-        X = S + t[..., None] * (Sn - S)
-        # interleave: slot 2m = vertex m, slot 2m+1 = crossing on edge m
-        keep = np.stack([keep0, keep1], axis=2).reshape(P, 2 * W)
-        val = np.stack([S, X], axis=2).reshape(P, 2 * W, 2)
-        lab = np.stack([on_subj, np.where(ins, False, on_subj)], axis=2).reshape(P, 2 * W)
-        crs = np.stack([cross, on_subj], axis=2).reshape(P, 2 * W)
-        idx = np.cumsum(keep, axis=1) - 1
-        n = keep.sum(axis=1)
-        r, c = np.nonzero(keep)
-        dst = idx[r, c]
-        S = np.zeros((P, W, 2))
-        S[r, dst] = val[r, c]
-        on_subj = np.zeros((P, W), bool)
-        on_subj[r, dst] = lab[r, c]
-        cross = np.zeros((P, W), bool)
-        cross[r, dst] = crs[r, c]
-    valid = m < n[:, None]
-    S = np.where(valid[..., None], S, S[:, :1, :])
+    q = np.arange(W)[None, :]
+    if n_edges is None:
+        n_edges = np.full(P, K)
+    for k in range(K):
+        rows = np.flatnonzero(n_edges > k)
+        if len(rows) == 0:
+            break
+        X, Y, nr = SX[rows], SY[rows], n[rows]
+        ax, ay = edge_a[rows, k, 0][:, None], edge_a[rows, k, 1][:, None]
+        ex, ey = edge_d[rows, k, 0][:, None], edge_d[rows, k, 1][:, None]
+        d = ex * (Y - ay) - ey * (X - ax)
+        valid = q < nr[:, None]
+        ins = (d >= 0.0) & valid
+        r = ins.sum(axis=1)
+        part = (r < nr) & (r > 0)       # rows the edge really cuts
+        n[rows[r == 0]] = 0
+        if not part.any():
+            continue
+        rows, X, Y, d, ins, r, nr = (v[part] for v in (rows, X, Y, d, ins, r, nr))
+        lab, cr = on_subj[rows], cross[rows]
+        Pr = len(rows)
+        ar = np.arange(Pr)
+        nc = nr[:, None]
+        prev = np.where(q == 0, nc - 1, q - 1)
+        prev = np.where(prev < nc, prev, 0)
+        start = ins & ~np.take_along_axis(ins, prev, axis=1)
+        s0 = np.argmax(start, axis=1)   # first vertex of the (single, convex) inside run
+        e0 = (s0 + r - 1) % nr          # last inside vertex; edge e0 leaves the half-plane
+        e1 = (e0 + 1) % nr
+        p0 = (s0 - 1) % nr              # outside vertex; edge p0 enters the half-plane
+        t_out = d[ar, e0] / (d[ar, e0] - d[ar, e1])
+        t_in = d[ar, p0] / (d[ar, p0] - d[ar, s0])
+        xo = X[ar, e0] + t_out * (X[ar, e1] - X[ar, e0])
+        yo = Y[ar, e0] + t_out * (Y[ar, e1] - Y[ar, e0])
+        xi = X[ar, p0] + t_in * (X[ar, s0] - X[ar, p0])
+        yi = Y[ar, p0] + t_in * (Y[ar, s0] - Y[ar, p0])
+        g = (s0[:, None] + q) % nc
+        rc = r[:, None]
+        run, at_out = q < rc, q == rc
+        SX[rows] = np.where(run, np.take_along_axis(X, g, axis=1),
+                            np.where(at_out, xo[:, None], xi[:, None]))
+        SY[rows] = np.where(run, np.take_along_axis(Y, g, axis=1),
+                            np.where(at_out, yo[:, None], yi[:, None]))
+        lab_p0 = lab[ar, p0][:, None]
+        on_subj[rows] = np.where(run, np.take_along_axis(lab, g, axis=1), ~at_out & lab_p0)
+        cross[rows] = np.where(run, np.take_along_axis(cr, g, axis=1),
+                               np.where(at_out, lab[ar, e0][:, None], lab_p0))
+        n[rows] = r + 2
+    valid = q < n[:, None]
+    SX = np.where(valid, SX, SX[:, :1])
+    SY = np.where(valid, SY, SY[:, :1])
     cross &= valid
-    return S, n, cross
+    return np.stack([SX, SY], axis=-1), n, cross
 
 
 def _polygon_area_centroid(S: np.ndarray):
@@ -354,6 +379,40 @@ def _crossing_points(S: np.ndarray, cross: np.ndarray):
     return p1, p2, cnt
 
 
+_ONES8 = np.frombuffer(b"\x01" * 8, dtype=np.uint64)[0]
+
+
+def _words(b: np.ndarray):
+    """View a C-contiguous bool array whose last axis is a multiple of 8 as uint64 words."""
+    if b.shape[-1] % 8 or not b.flags.c_contiguous:
+        return None
+    return b.view(np.uint64)
+
+
+def _any_last(b: np.ndarray) -> np.ndarray:
+    """``b.any(axis=-1)`` for bool arrays, 8 entries at a time (numpy's bool reduce is slow)."""
+    w = _words(b)
+    if w is None:
+        return b.any(axis=-1)
+    return (w != 0).any(axis=-1) if w.shape[-1] > 1 else w[..., 0] != 0
+
+
+def _all_last(b: np.ndarray) -> np.ndarray:
+    """``b.all(axis=-1)`` for bool arrays, 8 entries at a time."""
+    w = _words(b)
+    if w is None:
+        return b.all(axis=-1)
+    return (w == _ONES8).all(axis=-1) if w.shape[-1] > 1 else w[..., 0] == _ONES8
+
+
+def _any_middle(b: np.ndarray) -> np.ndarray:
+    """``b.any(axis=1)`` for a bool (P, K, M) array, OR-ing 8 entries at a time."""
+    w = _words(b)
+    if w is None:
+        return b.any(axis=1)
+    return np.bitwise_or.reduce(w, axis=1).view(np.uint8).reshape(b.shape[0], -1) != 0
+
+
 def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.ndarray,
                      j: np.ndarray):
     """Overlap geometry of convex polygon pairs.
@@ -361,7 +420,7 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
     Parameters
     ----------
     verts : (N, K, 2) float
-        World vertices, padded by repeating the last one; ``nv`` valid per body.
+        World vertices, padded by repeating the first one; ``nv`` valid per body.
     nv : (N,) int
     pos : (N, 2) float
         Centres of mass (coordinates are taken relative to ``pos[i]``).
@@ -374,15 +433,46 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
     ``centroid`` (m, world), ``p1``, ``p2`` (intersection points, world), ``ncross``.
     """
     K = verts.shape[1]
+    # per body, in contiguous x / y arrays; edge k runs from vertex k to vertex k+1
+    # (cyclic over the padded width: padding repeats vertex 0, so padded edges vanish)
+    VX = np.ascontiguousarray(verts[..., 0])
+    VY = np.ascontiguousarray(verts[..., 1])
+    EX = np.roll(VX, -1, axis=1) - VX
+    EY = np.roll(VY, -1, axis=1) - VY
+    px, py = pos[i, 0][:, None], pos[i, 1][:, None]
+    AX, AY = VX[i] - px, VY[i] - py                  # relative to the centre of i
+    BX, BY = VX[j] - px, VY[j] - py
+    DXa, DYa, DXb, DYb = EX[i], EY[i], EX[j], EY[j]
+    # side of every vertex of A for every edge of B: (P, K_B, K_A); an edge of B with all
+    # of A outside separates the pair, an edge with all of A inside does not cut it
+    cb = (DXb * BY - DYb * BX)[..., None]
+    outside = (DXb[..., None] * AY[:, None, :] - DYb[..., None] * AX[:, None, :]) < cb
+    cuts = _any_last(outside)
+    separated = _all_last(outside).any(axis=1)
+    # side of every vertex of B for every edge of A: (P, K_A, K_B)
+    ca = (DXa * AY - DYa * AX)[..., None]
+    out2 = (DXa[..., None] * BY[:, None, :] - DYa[..., None] * BX[:, None, :]) < ca
+    separated |= _all_last(out2).any(axis=1)
+    # only edges of B whose segment meets A bound A ∩ B (if a point of A outside B
+    # existed with all those half-planes kept, the segment from it to A ∩ B would leave B
+    # through an edge meeting A); a segment misses A when both ends lie beyond one edge
+    # of A (separating axis test of a segment against a convex polygon)
+    both_out = out2 & np.roll(out2, -1, axis=2)
+    cuts &= ~_any_middle(both_out)
+    keep = ~separated
+    if not np.all(keep):
+        i, j, AX, AY, BX, BY, DXb, DYb, cuts = (
+            v[keep] for v in (i, j, AX, AY, BX, BY, DXb, DYb, cuts))
+    nA = nv[i]
+    n_cut = cuts.sum(axis=1)
+    order = np.argsort(~cuts, axis=1, kind="stable")
+    kc = max(int(n_cut.max()) if len(n_cut) else 0, 1)
+    order = order[:, :kc]
+    Bc = np.stack([np.take_along_axis(BX, order, axis=1), np.take_along_axis(BY, order, axis=1)], -1)
+    Dc = np.stack([np.take_along_axis(DXb, order, axis=1), np.take_along_axis(DYb, order, axis=1)], -1)
+    A_sub = np.stack([AX, AY], axis=-1)
     o = pos[i][:, None, :]
-    A_sub = verts[i] - o
-    B = verts[j] - o
-    nB = nv[j][:, None]
-    k = np.arange(K)[None, :]
-    nxt = np.where(k + 1 < nB, k + 1, 0)
-    Bn = np.take_along_axis(B, nxt[..., None], axis=1)
-    D = np.where((k < nB)[..., None], Bn - B, 0.0)
-    S, cnt, cross = clip_convex(A_sub, nv[i], B, D, 2 * K)
+    S, cnt, cross = clip_convex(A_sub, nA, Bc, Dc, K + kc, n_cut)
     A, cen = _polygon_area_centroid(S)
     p1, p2, ncross = _crossing_points(S, cross)
     ok = (cnt >= 3) & (A > 0)

@@ -61,11 +61,12 @@ class StepCost:
 
 def _pad_vertices(bodies) -> tuple[np.ndarray, np.ndarray]:
     nv = np.array([len(b.vertices) for b in bodies], dtype=np.int64)
-    K = int(nv.max()) if len(nv) else 3
+    # width a multiple of 8: the narrow phase reduces boolean rows 8 at a time
+    K = 8 * int(np.ceil((nv.max() if len(nv) else 3) / 8))
     V = np.zeros((len(bodies), K, 2))
     for k, b in enumerate(bodies):
         V[k, : nv[k]] = b.vertices
-        V[k, nv[k]:] = b.vertices[-1]
+        V[k, nv[k]:] = b.vertices[0]
     return V, nv
 
 
@@ -240,7 +241,7 @@ class DEM:
         return self.gear.X[1][:, 2]
 
     def world_vertices(self, x=None) -> np.ndarray:
-        """World outlines, (N, K, 2) padded by repeating each body's last vertex, m."""
+        """World outlines, (N, K, 2) padded by repeating each body's first vertex, m."""
         x = self.gear.X[0] if x is None else x
         c, s = np.cos(x[:, 2])[:, None], np.sin(x[:, 2])[:, None]
         V = self._V
