@@ -9,8 +9,8 @@ Reference values: 2D-1 from Nabh (1998) / the FeatFlow benchmark page; 2D-2 from
 Q2/P1disc level-6 series; 2D-3 from John (2004), *Int. J. Numer. Meth. Fluids* 44, 777–788:
 c_D,max = 2.950921575, c_L,max = 0.47795, Δp(t = 8) = −0.1116.
 
-Mesh levels: the cylinder outline and the cells next to it have size h₀ = 0.02 / 2^level,
-cells grow by a factor 1.15 per cell away from the cylinder up to h_max = 0.08 / 2^level
+Mesh levels: the cylinder outline and the cells next to it have size h₀ = 0.025 / 2^level,
+cells grow by a factor 1.15 per cell away from the cylinder up to h_max = 0.16 / 2^level
 (paper Sec. 2.3); every level halves the cell size.
 """
 
@@ -45,14 +45,18 @@ def _check_level(level):
     return int(level)
 
 
-def dfg_mesh(level: int = 1, curved: bool = True, growth: float = 1.15):
-    """Graded mesh of the DFG channel at ``level`` (each level halves the cell size)."""
+def dfg_mesh(level: int = 1, curved: bool = True, growth: float = 1.15, h0: float = 0.025, h_max: float = 0.16):
+    """Graded mesh of the DFG channel at ``level`` (each level halves the cell size).
+
+    ``h0`` and ``h_max`` are the level-0 sizes at the cylinder and far away; ``growth`` is
+    the size ratio of neighbouring cells.
+    """
     level = _check_level(level)
-    h0 = 0.02 / 2**level
-    n_seg = max(16, int(np.ceil(np.pi * D / h0)))
+    h0 = h0 / 2**level
+    n_seg = max(16, 2 * int(np.ceil(np.pi * D / h0 / 2)))  # even: (0.15, 0.2) and (0.25, 0.2) are vertices
     cyl = Obstacle(regular_polygon(D / 2, n_seg) + np.array(CENTER), "cylinder", circle=(*CENTER, D / 2),
                    refine_outline=False)
-    size = GradedSize(h_min=h0, growth=growth, h_max=0.08 / 2**level, region=[cyl.vertices])
+    size = GradedSize(h_min=h0, growth=growth, h_max=h_max / 2**level, region=[cyl.vertices])
     return to_skfem(triangulate_box((0.0, L, 0.0, H), [cyl], size), curved=curved)
 
 

@@ -36,8 +36,6 @@ class _LoadVectors:
         self.rot = space.rigid_test_vector(boundary, "rot", center)
 
 
-_cache: dict = {}
-
 
 def body_loads(space: FlowSpace, residual: np.ndarray, boundary: str, rho: float = 1.0,
                center=(0.0, 0.0)) -> BodyLoad:
@@ -53,10 +51,11 @@ def body_loads(space: FlowSpace, residual: np.ndarray, boundary: str, rho: float
     center : (2,)
         Reference point of the torque.
     """
-    key = (id(space), boundary, tuple(center))
-    if key not in _cache:
-        _cache[key] = _LoadVectors(space, boundary, center)
-    lv = _cache[key]
+    cache = space.__dict__.setdefault("_load_vectors", {})
+    key = (boundary, tuple(map(float, center)))
+    if key not in cache:
+        cache[key] = _LoadVectors(space, boundary, center)
+    lv = cache[key]
     ru = residual[: space.n_u]
     return BodyLoad(-rho * float(lv.ex @ ru), -rho * float(lv.ey @ ru), -rho * float(lv.rot @ ru))
 

@@ -156,7 +156,7 @@ class FlowSpace:
         ncomp = 1 if field == "pressure" else 2
         for k in range(basis.Nbfun):
             phi = basis.elem.gbasis(basis.mapping, refs[:, :, None], k, tind=cells)[0]
-            val = np.asarray(phi.value)[..., 0]  # (ncomp, m) or (m,)
+            val = np.asarray(phi)[..., 0]  # (ncomp, m) or (m,)
             val = val.reshape(ncomp, -1)
             for c in range(ncomp):
                 rows.append(owners * ncomp + c)
@@ -190,12 +190,22 @@ def _locate(mesh, pts, k_near: int = 12, tol: float = 1e-9):
     Y = (-d1[1] * r[0] + d1[0] * r[1]) / det
     inside = (X >= -tol) & (Y >= -tol) & (X + Y <= 1 + tol)
     missing = np.setdiff1d(np.arange(len(pts)), owner[inside])
+    curved = isinstance(mesh, MeshTri2)
+    if len(missing) and curved:
+        # a point between a curved edge and its chord: invert the isoparametric map of the
+        # candidates (scikit-fem's Newton iteration) and keep those that map back onto it
+        sel = np.flatnonzero(np.isin(owner, missing))
+        mapping = mesh._mapping()
+        Xr = mapping.invF(pts[owner[sel]].T[:, :, None], tind=cc[sel], newton_max_iters=100, newton_tol=1e-13)
+        back = mapping.F(Xr, tind=cc[sel])[:, :, 0]
+        ok = np.linalg.norm(back - pts[owner[sel]].T, axis=0) < 1e-10 * max(1.0, np.abs(pts).max())
+        X[sel[ok]], Y[sel[ok]] = Xr[0, ok, 0], Xr[1, ok, 0]
+        inside[sel[ok]] = True
+        missing = np.setdiff1d(np.arange(len(pts)), owner[inside])
     if len(missing):
         raise ValueError(f"point(s) {pts[missing].tolist()} lie outside the fluid mesh")
     cells, owner = cc[inside], owner[inside]
     refs = np.vstack([np.clip(X[inside], 0, 1), np.clip(Y[inside], 0, 1)])
-    if isinstance(mesh, MeshTri2):
-        from skfem.mapping import MappingIsoparametric  # noqa: F401 - mapping of the mesh
-        mapping = mesh._mapping()
-        refs = mapping.invF(pts[owner].T[:, :, None], tind=cells)[:, :, 0]
+    if curved:  # interior cells of a quadratic mesh may still be curved: refine every point
+        refs = mesh._mapping().invF(pts[owner].T[:, :, None], tind=cells)[:, :, 0]
     return cells, refs, owner

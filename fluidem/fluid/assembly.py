@@ -1,0 +1,172 @@
+"""Fast re-assembly of the velocity-dependent terms and of the condensed saddle-point matrix.
+
+Every time step needs the convection matrix for a new convecting velocity and the saddle-point
+matrix restricted to the free DOFs.  scikit-fem assembles any form, but rebuilding the sparse
+structure each step costs more than the arithmetic.  Here the element basis values at the
+quadrature points are stored once, the sparsity pattern of the velocity block is fixed once
+(with a scatter map from element entries to CSR data), and the free-DOF saddle-point matrix
+keeps one structure whose data array is refilled in place.  Same quadrature, same numbers as
+the scikit-fem forms in :mod:`fluidem.fluid.forms` (checked in the tests).
+
+Vector basis functions of scikit-fem's ``ElementVector`` interleave components: local function
+``k = 2 s + c`` is the scalar function ``s`` in component ``c``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["VectorAssembler", "CondensedSystem"]
+
+
+class VectorAssembler:
+    """Element data of a vector basis and the CSR pattern of its velocity–velocity block.
+
+    Parameters
+    ----------
+    ub : skfem.CellBasis
+        Basis of ``ElementVector(e)`` with interleaved components.
+
+    Attributes
+    ----------
+    indptr, indices : CSR structure of the (n_u, n_u) velocity block.
+    nnz : int
+    """
+
+    def __init__(self, ub):
+        nb = ub.Nbfun
+        if nb % 2:
+            raise ValueError("expected a 2D vector basis")
+        self.n = ub.N
+        self.ns = nb // 2
+        # scalar values/gradients in element-major layout: psi (nel, ns, nq), dpsi (2, nel, ns, nq)
+        self.psi = np.stack([np.asarray(ub.basis[2 * s][0])[0] for s in range(self.ns)], axis=1)
+        self.dpsi = np.stack([ub.basis[2 * s][0].grad[0] for s in range(self.ns)], axis=2)
+        self.dx = np.asarray(ub.dx)  # (nel, nq)
+        self.psi_dx = self.psi * self.dx[:, None, :]
+        dofs = ub.element_dofs  # (nb, nel)
+        self.dofs_c = [dofs[c::2].T.copy() for c in range(2)]  # (nel, ns) per component
+        nel = dofs.shape[1]
+        rows = np.broadcast_to(dofs.T[:, :, None], (nel, nb, nb)).ravel()
+        cols = np.broadcast_to(dofs.T[:, None, :], (nel, nb, nb)).ravel()
+        keys = rows.astype(np.int64) * self.n + cols
+        uniq, self._scatter = np.unique(keys, return_inverse=True)
+        self.nnz = len(uniq)
+        r, c = np.divmod(uniq, self.n)
+        self.indices = c.astype(np.int32)
+        self.indptr = np.searchsorted(r, np.arange(self.n + 1)).astype(np.int32)
+        self._comp = np.arange(nb) % 2
+        self._scal = np.arange(nb) // 2
+
+    # -- data arrays on the fixed pattern ----------------------------------------------
+    def matrix(self, data: np.ndarray) -> sp.csr_matrix:
+        """CSR matrix of the velocity block from a data array on the pattern (no copy)."""
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+
+    def pattern_data(self, A) -> np.ndarray:
+        """Values of a sparse matrix ``A`` (its pattern contained in ours) on our pattern."""
+        A = sp.csr_matrix(A)
+        A.sum_duplicates()
+        out = np.zeros(self.nnz)
+        rows = np.repeat(np.arange(self.n), np.diff(A.indptr))
+        keys = rows.astype(np.int64) * self.n + A.indices
+        pat_rows = np.repeat(np.arange(self.n), np.diff(self.indptr)).astype(np.int64)
+        pat_keys = pat_rows * self.n + self.indices
+        pos = np.searchsorted(pat_keys, keys)
+        if np.any(pat_keys[np.minimum(pos, self.nnz - 1)] != keys):
+            raise ValueError("matrix has entries outside the velocity pattern")
+        out[pos] = A.data
+        return out
+
+    def _scatter_local(self, local: np.ndarray) -> np.ndarray:
+        """Sum element matrices ``local`` (nel, nb, nb) into pattern data (nnz,)."""
+        return np.bincount(self._scatter, weights=local.ravel(), minlength=self.nnz)
+
+    # -- fields at quadrature points ----------------------------------------------------
+    def values(self, u: np.ndarray) -> np.ndarray:
+        """Velocity at quadrature points, (2, nel, nq), from coefficients ``u`` (n_u,)."""
+        return np.stack([np.einsum("es,esq->eq", u[d], self.psi) for d in self.dofs_c])
+
+    def gradients(self, u: np.ndarray) -> np.ndarray:
+        """Velocity gradient ∂u_a/∂x_b at quadrature points, (2, 2, nel, nq)."""
+        return np.stack([np.einsum("es,besq->beq", u[d], self.dpsi) for d in self.dofs_c])
+
+    # -- forms ------------------------------------------------------------------------
+    def convection(self, b: np.ndarray, a: np.ndarray | None = None) -> np.ndarray:
+        """Pattern data of ((b·∇)u)·v, plus the Newton part ((u·∇)a)·v if ``a`` is given.
+
+        ``b``, ``a`` are velocity coefficient vectors (n_u,).  Same integrand as
+        :func:`fluidem.fluid.forms.convection` / ``convection_newton``.
+        """
+        bq = self.values(b)
+        bgrad = np.einsum("cesq,ceq->esq", self.dpsi, bq)  # (b·∇)ψ_s
+        S = np.matmul(self.psi_dx, bgrad.transpose(0, 2, 1))  # (nel, ns, ns): ∫ ψ_i (b·∇ψ_j)
+        nb = 2 * self.ns
+        nel = S.shape[0]
+        local = np.zeros((nel, nb, nb))
+        for c in range(2):  # same-component blocks
+            local[:, c::2, c::2] = S
+        if a is not None:
+            G = self.gradients(a)  # (2, 2, nel, nq)
+            for ca in range(2):
+                for cb in range(2):
+                    # ∫ ψ_i ψ_j ∂a_ca/∂x_cb, row component ca, column component cb
+                    Mab = np.matmul(self.psi_dx * G[ca, cb][:, None, :], self.psi.transpose(0, 2, 1))
+                    local[:, ca::2, cb::2] += Mab
+        return self._scatter_local(local)
+
+    def convection_vector(self, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
+        """Load vector ((b·∇)a)·v, shape (n_u,) (b = a if omitted)."""
+        G = self.gradients(a)
+        bq = self.values(a if b is None else b)
+        conv = np.einsum("abeq,beq->aeq", G, bq)  # ((b·∇)a)_a at quadrature points
+        out = np.zeros(self.n)
+        for c in range(2):
+            loc = np.einsum("esq,eq->es", self.psi_dx, conv[c])
+            out += np.bincount(self.dofs_c[c].ravel(), weights=loc.ravel(), minlength=self.n)
+        return out
+
+
+class CondensedSystem:
+    """The saddle-point matrix [[K_uu, Bᵀ], [B, 0]] restricted to free DOFs, refilled in place.
+
+    Parameters
+    ----------
+    assembler : VectorAssembler
+        Provides the velocity-block pattern.
+    B : (n_p, n_u) sparse
+        Divergence matrix (constant).
+    free : (n_free,) int
+        Free DOF indices into ``[u, p]``.
+
+    ``matrix(uu_data)`` returns the free-DOF CSR matrix for velocity-block data on the pattern;
+    its structure never changes, so factorisations and symbolic analyses can be reused.
+    """
+
+    def __init__(self, assembler: VectorAssembler, B, free: np.ndarray):
+        n_u = assembler.n
+        n_p = B.shape[0]
+        nnz = assembler.nnz
+        B = sp.csr_matrix(B)
+        B.sum_duplicates()
+        code_uu = assembler.matrix(np.arange(1, nnz + 1, dtype=float))
+        code_B = sp.csr_matrix((-np.arange(1, B.nnz + 1, dtype=float), B.indices, B.indptr), shape=B.shape)
+        K = sp.bmat([[code_uu, code_B.T], [code_B, sp.csr_matrix((n_p, n_p))]], format="csr")
+        Kff = K[free][:, free].tocsr()
+        Kff.sort_indices()
+        codes = Kff.data
+        self._uu_pos = np.flatnonzero(codes > 0)
+        self._uu_src = codes[self._uu_pos].astype(np.int64) - 1
+        b_pos = np.flatnonzero(codes < 0)
+        const = np.zeros(len(codes))
+        const[b_pos] = B.data[(-codes[b_pos]).astype(np.int64) - 1]
+        self._const = const
+        self._indices = Kff.indices
+        self._indptr = Kff.indptr
+        self.shape = Kff.shape
+
+    def matrix(self, uu_data: np.ndarray) -> sp.csr_matrix:
+        data = self._const.copy()
+        data[self._uu_pos] = uu_data[self._uu_src]
+        return sp.csr_matrix((data, self._indices, self._indptr), shape=self.shape)
