@@ -1,0 +1,39 @@
+"""The README's Python example runs and prints what it says."""
+
+import pathlib
+import re
+
+import pytest
+
+README = pathlib.Path(__file__).resolve().parents[1] / "README.md"
+
+
+def test_readme_python_example(capsys):
+    text = README.read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert blocks, "README has no Python example"
+    exec(compile(blocks[0], "README.md", "exec"), {})
+    out = capsys.readouterr().out
+    cd = float(out.split("c_D =")[1].split()[0])
+    assert cd == pytest.approx(5.57953523384, rel=1.5e-5)  # level-1 P3 error measured 5.9e-6
+
+
+def test_cli_bench_json_last_line(capsys):
+    import json
+
+    from fluidem.cli import main
+
+    assert main(["bench", "dfg-2d1", "--element", "th", "--level", "0", "--json"]) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    d = json.loads(last)
+    for key in ("element", "level", "dofs", "wall_s", "cd", "cl", "dp"):
+        assert key in d
+    assert d["element"] == "th" and d["level"] == 0 and d["dofs"] > 0
+
+
+def test_cli_rejects_options_that_do_not_apply(capsys):
+    from fluidem.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["bench", "dfg-2d1", "--dt", "0.01"])
+    assert "--dt does not apply to dfg-2d1" in capsys.readouterr().err
