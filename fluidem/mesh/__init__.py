@@ -1,0 +1,18 @@
+"""Meshes: fixed-obstacle triangulation and the moving mesh that follows rigid bodies (paper Sec. 2–4)."""
+
+from .moving import STRATEGIES, MeshEvent, MovingMesh
+from .quality import MeshQuality, OscillationDetector, mesh_quality, triangle_angles
+from .relax import RelaxParams, mesh_topology, relax
+
+__all__ = [
+    "MovingMesh",
+    "MeshEvent",
+    "STRATEGIES",
+    "MeshQuality",
+    "OscillationDetector",
+    "mesh_quality",
+    "triangle_angles",
+    "RelaxParams",
+    "mesh_topology",
+    "relax",
+]

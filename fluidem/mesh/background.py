@@ -15,7 +15,8 @@ from typing import Callable, Sequence
 import numpy as np
 import shapely
 
-__all__ = ["SizeField", "UniformSize", "GradedSize", "as_size_field"]
+__all__ = ["SizeField", "UniformSize", "GradedSize", "as_size_field", "friedrichs_keller_grid",
+           "graded_background"]
 
 
 class SizeField:
@@ -113,3 +114,63 @@ def subdivide_segment(a: Sequence[float], b: Sequence[float], size, min_pieces: 
     targets = np.linspace(0.0, cum[-1], n + 1)
     st = np.interp(targets, cum, s)
     return a + st[:, None] * (b - a)
+
+
+def friedrichs_keller_grid(domain, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Friedrichs–Keller grid of a box (paper Sec. 2.1, Fig. 2b): square cells of side ≈ ``h``.
+
+    Every square is split along the same diagonal (lower left to upper right), so all
+    interior nodes have the same connectivity.  The spacing is adjusted per axis so that the
+    box is filled exactly.
+
+    Parameters
+    ----------
+    domain : (xmin, xmax, ymin, ymax)
+        Box, length units.
+    h : float
+        Target spacing, length units, > 0.
+
+    Returns
+    -------
+    points : (n_nodes, 2) float
+    triangles : (n_triangles, 3) int
+        Counter-clockwise.
+    """
+    xmin, xmax, ymin, ymax = (float(v) for v in domain)
+    if not (np.isfinite(h) and h > 0):
+        raise ValueError(f"mesh size h must be a positive number, got {h!r}")
+    if not (xmax > xmin and ymax > ymin):
+        raise ValueError(f"domain must have xmax > xmin and ymax > ymin, got {tuple(domain)!r}")
+    nx = max(1, int(round((xmax - xmin) / h)))
+    ny = max(1, int(round((ymax - ymin) / h)))
+    x = np.linspace(xmin, xmax, nx + 1)
+    y = np.linspace(ymin, ymax, ny + 1)
+    X, Y = np.meshgrid(x, y)  # (ny + 1, nx + 1)
+    pts = np.column_stack([X.ravel(), Y.ravel()])
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
+    a = (j * (nx + 1) + i).ravel()
+    b, c, d = a + 1, a + nx + 2, a + nx + 1
+    tris = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    return pts, tris
+
+
+def graded_background(domain, size, min_angle: float = 30.0) -> np.ndarray:
+    """Background nodes of a box graded by a size field (paper Sec. 2.3, Fig. 3).
+
+    A quality Delaunay refinement (Triangle) of the empty box with triangles no larger
+    than an equilateral triangle of the local size; only the nodes are returned.
+
+    Parameters
+    ----------
+    domain : (xmin, xmax, ymin, ymax)
+    size : float, SizeField or callable ``points (m, 2) -> h (m,)``
+    min_angle : float
+        Triangle's minimum-angle bound, degrees.
+
+    Returns
+    -------
+    points : (n_nodes, 2) float
+    """
+    from .triangulate import triangulate_box  # local import: triangulate imports this module
+
+    return triangulate_box(domain, (), size=size, min_angle=min_angle).points
