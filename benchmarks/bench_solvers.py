@@ -208,6 +208,9 @@ def _record(benchmark, P, solver):
     benchmark.extra_info.update(
         n_dofs=n, iterations=info.iterations, relative_residual=info.relative_residual,
         setup_s=info.setup_s, us_per_dof=median / n * 1e6)
+    lu = getattr(getattr(solver, "direct", solver), "_lu", None)
+    if hasattr(lu, "L"):  # SuperLU fill: memory of the factors
+        benchmark.extra_info["lu_mb"] = (lu.L.nnz + lu.U.nnz) * 12 / 1e6
 
 
 def _pardiso():

@@ -187,15 +187,19 @@ def test_direct_converges_to_manufactured_solution():
     assert ep4 / ep8 > 2.5  # rate > 1.3 (pre-asymptotic for P1-disc pressure)
 
 
-def test_direct_info_and_refactorize(stokes_p2b):
+BACKENDS = ["superlu"] + (["pardiso"] if solvers._pardiso_available() else [])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_direct_info_and_refactorize(stokes_p2b, backend):
     P = stokes_p2b
-    s = DirectSolver().factorize(P["K"])
+    s = DirectSolver(backend=backend).factorize(P["K"])
     x = s.solve(P["b"])
     info = s.last_info
     assert isinstance(info, SolveInfo)
-    assert info.method == "superlu" and info.iterations == 0
+    assert info.method == backend and info.iterations == 0
     assert info.relative_residual < 1e-12
-    assert "superlu" in str(info) and "relative_residual" in str(info)
+    assert backend in str(info) and "relative_residual" in str(info)
     assert s.refactorize_if_changed(P["K"].copy()) is False
     assert s.factorizations == 1
     assert s.refactorize_if_changed(P["K"] * 2.0) is True
@@ -206,9 +210,10 @@ def test_direct_info_and_refactorize(stokes_p2b):
     assert X.shape == (P["K"].shape[0], 2)
 
 
-def test_direct_as_preconditioner_one_iteration(stokes_p2b):
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_direct_as_preconditioner_one_iteration(stokes_p2b, backend):
     P = stokes_p2b
-    M = DirectSolver().factorize(P["K"]).as_preconditioner()
+    M = DirectSolver(backend=backend).factorize(P["K"]).as_preconditioner()
     count = []
     x, info = spla.gmres(P["K"], P["b"], M=M, rtol=1e-10, callback=count.append,
                          callback_type="pr_norm")
@@ -223,8 +228,9 @@ def test_singular_enclosed_flow_raises_and_pinning_fixes_it():
     assert eu < 1e-3 and ep < 5e-2
     K = _unpinned_enclosed(6)
     b = np.random.default_rng(0).standard_normal(K.shape[0])
-    with pytest.raises(SolverError, match="pin one pressure DOF"):
-        DirectSolver().factorize(K).solve(b)
+    for backend in BACKENDS:
+        with pytest.raises(SolverError, match="pin one pressure DOF"):
+            DirectSolver(backend=backend).factorize(K).solve(b)
 
 
 def _unpinned_enclosed(m):
@@ -264,7 +270,7 @@ def test_iterative_agrees_with_direct(case):
     pkw, skw = CASES[case]
     P = problem(10, **pkw)
     K, b = P["K"], P["b"]
-    x_direct = DirectSolver().factorize(K).solve(b)
+    x_direct = DirectSolver(backend="superlu").factorize(K).solve(b)
     s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], velocity_mass=P["Mu"],
                           rtol=1e-10, **skw).factorize(K)
     x = s.solve(b)
@@ -445,8 +451,8 @@ def test_auto_choice_by_size(stokes_p2b, monkeypatch):
     s = make_solver("auto", n_u=P["n_u"], pressure_mass=P["Mp"], rtol=1e-10)
     assert isinstance(s, AutoSolver)
     x = s.factorize(P["K"]).solve(P["b"])
-    assert s.chosen == "direct" and s.last_info.method == "superlu"
-    monkeypatch.setattr(solvers, "DIRECT_MAX_DOFS", 100)
+    assert s.chosen == "direct" and s.last_info.method == solvers.default_direct_backend()
+    monkeypatch.setitem(solvers.DIRECT_MAX_DOFS, solvers.default_direct_backend(), 100)
     y = s.factorize(P["K"]).solve(P["b"])
     assert s.chosen == "iterative" and s.last_info.iterations > 0
     assert reldiff(y, x) < 1e-7
@@ -456,15 +462,21 @@ def test_auto_choice_by_size(stokes_p2b, monkeypatch):
     assert t.chosen == "direct"
 
 
-def test_choose_method_thresholds():
-    small, big = 1000, 10**7
-    assert choose_method(small)[0] == "direct"
-    assert choose_method(big)[0] == "iterative"
-    assert choose_method(big, convective=True)[0] == "iterative"
-    between = (solvers.DIRECT_MAX_DOFS + solvers.DIRECT_MAX_DOFS_CONVECTIVE) // 2
-    assert choose_method(between)[0] == "iterative"
-    assert choose_method(between, convective=True)[0] == "direct"
-    assert choose_method(between, convective=True, dt=0.01)[0] == "iterative"
+@pytest.mark.parametrize("backend", ["superlu", "pardiso"])
+def test_choose_method_thresholds(backend):
+    small, big = 1000, 10**8
+    assert choose_method(small, backend=backend)[0] == "direct"
+    assert choose_method(big, backend=backend)[0] == "iterative"
+    assert choose_method(big, convective=True, backend=backend)[0] == "iterative"
+    stokes = solvers.DIRECT_MAX_DOFS[backend]
+    convective = solvers.DIRECT_MAX_DOFS_CONVECTIVE[backend]
+    assert stokes <= convective
+    assert choose_method(stokes, backend=backend)[0] == "iterative"
+    assert choose_method(stokes - 1, dt=0.01, backend=backend)[0] == "direct"
+    if stokes < convective:
+        assert choose_method(stokes, convective=True, backend=backend)[0] == "direct"
+        assert choose_method(stokes, convective=True, dt=0.01, backend=backend)[0] == "iterative"
+    assert backend in choose_method(small, backend=backend)[1]
 
 
 @pytest.mark.skipif(not solvers._pardiso_available(), reason="pypardiso not installed")

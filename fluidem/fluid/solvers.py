@@ -25,19 +25,20 @@ in ``last_info``, ``as_preconditioner()`` gives a
   the optional ``pypardiso`` package).
 * :class:`BlockKrylovSolver` -- GMRES with a block upper-triangular
   preconditioner, or MINRES with a block-diagonal one (symmetric Stokes).
-  The velocity block is approximated by one V-cycle of pyamg smoothed
-  aggregation, the Schur complement :math:`S = B A^{-1} B^T + C` by
+  The velocity block is approximated by two V-cycles of pyamg smoothed
+  aggregation (``velocity_cycles``), the Schur complement
+  :math:`S = B A^{-1} B^T + C` by
 
-  - ``"mass"``: :math:`S^{-1} \approx \nu M_p^{-1}` (steady Stokes; Elman,
-    Silvester & Wathen 2014, ch. 4.2 and 9.2, Silvester & Wathen 1994),
+  - ``"mass"``: :math:`S^{-1} \approx \nu M_p^{-1}` (steady Stokes; [ESW14]_,
+    Stokes solver chapter; [SW94]_),
   - ``"cahouet-chabard"``: :math:`S^{-1} \approx \nu M_p^{-1} +
     (\alpha/\Delta t) L_p^{-1}` with :math:`L_p = B D_u^{-1} B^T` and
-    :math:`D_u` the diagonal of the velocity mass matrix (Cahouet & Chabard
-    1988; Elman, Silvester & Wathen 2014, ch. 9.3 on the generalised
-    Stokes problem); :math:`L_p^{-1}` is one AMG V-cycle,
+    :math:`D_u` the diagonal of the velocity mass matrix ([CC88]_; [ESW14]_,
+    unsteady flow in the Navier--Stokes solver chapter); :math:`L_p^{-1}`
+    is one AMG V-cycle,
   - ``"lsc"``: least-squares commutator :math:`S^{-1} \approx L_p^{-1}
     (B D_u^{-1} A D_u^{-1} B^T) L_p^{-1}` for convection-dominated Oseen
-    systems (Elman, Silvester & Wathen 2014, ch. 9.2.2; Elman et al. 2006).
+    systems ([ESW14]_, Navier--Stokes solver chapter; [EHSST06]_).
 
 * :class:`LaggedLUSolver` -- keeps the LU of an earlier matrix and solves the
   current one by GMRES preconditioned with it; refactorises when the
@@ -64,20 +65,28 @@ iterative path assume a non-singular ``K``.
 
 References
 ----------
-Elman, H. C., Silvester, D. J., Wathen, A. J. (2014). *Finite Elements and
-Fast Iterative Solvers*, 2nd ed., Oxford University Press. Ch. 4 (Stokes
-solvers, block preconditioning, MINRES), ch. 9 (Oseen/Navier--Stokes
-solvers, GMRES with block-triangular preconditioners, PCD and LSC).
-
-Cahouet, J., Chabard, J.-P. (1988). Some fast 3D finite element solvers for
-the generalized Stokes problem. *Int. J. Numer. Meth. Fluids* 8, 869--895.
-
-Saad, Y. (1993). A flexible inner-outer preconditioned GMRES algorithm.
-*SIAM J. Sci. Comput.* 14, 461--469.
-
-Vanek, P., Mandel, J., Brezina, M. (1996). Algebraic multigrid by smoothed
-aggregation for second and fourth order elliptic problems. *Computing* 56,
-179--196.
+.. [ESW14] Elman, H. C., Silvester, D. J., Wathen, A. J. (2014). *Finite
+   Elements and Fast Iterative Solvers*, 2nd ed., Oxford University Press.
+   Chapters on the solution of discrete Stokes problems (block-diagonal
+   preconditioning, MINRES, pressure-mass Schur approximation) and of
+   discrete Navier--Stokes problems (GMRES with block-triangular
+   preconditioners, PCD and least-squares commutator, unsteady flow).
+.. [CC88] Cahouet, J., Chabard, J.-P. (1988). Some fast 3D finite element
+   solvers for the generalized Stokes problem. *Int. J. Numer. Meth. Fluids*
+   8, 869--895.
+.. [EHSST06] Elman, H., Howle, V. E., Shadid, J., Shuttleworth, R.,
+   Tuminaro, R. (2006). Block preconditioners based on approximate
+   commutators. *SIAM J. Sci. Comput.* 27, 1651--1668.
+.. [SW94] Silvester, D., Wathen, A. (1994). Fast iterative solution of
+   stabilised Stokes systems. Part II: using general block preconditioners.
+   *SIAM J. Numer. Anal.* 31, 1352--1367.
+.. [W87] Wathen, A. J. (1987). Realistic eigenvalue bounds for the Galerkin
+   mass matrix. *IMA J. Numer. Anal.* 7, 449--457.
+.. [S93] Saad, Y. (1993). A flexible inner-outer preconditioned GMRES
+   algorithm. *SIAM J. Sci. Comput.* 14, 461--469.
+.. [VMB96] Vanek, P., Mandel, J., Brezina, M. (1996). Algebraic multigrid by
+   smoothed aggregation for second and fourth order elliptic problems.
+   *Computing* 56, 179--196.
 """
 
 from __future__ import annotations
@@ -100,6 +109,7 @@ __all__ = [
     "SOLVERS",
     "make_solver",
     "choose_method",
+    "default_direct_backend",
     "DIRECT_MAX_DOFS",
     "DIRECT_MAX_DOFS_CONVECTIVE",
 ]
@@ -109,10 +119,15 @@ __all__ = [
 # (P2-bubble/P1-discontinuous and P2/P1 on a unit square, one thread); see the
 # CHANGELOG entry of the solver module for the table.
 # --------------------------------------------------------------------------
-#: Stokes and unsteady systems: LU below this many DOFs, block-preconditioned GMRES above.
-DIRECT_MAX_DOFS = 20_000
-#: Steady convective systems (Oseen, Newton): LU below this many DOFs.
-DIRECT_MAX_DOFS_CONVECTIVE = 300_000
+#: Stokes and unsteady systems: LU below this many DOFs, block-preconditioned GMRES
+#: above; by direct backend.  SuperLU: iterative was 2x faster at 10k (Stokes) and
+#: 2-10x faster at 50k-200k.  PARDISO: LU was faster at every size measured (up to
+#: 2.8x at 500k DOFs, 1.5 GB peak), so the limit is memory (extrapolated: ~7 GB).
+DIRECT_MAX_DOFS = {"superlu": 20_000, "pardiso": 2_000_000}
+#: Steady convective systems (Oseen, Newton), where the Schur approximations need
+#: iteration counts that grow with refinement and Reynolds number (Newton at 200k
+#: DOFs: no convergence in 1000 iterations; SuperLU 34 s): LU below this many DOFs.
+DIRECT_MAX_DOFS_CONVECTIVE = {"superlu": 400_000, "pardiso": 2_000_000}
 
 
 # ==========================================================================
@@ -270,9 +285,14 @@ class _Counter:
 def _pardiso_available() -> bool:
     try:
         import pypardiso  # noqa: F401
-    except Exception:
+    except Exception:  # ImportError, or mkl_rt missing
         return False
     return True
+
+
+def default_direct_backend() -> str:
+    """``"pardiso"`` if the optional ``pypardiso`` is importable, else ``"superlu"``."""
+    return "pardiso" if _pardiso_available() else "superlu"
 
 
 class DirectSolver:
@@ -280,10 +300,13 @@ class DirectSolver:
 
     Parameters
     ----------
-    backend : {"superlu", "pardiso"}
+    backend : {"auto", "superlu", "pardiso"}
         ``"superlu"`` is :func:`scipy.sparse.linalg.splu`.  ``"pardiso"`` uses
         Intel MKL PARDISO through the optional ``pypardiso`` package (raises
-        ``ImportError`` if it is missing).
+        ``ImportError`` if it is missing); it was 4x faster than SuperLU at
+        50k DOFs and 5-14x at 200k on one thread (see the benchmarks).
+        ``"auto"``: PARDISO if ``pypardiso`` is importable, else SuperLU.
+        PARDISO runs on ``MKL_NUM_THREADS`` threads (all cores by default).
     permc_spec : str
         Column ordering for SuperLU.  ``"COLAMD"`` (default) is the only one
         that scales here; ``"MMD_AT_PLUS_A"`` took more than 9 minutes on an
@@ -298,16 +321,19 @@ class DirectSolver:
     >>> import scipy.sparse as sp, numpy as np
     >>> K = sp.csr_matrix(np.array([[2.0, 1.0], [1.0, 0.0]]))
     >>> s = DirectSolver().factorize(K)
-    >>> s.solve(np.array([3.0, 1.0]))
+    >>> np.round(s.solve(np.array([3.0, 1.0])), 12)
     array([1., 1.])
     >>> s.last_info.iterations
     0
     """
 
-    def __init__(self, backend: str = "superlu", permc_spec: str = "COLAMD",
+    def __init__(self, backend: str = "auto", permc_spec: str = "COLAMD",
                  check_rtol: float = 1e-8):
-        if backend not in ("superlu", "pardiso"):
-            raise ValueError(f"unknown direct backend {backend!r}; use 'superlu' or 'pardiso'")
+        if backend not in ("auto", "superlu", "pardiso"):
+            raise ValueError(f"unknown direct backend {backend!r}; "
+                             "use 'auto', 'superlu' or 'pardiso'")
+        if backend == "auto":
+            backend = default_direct_backend()
         if permc_spec == "MMD_AT_PLUS_A":
             raise ValueError("permc_spec='MMD_AT_PLUS_A' does not finish on saddle-point "
                              "systems of practical size; use 'COLAMD'")
@@ -352,15 +378,28 @@ class DirectSolver:
         else:
             import pypardiso
 
-            ps = pypardiso.PyPardisoSolver()
+            self._free()
+            ps = pypardiso.PyPardisoSolver()  # mtype 11: real non-symmetric
             ps.set_statistical_info_off()
-            ps.factorize(K)
+            try:
+                ps.factorize(K)
+            except pypardiso.pardiso_wrapper.PyPardisoError as err:
+                raise SolverError(
+                    f"PARDISO factorisation of the {K.shape[0]}x{K.shape[0]} system failed "
+                    f"({err}); with velocity Dirichlet conditions on the whole boundary pin one "
+                    "pressure DOF") from err
             self._lu = ps
         self.K = K
         self.factorizations += 1
         self._setup_s = time.perf_counter() - t0
         self._reused = False
         return self
+
+    def _free(self):
+        """Release PARDISO's memory for the previous factorisation."""
+        if self.backend == "pardiso" and self._lu is not None:
+            self._lu.free_memory()
+            self._lu = None
 
     def refactorize_if_changed(self, K) -> bool:
         """Factorise ``K`` unless it equals the matrix factorised last.
@@ -464,9 +503,13 @@ def _fgmres(K, b, M, x0, rtol, maxiter, restart, stagnation):
     reason = f"no convergence within maxiter={maxiter} iterations"
     while Mc.count < maxiter:
         inner = min(restart, maxiter - Mc.count)
-        start = history[-1]
+        start, count = history[-1], Mc.count
         res: list[float] = []
         x, _ = fgmres(K, b, x0=x, tol=rtol, restart=inner, maxiter=1, M=Mop, residuals=res)
+        if Mc.count == count:  # FGMRES saw a converged start that our test did not
+            reason = "stagnation: FGMRES made no iteration"
+            history.append(np.linalg.norm(b - K @ x) / nb)
+            break
         # tol in pyamg is relative to ||b||; res holds absolute norms
         r_true = np.linalg.norm(b - K @ x) / nb
         history.extend(np.asarray(res[1:-1]) / nb)
@@ -551,10 +594,10 @@ class BlockKrylovSolver:
 
     GMRES (default) uses the block upper-triangular preconditioner
     ``P = [[A~, B^T], [0, -S~]]``, MINRES (symmetric ``A`` only) the
-    block-diagonal ``P = diag(A~, S~)``.  ``A~^{-1}`` is one V-cycle of pyamg
-    smoothed aggregation (Vanek, Mandel & Brezina 1996) on ``A``; the Schur
-    complement approximation ``S~`` is chosen by ``schur``
-    (Elman, Silvester & Wathen 2014, ch. 4 and 9; Cahouet & Chabard 1988).
+    block-diagonal ``P = diag(A~, S~)``.  ``A~^{-1}`` is ``velocity_cycles``
+    cycles of pyamg smoothed aggregation (Vanek, Mandel & Brezina 1996) on
+    ``A``; the Schur complement approximation ``S~`` is chosen by ``schur``
+    (Elman, Silvester & Wathen 2014; Cahouet & Chabard 1988).
 
     Parameters
     ----------
@@ -788,7 +831,7 @@ class BlockKrylovSolver:
             Mp_inv = self._Mp_inv
             c = self.alpha / self.dt if self.velocity_mass is not None else 1.0
             return lambda r: nu * Mp_inv(r) + c * (Lsolve @ r)
-        # least-squares commutator (Elman, Silvester & Wathen 2014, eq. 9.23)
+        # least-squares commutator (Elman et al. 2006), Q = D_u
         Dinv = self._Du_inv
 
         def lsc(r):
@@ -1011,8 +1054,8 @@ class LaggedLUSolver:
 # ==========================================================================
 # Automatic choice and registry
 # ==========================================================================
-def choose_method(n_dofs: int, convective: bool = False,
-                  dt: float | None = None) -> tuple[str, str]:
+def choose_method(n_dofs: int, convective: bool = False, dt: float | None = None,
+                  backend: str | None = None) -> tuple[str, str]:
     """Choose ``"direct"`` or ``"iterative"`` from the measured crossover.
 
     Parameters
@@ -1023,6 +1066,8 @@ def choose_method(n_dofs: int, convective: bool = False,
         Whether the velocity block is non-symmetric (Oseen, Newton).
     dt : float, optional
         Time step, s; ``None`` for steady problems.
+    backend : {"superlu", "pardiso"}, optional
+        Direct backend the choice is for; default :func:`default_direct_backend`.
 
     Returns
     -------
@@ -1034,25 +1079,27 @@ def choose_method(n_dofs: int, convective: bool = False,
     Notes
     -----
     Stokes and unsteady systems (Cahouet--Chabard preconditioner) switch to
-    the iterative path at ``DIRECT_MAX_DOFS``; steady convective systems,
-    where the pressure-mass and LSC approximations need many iterations that
-    grow with refinement, at ``DIRECT_MAX_DOFS_CONVECTIVE``.  Both thresholds
-    are module attributes and can be changed at run time.
+    the iterative path at ``DIRECT_MAX_DOFS[backend]``; steady convective
+    systems at ``DIRECT_MAX_DOFS_CONVECTIVE[backend]``.  Both are module-level
+    dicts and can be changed at run time.  Timings behind them:
+    ``benchmarks/bench_solvers.py``.
 
     Examples
     --------
     >>> choose_method(5_000)[0]
     'direct'
-    >>> choose_method(10**7)[0]
+    >>> choose_method(10**8)[0]
     'iterative'
     """
+    backend = backend or default_direct_backend()
     if convective and dt is None:
-        limit, kind = DIRECT_MAX_DOFS_CONVECTIVE, "steady convective"
+        limit, kind = DIRECT_MAX_DOFS_CONVECTIVE[backend], "steady convective"
     else:
-        limit, kind = DIRECT_MAX_DOFS, "unsteady" if dt is not None else "Stokes"
+        limit, kind = DIRECT_MAX_DOFS[backend], "unsteady" if dt is not None else "Stokes"
+    where = f"(measured {backend} LU / AMG-GMRES crossover)"
     if n_dofs < limit:
-        return "direct", f"{kind}: {n_dofs} DOFs < {limit} (measured LU/AMG crossover)"
-    return "iterative", f"{kind}: {n_dofs} DOFs >= {limit} (measured LU/AMG crossover)"
+        return "direct", f"{kind}: {n_dofs} DOFs < {limit} {where}"
+    return "iterative", f"{kind}: {n_dofs} DOFs >= {limit} {where}"
 
 
 class AutoSolver:
@@ -1092,7 +1139,10 @@ class AutoSolver:
         convective = True
         if self.n_u is not None:
             convective = not _is_symmetric(K[: self.n_u, : self.n_u])
-        method, reason = choose_method(K.shape[0], convective=convective, dt=opts.get("dt"))
+        backend = self.direct_options.get("backend", "auto")
+        backend = default_direct_backend() if backend == "auto" else backend
+        method, reason = choose_method(K.shape[0], convective=convective, dt=opts.get("dt"),
+                                       backend=backend)
         if method == "iterative" and (self.n_u is None or (
                 opts.get("pressure_mass") is None and opts.get("schur") != "lsc")):
             method, reason = "direct", reason + "; but no n_u/pressure_mass given, so direct"
