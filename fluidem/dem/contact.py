@@ -481,12 +481,11 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
                 p2=p2[ok] + oo, ncross=ncross[ok])
 
 
-_WALL_EDGES = {  # (edge direction, normal into the domain); kept side = outside of the domain
-    "xmin": (np.array([0.0, 1.0]), np.array([1.0, 0.0])),
-    "xmax": (np.array([0.0, -1.0]), np.array([-1.0, 0.0])),
-    "ymin": (np.array([-1.0, 0.0]), np.array([0.0, 1.0])),
-    "ymax": (np.array([1.0, 0.0]), np.array([0.0, -1.0])),
-}
+# per wall (xmin, xmax, ymin, ymax): edge direction, whose left side (the kept side) is
+# the outside of the domain, and the unit normal pointing into the domain
+_WALL_DIR = np.array([[0.0, 1.0], [0.0, -1.0], [-1.0, 0.0], [1.0, 0.0]])
+_WALL_NORMAL = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+_WALL_ID = np.array([WALL_IDS[k] for k in ("xmin", "xmax", "ymin", "ymax")])
 
 
 def wall_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, lo: np.ndarray,
@@ -508,36 +507,26 @@ def wall_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, lo: np.nda
     the wall id.
     """
     xmin, xmax, ymin, ymax = walls
-    tests = (("xmin", lo[bodies, 0] < xmin, (xmin, 0.0)),
-             ("xmax", hi[bodies, 0] > xmax, (xmax, 0.0)),
-             ("ymin", lo[bodies, 1] < ymin, (0.0, ymin)),
-             ("ymax", hi[bodies, 1] > ymax, (0.0, ymax)))
-    bi, wid, pa, pd, nrm = [], [], [], [], []
-    for name, hit, point in tests:
-        b = bodies[hit]
-        if len(b) == 0:
-            continue
-        d, nrm_w = _WALL_EDGES[name]
-        bi.append(b)
-        wid.append(np.full(len(b), WALL_IDS[name]))
-        pa.append(np.broadcast_to(np.asarray(point, float), (len(b), 2)))
-        pd.append(np.broadcast_to(d, (len(b), 2)))
-        nrm.append(np.broadcast_to(nrm_w, (len(b), 2)))
-    if not bi:
+    hit = np.column_stack([lo[bodies, 0] < xmin, hi[bodies, 0] > xmax,
+                           lo[bodies, 1] < ymin, hi[bodies, 1] > ymax])
+    bk, w = np.nonzero(hit)
+    if len(bk) == 0:
         return None
-    b = np.concatenate(bi)
+    b = bodies[bk]
     o = pos[b]
-    a = np.concatenate(pa)
-    a = np.where(np.concatenate(pd)[:, 1:2] != 0, np.column_stack([a[:, 0], o[:, 1]]),
-                 np.column_stack([o[:, 0], a[:, 1]]))  # a point on the wall near the body
-    S, cnt, cross = clip_convex(verts[b] - o[:, None, :], nv[b], (a - o)[:, None, :],
-                                np.concatenate(pd)[:, None, :], verts.shape[1] + 1)
+    # a point on the wall next to the body centre, relative to that centre
+    rel = np.zeros((len(b), 2))
+    vert = w < 2
+    rel[:, 0] = np.where(vert, np.take([xmin, xmax, 0.0, 0.0], w) - o[:, 0], 0.0)
+    rel[:, 1] = np.where(vert, 0.0, np.take([0.0, 0.0, ymin, ymax], w) - o[:, 1])
+    S, cnt, cross = clip_convex(verts[b] - o[:, None, :], nv[b], rel[:, None, :],
+                                _WALL_DIR[w][:, None, :], verts.shape[1] + 1)
     A, cen = _polygon_area_centroid(S)
     p1, p2, ncross = _crossing_points(S, cross)
     ok = (cnt >= 3) & (A > 0)
     o = o[ok]
-    return dict(i=b[ok], j=np.concatenate(wid)[ok], area=A[ok], centroid=cen[ok] + o,
-                p1=p1[ok] + o, p2=p2[ok] + o, ncross=ncross[ok], normal=np.concatenate(nrm)[ok])
+    return dict(i=b[ok], j=_WALL_ID[w][ok], area=A[ok], centroid=cen[ok] + o,
+                p1=p1[ok] + o, p2=p2[ok] + o, ncross=ncross[ok], normal=_WALL_NORMAL[w][ok])
 
 
 # ---------------------------------------------------------------------------------------

@@ -150,11 +150,6 @@ class DEM:
         if g.shape != (2,) or not np.all(np.isfinite(g)):
             raise ValueError(f"gravity must be a pair of finite numbers (m/s²), got {gravity!r}")
         self.gravity = g
-        if walls is not None:
-            w = np.asarray(walls, float).reshape(-1)
-            if w.shape != (4,) or np.any(np.isnan(w)) or not (w[0] < w[1] and w[2] < w[3]):
-                raise ValueError(f"walls must be (xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax, got {walls!r}")
-            walls = tuple(float(x) for x in w)
         self.walls = walls
         self.order = order
         self.overlap_tolerance = float(overlap_tolerance)
@@ -165,6 +160,7 @@ class DEM:
         self._setup(bodies)
         self._check_overlaps(np.arange(len(self.bodies)))
         self._initial_forces()
+        self._fresh = True      # again at the first step, with the external forces set by then
 
     # ---- set-up ------------------------------------------------------------------------
     def _setup(self, bodies, state=None):
@@ -205,6 +201,7 @@ class DEM:
         self.forces = np.zeros((self.n, 2))
         self.torques = np.zeros(self.n)
         self._dt_max = self._compute_dt_max()
+        self._fresh = True
 
     def _compute_dt_max(self) -> float:
         if not self.free.any():
@@ -213,6 +210,23 @@ class DEM:
         k = int(np.flatnonzero(self.free)[np.argmin(self.mass[self.free])])
         self._lightest = k
         return 0.1 * np.pi * np.sqrt(self.mass[k] / self.model.E)
+
+    @property
+    def walls(self):
+        """Domain sides ``(xmin, xmax, ymin, ymax)`` in m (``±inf`` for an open side) or None.
+
+        May be changed between steps, e.g. to open a gate.
+        """
+        return self._walls
+
+    @walls.setter
+    def walls(self, walls):
+        if walls is not None:
+            w = np.asarray(walls, float).reshape(-1)
+            if w.shape != (4,) or np.any(np.isnan(w)) or not (w[0] < w[1] and w[2] < w[3]):
+                raise ValueError(f"walls must be (xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax, got {walls!r}")
+            walls = tuple(float(x) for x in w)
+        self._walls = walls
 
     @property
     def dt_max(self) -> float:
@@ -338,6 +352,7 @@ class DEM:
         return forces, torques
 
     def _initial_forces(self):
+        self._fresh = False
         x = self.gear.X[0]
         if len(self._prescribed):
             self._apply_prescribed(self.time, x, self.gear.X[1])
@@ -350,7 +365,8 @@ class DEM:
         return np.column_stack([F / self.mass[:, None], T / self.inertia])
 
     def _apply_prescribed(self, t, x, v):
-        h = 1e-6 * max(self.dt_max if np.isfinite(self.dt_max) else 1e-3, 1e-12)
+        # central differences; h balances truncation (h²) against round-off (eps/h)
+        h = 1e-2 * (self.dt_max if np.isfinite(self.dt_max) else 1e-3)
         for k in self._prescribed:  # one call per prescribed body (user callables)
             b = self.bodies[k]
             p, a = b.pose_at(t)
@@ -377,6 +393,10 @@ class DEM:
                 f"time step dt = {dt:.4g} s exceeds the stability bound dt_max = 0.1π√(m/E) = "
                 f"{self._dt_max:.4g} s set by body {k} (mass {self.mass[k]:.4g} kg, E = "
                 f"{self.model.E:.4g} N/m); use dt <= {self._dt_max:.4g} s or DEM.advance() to sub-step")
+        if self._fresh:
+            # accelerations at t0 with the external forces the caller may have set since
+            # construction (the predictor uses them)
+            self._initial_forces()
         t0 = time.perf_counter()
         x, v = self.gear.predict(dt, self._mask)
         x, v = x.copy(), v.copy()
