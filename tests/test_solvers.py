@@ -465,18 +465,19 @@ def test_auto_choice_by_size(stokes_p2b, monkeypatch):
 @pytest.mark.parametrize("backend", ["superlu", "pardiso"])
 def test_choose_method_thresholds(backend):
     small, big = 1000, 10**8
-    assert choose_method(small, backend=backend)[0] == "direct"
-    assert choose_method(big, backend=backend)[0] == "iterative"
-    assert choose_method(big, convective=True, backend=backend)[0] == "iterative"
-    stokes = solvers.DIRECT_MAX_DOFS[backend]
-    convective = solvers.DIRECT_MAX_DOFS_CONVECTIVE[backend]
-    assert stokes <= convective
-    assert choose_method(stokes, backend=backend)[0] == "iterative"
-    assert choose_method(stokes - 1, dt=0.01, backend=backend)[0] == "direct"
-    if stokes < convective:
-        assert choose_method(stokes, convective=True, backend=backend)[0] == "direct"
-        assert choose_method(stokes, convective=True, dt=0.01, backend=backend)[0] == "iterative"
-    assert backend in choose_method(small, backend=backend)[1]
+    for kw in (dict(), dict(convective=True), dict(dt=0.01), dict(convective=True, dt=0.01)):
+        assert choose_method(small, backend=backend, **kw)[0] == "direct"
+        assert choose_method(big, backend=backend, **kw)[0] == "iterative"
+    for table, kw in ((solvers.DIRECT_MAX_DOFS, dict()),
+                      (solvers.DIRECT_MAX_DOFS_UNSTEADY, dict(dt=0.01)),
+                      (solvers.DIRECT_MAX_DOFS_CONVECTIVE, dict(convective=True))):
+        limit = table[backend]
+        assert choose_method(limit - 1, backend=backend, **kw)[0] == "direct"
+        method, reason = choose_method(limit, backend=backend, **kw)
+        assert method == "iterative" and backend in reason and str(limit) in reason
+    # unsteady systems use the Cahouet-Chabard threshold whether convective or not
+    limit = solvers.DIRECT_MAX_DOFS_UNSTEADY[backend]
+    assert choose_method(limit, convective=True, dt=0.01, backend=backend)[0] == "iterative"
 
 
 @pytest.mark.skipif(not solvers._pardiso_available(), reason="pypardiso not installed")

@@ -111,6 +111,7 @@ __all__ = [
     "choose_method",
     "default_direct_backend",
     "DIRECT_MAX_DOFS",
+    "DIRECT_MAX_DOFS_UNSTEADY",
     "DIRECT_MAX_DOFS_CONVECTIVE",
 ]
 
@@ -119,15 +120,21 @@ __all__ = [
 # (P2-bubble/P1-discontinuous and P2/P1 on a unit square, one thread); see the
 # CHANGELOG entry of the solver module for the table.
 # --------------------------------------------------------------------------
-#: Stokes and unsteady systems: LU below this many DOFs, block-preconditioned GMRES
-#: above; by direct backend.  SuperLU: iterative was 2x faster at 10k (Stokes) and
-#: 2-10x faster at 50k-200k.  PARDISO: LU was faster at every size measured (up to
-#: 2.8x at 500k DOFs, 1.5 GB peak), so the limit is memory (extrapolated: ~7 GB).
+#: Steady Stokes: LU below this many DOFs, block-preconditioned GMRES above; by
+#: direct backend.  SuperLU: GMRES was 2x faster at 10k DOFs and 5-10x at 50k-200k.
+#: PARDISO: LU was faster at every size measured (2.8x at 500k DOFs, 1.5 GB peak),
+#: because the AMG iteration counts grow with refinement; the limit is memory
+#: (extrapolated ~7 GB at 2M DOFs).
 DIRECT_MAX_DOFS = {"superlu": 20_000, "pardiso": 2_000_000}
-#: Steady convective systems (Oseen, Newton), where the Schur approximations need
-#: iteration counts that grow with refinement and Reynolds number (Newton at 200k
-#: DOFs: no convergence in 1000 iterations; SuperLU 34 s): LU below this many DOFs.
-DIRECT_MAX_DOFS_CONVECTIVE = {"superlu": 400_000, "pardiso": 2_000_000}
+#: Unsteady systems with the Cahouet--Chabard preconditioner, whose iteration count
+#: stayed at 40-50 from 10k to 500k DOFs.  SuperLU: equal at 10k, GMRES 2x faster at
+#: 50k.  PARDISO: LU faster up to 200k, GMRES faster at 500k.
+DIRECT_MAX_DOFS_UNSTEADY = {"superlu": 20_000, "pardiso": 400_000}
+#: Steady convective systems (Oseen, Newton): the Schur approximations need iteration
+#: counts that grow with refinement and Reynolds number (Newton at 200k DOFs: no
+#: convergence in 1000 iterations), so LU up to its memory limit (SuperLU needed
+#: 5x the memory of PARDISO at 50k DOFs).
+DIRECT_MAX_DOFS_CONVECTIVE = {"superlu": 300_000, "pardiso": 2_000_000}
 
 
 # ==========================================================================
@@ -1078,10 +1085,11 @@ def choose_method(n_dofs: int, convective: bool = False, dt: float | None = None
 
     Notes
     -----
-    Stokes and unsteady systems (Cahouet--Chabard preconditioner) switch to
-    the iterative path at ``DIRECT_MAX_DOFS[backend]``; steady convective
-    systems at ``DIRECT_MAX_DOFS_CONVECTIVE[backend]``.  Both are module-level
-    dicts and can be changed at run time.  Timings behind them:
+    Steady Stokes systems switch to the iterative path at
+    ``DIRECT_MAX_DOFS[backend]``, unsteady ones (Cahouet--Chabard
+    preconditioner) at ``DIRECT_MAX_DOFS_UNSTEADY[backend]``, steady
+    convective ones at ``DIRECT_MAX_DOFS_CONVECTIVE[backend]``.  All are
+    module-level dicts and can be changed at run time.  Timings behind them:
     ``benchmarks/bench_solvers.py``.
 
     Examples
@@ -1092,10 +1100,12 @@ def choose_method(n_dofs: int, convective: bool = False, dt: float | None = None
     'iterative'
     """
     backend = backend or default_direct_backend()
-    if convective and dt is None:
+    if dt is not None:
+        limit, kind = DIRECT_MAX_DOFS_UNSTEADY[backend], "unsteady"
+    elif convective:
         limit, kind = DIRECT_MAX_DOFS_CONVECTIVE[backend], "steady convective"
     else:
-        limit, kind = DIRECT_MAX_DOFS[backend], "unsteady" if dt is not None else "Stokes"
+        limit, kind = DIRECT_MAX_DOFS[backend], "Stokes"
     where = f"(measured {backend} LU / AMG-GMRES crossover)"
     if n_dofs < limit:
         return "direct", f"{kind}: {n_dofs} DOFs < {limit} {where}"
