@@ -8,7 +8,8 @@ outlines of three different bodies.  Its new node is the Voronoi vertex of the t
 centres (the circumcentre of the centres, as in the paper) when that lies inside the
 triangle (else the incentre or the centroid, whichever splits the triangle into better
 shaped pieces).  The node is added only if it keeps at least ``clearance · h`` from every
-body and the three triangles of the split have no angle below ``min_angle``.
+body and the three triangles of the split have their angles within
+``[min_angle, max_angle]`` (a junction too tight for that is left without a node).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ def junction_triangles(triangles, owner) -> np.ndarray:
 
 
 def junction_points(points, triangles, owner, centres, polygons, h, clearance: float = 0.3,
-                    min_angle: float = 20.0, tree: shapely.STRtree | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    min_angle: float = 25.0, max_angle: float = 125.0, tree: shapely.STRtree | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Junction nodes for the junction triangles of a mesh.
 
     Parameters
@@ -52,8 +53,8 @@ def junction_points(points, triangles, owner, centres, polygons, h, clearance: f
         Local target size, length units.
     clearance : float
         Minimum distance of a junction node from every body, in multiples of ``h``.
-    min_angle : float
-        Smallest angle (degrees) the three triangles of the split may have.
+    min_angle, max_angle : float
+        Range of angles (degrees) the three triangles of the split must keep to.
     tree : shapely.STRtree or None
         Tree over ``polygons`` if the caller has one.
 
@@ -96,12 +97,14 @@ def junction_points(points, triangles, owner, centres, polygons, h, clearance: f
     # candidates: Voronoi vertex (paper), incentre, centroid; keep the one whose three
     # sub-triangles have the largest minimum angle
     cands = [np.where(inside[:, None], v, inc), inc, cen]
-    best_q, best_ang = cands[0], _split_min_angle(P, cands[0])
+    best_q = cands[0]
+    best_ang, best_max = _split_angles(P, cands[0])
     for qc in cands[1:]:
-        ang = _split_min_angle(P, qc)
+        ang, amax = _split_angles(P, qc)
         better = ang > best_ang
         best_q = np.where(better[:, None], qc, best_q)
-        best_ang = np.maximum(best_ang, ang)
+        best_ang = np.where(better, ang, best_ang)
+        best_max = np.where(better, amax, best_max)
     q = best_q
     hq = np.asarray(h(q), dtype=float) if callable(h) else np.full(len(q), float(h))
     polygons = np.asarray(polygons)
@@ -110,20 +113,23 @@ def junction_points(points, triangles, owner, centres, polygons, h, clearance: f
     ix, dist = tree.query_nearest(pts, return_distance=True, all_matches=False)
     dn = np.zeros(len(q))
     dn[ix[0]] = dist
-    ok = (dn >= clearance * hq) & (best_ang >= min_angle)
+    ok = (dn >= clearance * hq) & (best_ang >= min_angle) & (best_max <= max_angle)
     return jt[ok], q[ok]
 
 
-def _split_min_angle(P, q):
-    """Smallest angle (degrees) of the three triangles made by splitting ``P`` (k, 3, 2) at ``q``."""
-    out = np.full(len(q), 180.0)
+def _split_angles(P, q):
+    """Smallest and largest angle (degrees) of the three triangles made by splitting ``P`` (k, 3, 2) at ``q``."""
+    lo = np.full(len(q), 180.0)
+    hi = np.zeros(len(q))
     for i in range(3):  # the three sub-triangles
         a, b = P[:, i], P[:, (i + 1) % 3]
         for u, v, w in ((a, b, q), (b, q, a), (q, a, b)):
             d1, d2 = v - u, w - u
             c = (d1 * d2).sum(axis=1) / np.maximum(np.linalg.norm(d1, axis=1) * np.linalg.norm(d2, axis=1), 1e-300)
-            out = np.minimum(out, np.degrees(np.arccos(np.clip(c, -1, 1))))
-    return out
+            ang = np.degrees(np.arccos(np.clip(c, -1, 1)))
+            lo = np.minimum(lo, ang)
+            hi = np.maximum(hi, ang)
+    return lo, hi
 
 
 def split_triangles(triangles, tri, new_index) -> np.ndarray:

@@ -93,7 +93,10 @@ class MeshEvent:
         The connectivity changed: fields must be transferred (:mod:`fluidem.mesh.transfer`)
         from ``old_points``/``old_triangles`` to the new mesh.
     reason : str
-        ``""``, ``"periodic"``, ``"quality"``, ``"inverted"``, ``"regenerate"``.
+        ``""`` (none), ``"periodic"`` (every K steps), ``"quality"`` (an angle crossed the
+        bounds), ``"degenerate"`` (an element shrank below a tenth of its area), ``"contact"``
+        (bodies touched or their contact changed), ``"inverted"`` (the rigid motion inverted an
+        element: the old mesh at the new positions is invalid), ``"regenerate"``.
     n_nodes, n_triangles : int
     n_purged, n_removed, n_inserted, n_junctions : int
         Nodes purged inside/near bodies, removed by coarsening, inserted by refinement, and
@@ -108,7 +111,10 @@ class MeshEvent:
         Areas of fluid pores fully enclosed by touching bodies, units².
     old_points, old_triangles : arrays or None
         The previous connectivity at the positions the nodes reached this step before the
-        re-triangulation (valid for transfer unless ``reason == "inverted"``).
+        re-triangulation (a valid mesh for transfer unless ``reason == "inverted"``).
+    prev_points : array or None
+        Positions of the previous connectivity before this update (always a valid mesh;
+        use it with ``old_triangles`` when ``reason == "inverted"``).
     seconds : float
         Wall-clock time of the update.
     """
@@ -128,6 +134,7 @@ class MeshEvent:
     pore_areas: np.ndarray = field(default_factory=lambda: np.zeros(0))
     old_points: np.ndarray | None = field(default=None, repr=False)
     old_triangles: np.ndarray | None = field(default=None, repr=False)
+    prev_points: np.ndarray | None = field(default=None, repr=False)
     seconds: float = 0.0
 
 
@@ -194,7 +201,7 @@ class MovingMesh:
                  min_gap: float | None = None, junctions: bool = True, background: str | None = None,
                  relax_params: RelaxParams = RelaxParams(), initial_iterations: int = 60,
                  drag_reach: float = 3.0, drag_full: float = 1.0, drag_stiffness: float = 0.8,
-                 gap_purge: float = 1.1, cleanup_passes: int = 1):
+                 gap_purge: float = 1.1, cleanup_passes: int = 1, retriangulate_iterations: int = 20):
         self.domain = BoxDomain.from_any(domain)
         self.box = (self.domain.xmin, self.domain.xmax, self.domain.ymin, self.domain.ymax)
         if not (isinstance(h, (int, float, np.floating, np.integer)) and np.isfinite(h) and h > 0):
@@ -230,6 +237,7 @@ class MovingMesh:
             raise ValueError(f"gap_purge must be a number >= 0 (multiple of h), got {gap_purge!r}")
         self.gap_purge = float(gap_purge)
         self.cleanup_passes = int(cleanup_passes)
+        self.retriangulate_iterations = int(retriangulate_iterations)
         self.min_angle_trigger = float(min_angle_trigger)
         self.min_gap = 1e-3 * self.h if min_gap is None else float(min_gap)
         if not (np.isfinite(self.min_gap) and self.min_gap > 0):
@@ -446,6 +454,8 @@ class MovingMesh:
                 r = 0.5 * self.min_gap
                 closed = shapely.union_all(shapely.buffer(polys[mem], r, join_style="mitre", mitre_limit=20.0))
                 closed = shapely.buffer(closed, -r, join_style="mitre", mitre_limit=20.0)
+                # features below the gap scale (bridge steps) are noise: drop them
+                closed = shapely.simplify(closed, self.min_gap, preserve_topology=True)
                 comps = list(getattr(closed, "geoms", [closed]))
                 rings = []
                 for comp in comps:
@@ -458,17 +468,21 @@ class MovingMesh:
                 in_mem = np.flatnonzero(np.isin(self._ol_body, mem))
                 pts_m = shapely.points(olw[in_mem])
                 dring = np.column_stack([shapely.distance(rg, pts_m) for rg in rings])
-                on = dring.min(axis=1) < tol
+                on = dring.min(axis=1) < max(tol, 1.01 * self.min_gap)
                 ol_keep[in_mem[~on]] = False
                 which = np.argmin(dring, axis=1)
                 for ri, ring in enumerate(rings):
                     rv = shapely.get_coordinates(ring)[:-1]
+                    # ring vertices closer than 0.1 h to the previous kept one are dropped
+                    if len(rv) > 3:
+                        step = np.linalg.norm(np.diff(rv, axis=0, append=rv[:1]), axis=1)
+                        rv = rv[np.concatenate([[True], step[:-1] >= 0.1 * self.h])]
                     kept = in_mem[on & (which == ri)]
                     if len(kept):
                         dk, _ = cKDTree(olw[kept]).query(rv)
                     else:
                         dk = np.full(len(rv), np.inf)
-                    newp = rv[dk > tol]
+                    newp = rv[dk > max(tol, 1.01 * self.min_gap)]
                     if len(newp) and len(kept):
                         # outline nodes too close to a new contact node are dropped
                         hv = self._target(newp, olw)
@@ -485,7 +499,17 @@ class MovingMesh:
                     allp = np.vstack([olw[kept], newp])
                     gid = np.concatenate([kept, n_ol + n_extra + np.arange(len(newp))])
                     pos = shapely.line_locate_point(ring, shapely.points(allp))
-                    ringn = gid[np.argsort(pos)]
+                    o = np.argsort(pos)
+                    ringn = gid[o]
+                    # outline nodes closer than 0.1 h to their predecessor on the ring
+                    # (corners of two touching bodies) are merged into it
+                    if len(ringn) > 3:
+                        rp = allp[o]
+                        step = np.linalg.norm(rp - np.roll(rp, 1, axis=0), axis=1)
+                        drop = (step < 0.1 * self.h) & (ringn < n_ol)
+                        drop[0] = False
+                        ol_keep[ringn[drop]] = False
+                        ringn = ringn[~drop]
                     if len(ringn) >= 3:
                         seg_list.append(np.column_stack([ringn, np.roll(ringn, -1)]))
                     extra_pts.append(newp)
@@ -604,6 +628,15 @@ class MovingMesh:
                                          lambda q: self._target(q, olw), clearance=0.3, tree=tree)
                 if len(jp):
                     n0 = len(allpts)
+                    # junction nodes follow their junction: fixed barycentric coordinates in
+                    # the triangle of outline nodes they split
+                    jv = t[jt]
+                    P = allpts[jv]
+                    e1, e2, r = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0], jp - P[:, 0]
+                    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+                    l1 = (r[:, 0] * e2[:, 1] - r[:, 1] * e2[:, 0]) / det
+                    l2 = (e1[:, 0] * r[:, 1] - e1[:, 1] * r[:, 0]) / det
+                    jbary = np.column_stack([1 - l1 - l2, l1, l2])
                     t = split_triangles(t, jt, n0 + np.arange(len(jp)))
                     allpts = np.vstack([allpts, jp])
                     kind = np.concatenate([kind, np.full(len(jp), JUNCTION, np.int8)])
@@ -612,6 +645,12 @@ class MovingMesh:
                     uid = np.concatenate([uid, self._next_uid + np.arange(len(jp))])
                     self._next_uid += len(jp)
             self.points = allpts
+            if self.use_junctions and self.n_bodies >= 3 and len(jp):
+                self._junction_nodes = n0 + np.arange(len(jp))
+                self._junction_verts = jv
+                self._junction_bary = jbary
+            else:
+                self._junction_nodes = np.zeros(0, dtype=np.int64)
             self.kind = kind
             self.body_of = body_of.astype(np.int64)
             self.ol_id = ol_id.astype(np.int64)
@@ -640,8 +679,14 @@ class MovingMesh:
                 break
             cpts, ckind, cuid = fix
         self._steps_since = 0
+        if self.n_bodies > 1:
+            a, b = tree.query(polys, predicate="dwithin", distance=self.h)
+            sel = a < b
+            self._near_pairs = np.column_stack([a[sel], b[sel]])
+        else:
+            self._near_pairs = np.zeros((0, 2), dtype=np.int64)
         self._drag_association(polys)
-        self._n_bad_baseline = self._n_bad()
+        self._set_quality_baseline()
         info["n_junctions"] = self.n_junctions
         return info
 
@@ -798,7 +843,7 @@ class MovingMesh:
             info = self._triangulate_from(self._bg_points, self._bg_kind, self._bg_uid, purge=self.clearance,
                                           adapt=False, n_relax=self.relax_iterations)
             ev.retriangulated, ev.reason = True, "regenerate"
-            ev.old_points, ev.old_triangles = old_p, old_t
+            ev.old_points, ev.old_triangles, ev.prev_points = old_p, old_t, old_p
             ev.n_purged, ev.n_junctions = info["n_purged"], info["n_junctions"]
         else:
             self._drag_step(new, ev)
@@ -837,6 +882,9 @@ class MovingMesh:
             norm = np.maximum(wsum, 1.0)
             d = np.column_stack([dx / norm, dy / norm]) * self._drag_mobility
         xd = x + np.where(fixed[:, None], 0.0, d)
+        if len(self._junction_nodes):
+            # junction nodes keep their barycentric place between their three outline nodes
+            xd[self._junction_nodes] = np.einsum("kj,kjd->kd", self._junction_bary, x[self._junction_verts])
         # a dragged free node must not invert an element that rigid motion alone keeps valid
         a_rigid = signed_areas(x, self.triangles)
         bad = (signed_areas(xd, self.triangles) <= 0) & (a_rigid > 0)
@@ -872,14 +920,17 @@ class MovingMesh:
         reason = ""
         if (area <= 0).any():
             reason = "inverted"
+        elif (area < 0.1 * self._base_area).any():
+            reason = "degenerate"  # an element (typically in a narrow gap) is collapsing
+        elif self._contacts_changed():
+            reason = "contact"
         elif self._steps_since >= self.retriangulate_every:
             reason = "periodic"
-        else:
-            nb, ns = self._n_bad()
-            if nb > self._n_bad_baseline[0] + 2 + len(self.triangles) // 2000 or ns > self._n_bad_baseline[1]:
-                reason = "quality"
+        elif self._quality_dropped():
+            reason = "quality"
         if reason:
             ev.old_points, ev.old_triangles = xr.copy(), self.triangles.copy()
+            ev.prev_points = self._prev_points
             info = self.retriangulate()
             ev.retriangulated, ev.reason = True, reason
             ev.n_purged, ev.n_removed, ev.n_inserted = info["n_purged"], info["n_removed"], info["n_inserted"]
@@ -890,22 +941,69 @@ class MovingMesh:
 
         Returns a dict with ``n_purged``, ``n_removed``, ``n_inserted``, ``n_junctions``.
         """
-        n_relax = max(self.relax_iterations, 5) if n_relax is None else n_relax
+        n_relax = self.retriangulate_iterations if n_relax is None else n_relax
         return self._triangulate_from(self.points, self.kind, self.uid, purge=self.purge_clearance,
                                       adapt=True, n_relax=n_relax, h_cand=self.h_node)
 
-    def _n_bad(self) -> tuple[int, int]:
-        """Bad and severely bad elements outside (structural) narrow gaps.
+    def _contacts_changed(self) -> bool:
+        """True when bodies came closer than ``min_gap`` or an outline node of a body in contact
+        entered another body (the contact outlines must be rebuilt).
 
-        Bad: an angle below ``min_angle_trigger`` or above 135°; severe: below
-        ``2/3 · min_angle_trigger`` or above 150°.
+        Only pairs closer than ``h`` at the last triangulation are checked: bodies farther
+        apart cannot touch before the elements between them invert.
         """
-        ang = triangle_angles(self.points, self.triangles)
-        amin, amax = ang.min(axis=1), ang.max(axis=1)
-        ok = ~self._structural_narrow()
-        bad = ((amin < self.min_angle_trigger) | (amax > 135.0)) & ok
-        severe = ((amin < self.min_angle_trigger * 2.0 / 3.0) | (amax > 150.0)) & ok
-        return int(bad.sum()), int(severe.sum())
+        pairs = self._near_pairs
+        if not len(pairs):
+            return False
+        polys = self._polygons()
+        d = shapely.distance(polys[pairs[:, 0]], polys[pairs[:, 1]])
+        close = pairs[d <= self.min_gap]
+        n = self.n_bodies
+        now = close[:, 0] * n + close[:, 1]
+        before = self.contacts[:, 0] * n + self.contacts[:, 1] if len(self.contacts) else now[:0]
+        if len(np.setdiff1d(now, before)):
+            return True
+        if not len(now):
+            return False
+        inv = np.flatnonzero(np.isin(self.body_of, np.unique(close)))
+        pi, bi = shapely.STRtree(polys).query(shapely.points(self.points[inv]), predicate="within")
+        return bool((self.body_of[inv[pi]] != bi).any())
+
+    def _element_cosines(self):
+        """Per element: largest and smallest cosine of its angles (no arccos: cheap per step)."""
+        z = self.points[:, 0] + 1j * self.points[:, 1]
+        t = self.topo
+        a, b, c = z[t.t0], z[t.t1], z[t.t2]
+        u, v, w = b - a, c - b, a - c
+        lu, lv, lw = np.abs(u), np.abs(v), np.abs(w)
+        # cos at a: (b − a)·(c − a) = −u·w
+        ca = -(u.real * w.real + u.imag * w.imag) / np.maximum(lu * lw, 1e-300)
+        cb = -(u.real * v.real + u.imag * v.imag) / np.maximum(lu * lv, 1e-300)
+        cc = -(v.real * w.real + v.imag * w.imag) / np.maximum(lv * lw, 1e-300)
+        return np.maximum(np.maximum(ca, cb), cc), np.minimum(np.minimum(ca, cb), cc)
+
+    def _set_quality_baseline(self):
+        """Per-element thresholds for the quality trigger, set after each triangulation.
+
+        Narrow-gap elements (the geometric flag of :meth:`quality` evaluated now, gaps change
+        little between re-triangulations, or'ed with the structural one) are left out.
+        """
+        narrow = self._narrow_gap() | self._structural_narrow()
+        self._base_area = signed_areas(self.points, self.triangles)
+        cmax, cmin = self._element_cosines()
+        amin = np.degrees(np.arccos(np.clip(cmax, -1, 1)))
+        amax = np.degrees(np.arccos(np.clip(cmin, -1, 1)))
+        lo = np.minimum(self.min_angle_trigger, amin - 3.0)
+        hi = np.maximum(135.0, amax + 3.0)
+        self._cos_lo = np.where(narrow, 2.0, np.cos(np.radians(np.clip(lo, 0, 180))))
+        self._cos_hi = np.where(narrow, -2.0, np.cos(np.radians(np.clip(hi, 0, 180))))
+
+    def _quality_dropped(self) -> bool:
+        """True when an element outside narrow gaps got an angle below ``min_angle_trigger``
+        or above 135° that it did not have after the last triangulation, or one that had
+        such an angle lost another 3° on it."""
+        cmax, cmin = self._element_cosines()
+        return bool(((cmax > self._cos_lo) | (cmin < self._cos_hi)).any())
 
     def _structural_narrow(self) -> np.ndarray:
         """Triangles whose three vertices are all on boundaries, not all of one owner."""
@@ -1001,12 +1099,43 @@ class MovingMesh:
         """Narrow-gap triangles by the geometric definition of :mod:`fluidem.mesh.quality`."""
         t = self.triangles
         narrow = np.zeros(len(t), dtype=bool)
-        cand = np.flatnonzero((self.kind[t] != FREE).any(axis=1))
+        # free nodes are purged from gaps narrower than gap_purge · h, so a triangle in a
+        # narrow gap has at most one free vertex
+        cand = np.flatnonzero((self.kind[t] != FREE).sum(axis=1) >= 2)
         if not len(cand):
             return narrow
         c = self.points[t[cand]].mean(axis=1)
         hh = 0.5 * self.h_node[t[cand]].mean(axis=1)
         narrow[cand] = self._gap_width(c, hh) < hh
+        # ... or one of its edges joins two different boundaries and one end of it is closer
+        # than h/2 to the other end's boundary (the element is anchored across the gap)
+        owner = np.where((self.kind == FREE) | (self.kind == JUNCTION), -3,
+                         np.where(self.body_of >= 0, self.body_of, -2))
+        x = self.points
+        xmin, xmax, ymin, ymax = self.box
+        polys = self._polygons() if self.n_bodies else None
+        tc = t[cand]
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            a, b = tc[:, i], tc[:, j]
+            oa, ob = owner[a], owner[b]
+            span = np.flatnonzero((oa != -3) & (ob != -3) & (oa != ob))
+            if not len(span):
+                continue
+            lim = 0.25 * (self.h_node[a[span]] + self.h_node[b[span]])
+            d = np.full(len(span), np.inf)
+            for p_, o_ in ((a[span], ob[span]), (b[span], oa[span])):
+                q = x[p_]
+                on_body = o_ >= 0
+                if on_body.any():
+                    d[on_body] = np.minimum(d[on_body], shapely.distance(
+                        polys[o_[on_body]], shapely.points(q[on_body])))
+                wall = o_ == -2
+                if wall.any():
+                    qw = q[wall]
+                    dw = np.min(np.column_stack([qw[:, 1] - ymin, xmax - qw[:, 0], ymax - qw[:, 1], qw[:, 0] - xmin]),
+                                axis=1)
+                    d[wall] = np.minimum(d[wall], dw)
+            narrow[cand[span[d < lim]]] = True
         return narrow
 
     def nodes_inside_bodies(self) -> np.ndarray:

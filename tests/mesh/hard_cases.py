@@ -1,0 +1,151 @@
+"""Scenes for the moving-mesh hard cases: a random packing of convex polygons and motions.
+
+Shared by ``tests/mesh`` and ``benchmarks/bench_mesh.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+
+def random_convex(size: float, n_vertices: int, rng) -> np.ndarray:
+    """Convex polygon of diameter ≈ ``size`` (vertices on an ellipse), CCW, centroid at the origin."""
+    t = np.sort(rng.uniform(0, 2 * np.pi, n_vertices))
+    # keep angular gaps below π so the centroid is inside and no edge is degenerate
+    t = 2 * np.pi * (np.arange(n_vertices) + 0.6 * (rng.random(n_vertices) - 0.5)) / n_vertices
+    e = rng.uniform(1.0, 1.6)
+    v = 0.5 * size * np.column_stack([np.cos(t), np.sin(t) / e])
+    a = rng.uniform(0, 2 * np.pi)
+    v = v @ np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]).T
+    w = np.roll(v, -1, axis=0)
+    c = v[:, 0] * w[:, 1] - w[:, 0] * v[:, 1]
+    cen = ((v + w) * c[:, None]).sum(axis=0) / (3.0 * c.sum())
+    return v - cen
+
+
+def world_polygons(bodies, poses):
+    out = []
+    for v, p in zip(bodies, poses):  # test set-up helper
+        c, s = np.cos(p[2]), np.sin(p[2])
+        out.append(shapely.Polygon(v @ np.array([[c, -s], [s, c]]).T + p[:2]))
+    return np.array(out, dtype=object)
+
+
+def packing(n=200, phi=0.5, sizes=(0.5, 1.5), n_vertices=(3, 8), min_gap=0.01, seed=0):
+    """Random non-overlapping convex polygons at area fraction ``phi`` in a square box.
+
+    Bodies are placed biggest first at random positions/angles (batches of candidates tested
+    with an STR tree), then compacted: each body is moved towards its nearest neighbour until
+    the gap is ``min_gap`` (times a random factor 1–3) when that is free of other bodies.
+    Returns ``bodies`` (list of (n_i, 2)), ``poses`` (n, 3) and the box.
+    """
+    rng = np.random.default_rng(seed)
+    sz = np.sort(rng.uniform(*sizes, n))[::-1]
+    bodies = [random_convex(s, int(rng.integers(n_vertices[0], n_vertices[1] + 1)), rng) for s in sz]
+    area = sum(shapely.area(shapely.Polygon(b)) for b in bodies)
+    L = float(np.sqrt(area / phi))
+    box = (0.0, L, 0.0, L)
+    placed, poses = [], []
+    for v in bodies:
+        r = np.linalg.norm(v, axis=1).max()
+        for _ in range(200):
+            k = 256
+            xy = rng.uniform(r + min_gap, L - r - min_gap, (k, 2))
+            ang = rng.uniform(0, 2 * np.pi, k)
+            c, s = np.cos(ang), np.sin(ang)
+            cand = np.stack([c[:, None] * v[None, :, 0] - s[:, None] * v[None, :, 1] + xy[:, :1],
+                             s[:, None] * v[None, :, 0] + c[:, None] * v[None, :, 1] + xy[:, 1:]], axis=2)
+            polys = shapely.polygons(cand)
+            if placed:
+                tree = shapely.STRtree(placed)
+                ci, _ = tree.query(polys, predicate="dwithin", distance=min_gap)
+                ok = np.ones(k, dtype=bool)
+                ok[ci] = False
+            else:
+                ok = np.ones(k, dtype=bool)
+            if ok.any():
+                j = int(np.flatnonzero(ok)[0])
+                placed.append(polys[j])
+                poses.append([xy[j, 0], xy[j, 1], ang[j]])
+                break
+        else:
+            raise RuntimeError("packing failed; use a lower area fraction")
+    poses = np.array(poses)
+    # compaction towards nearest neighbours creates narrow gaps
+    placed = np.array(placed, dtype=object)
+    for i in range(len(bodies)):
+        tree = shapely.STRtree(placed)
+        others = np.delete(np.arange(len(bodies)), i)
+        d = shapely.distance(placed[others], placed[i])
+        j = others[np.argmin(d)]
+        gap = d.min()
+        target = min_gap * rng.uniform(1.0, 3.0)
+        if gap <= target:
+            continue
+        dirn = poses[j, :2] - poses[i, :2]
+        dirn /= np.linalg.norm(dirn)
+        for frac in (1.0, 0.5, 0.25):
+            shift = dirn * (gap - target) * frac
+            moved = shapely.transform(placed[i], lambda p: p + shift)
+            near = tree.query(moved, predicate="dwithin", distance=min_gap)
+            near = near[near != i]
+            xmin, ymin, xmax, ymax = shapely.bounds(moved)
+            if len(near) == 0 and xmin > min_gap and ymin > min_gap and xmax < L - min_gap and ymax < L - min_gap:
+                placed[i] = moved
+                poses[i, :2] += shift
+                break
+    return bodies, poses, box
+
+
+class RandomMotion:
+    """Random small rigid motions keeping every gap ≥ ``min_gap`` and bodies inside the box.
+
+    Each step every body gets a Gaussian translation (std ``sigma_x``) and rotation (std
+    ``sigma_a`` rad); moves that would bring two bodies (or a body and a wall) closer than
+    ``min_gap`` are undone for the bodies involved (repeated until none is left).
+    """
+
+    def __init__(self, bodies, poses, box, sigma_x=0.002, sigma_a=0.004, min_gap=0.01, seed=1):
+        self.bodies = bodies
+        self.poses = np.array(poses, dtype=float)
+        self.box = box
+        self.sigma_x, self.sigma_a, self.min_gap = sigma_x, sigma_a, min_gap
+        self.rng = np.random.default_rng(seed)
+        self._nv = np.array([len(b) for b in bodies])
+        self._vc = np.vstack(bodies)
+        self._vb = np.repeat(np.arange(len(bodies)), self._nv)
+
+    def polygons(self, poses):
+        c, s = np.cos(poses[self._vb, 2]), np.sin(poses[self._vb, 2])
+        x = c * self._vc[:, 0] - s * self._vc[:, 1] + poses[self._vb, 0]
+        y = s * self._vc[:, 0] + c * self._vc[:, 1] + poses[self._vb, 1]
+        return shapely.polygons(shapely.linearrings(np.column_stack([x, y]), indices=self._vb))
+
+    def step(self):
+        n = len(self.poses)
+        trial = self.poses.copy()
+        trial[:, :2] += self.rng.normal(0, self.sigma_x, (n, 2))
+        trial[:, 2] += self.rng.normal(0, self.sigma_a, n)
+        for _ in range(20):
+            polys = self.polygons(trial)
+            a, b = shapely.STRtree(polys).query(polys, predicate="dwithin", distance=self.min_gap)
+            bad = np.zeros(n, dtype=bool)
+            sel = a != b
+            bad[a[sel]] = True
+            xmin, ymin, xmax, ymax = shapely.bounds(polys).T
+            g = self.min_gap
+            bad |= (xmin < self.box[0] + g) | (ymin < self.box[2] + g) | (xmax > self.box[1] - g) | (ymax > self.box[3] - g)
+            moved = np.any(trial != self.poses, axis=1)
+            bad &= moved
+            if not bad.any():
+                break
+            trial[bad] = self.poses[bad]
+        self.poses = trial
+        return trial.copy()
+
+    def min_gap_now(self):
+        polys = self.polygons(self.poses)
+        a, b = shapely.STRtree(polys).query(polys, predicate="dwithin", distance=1.0)
+        sel = a < b
+        return float(shapely.distance(polys[a[sel]], polys[b[sel]]).min())

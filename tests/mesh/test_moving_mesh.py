@@ -1,0 +1,209 @@
+"""MovingMesh: invariants while bodies move, strategies, contacts, pores, outputs and bad input."""
+
+import numpy as np
+import pytest
+
+from fluidem.geometry import rectangle, regular_polygon
+from fluidem.mesh import MovingMesh
+
+
+def check_invariants(mm, min_area_rel=1e-6):
+    """No inverted element, no node inside a body, every outline present as boundary facets."""
+    q = mm.quality()
+    assert q.n_inverted == 0, q
+    assert q.n_nodes_inside_bodies == 0, q
+    assert mm.outline_facets_present()
+    assert q.min_area > min_area_rel * mm.h**2, q
+    return q
+
+
+def three_bodies():
+    bodies = [regular_polygon(0.3, 6), rectangle(0.5, 0.3), regular_polygon(0.25, 3)]
+    poses = np.array([[1.0, 1.0, 0.0], [2.0, 1.2, 0.3], [1.5, 2.0, 0.1]])
+    return bodies, poses
+
+
+@pytest.mark.parametrize("strategy", ["drag", "regenerate"])
+def test_invariants_hold_every_step(strategy):
+    bodies, poses = three_bodies()
+    mm = MovingMesh((0, 3, 0, 3), bodies, poses, h=0.1, strategy=strategy)
+    check_invariants(mm)
+    worst = 90.0
+    for _ in range(40):
+        poses = poses + np.array([0.004, 0.002, 0.01])
+        ev = mm.update(poses)
+        q = check_invariants(mm)
+        worst = min(worst, q.min_angle)
+        assert ev.n_nodes == q.n_nodes
+    assert worst > 15.0, worst
+    assert q.frac_above_135 < 0.01
+
+
+def test_drag_keeps_connectivity_between_retriangulations():
+    bodies, poses = three_bodies()
+    mm = MovingMesh((0, 3, 0, 3), bodies, poses, h=0.1, retriangulate_every=10)
+    t0 = mm.triangles.copy()
+    ev = mm.update(poses + [0.001, 0.0, 0.0])
+    assert not ev.retriangulated and np.array_equal(mm.triangles, t0)
+    reasons = [mm.update(poses + [0.001 * (k + 2), 0.0, 0.0]).reason for k in range(9)]
+    assert reasons[-1] == "periodic" and set(reasons[:-1]) == {""}
+
+
+def test_node_velocity_is_rigid_on_outlines():
+    bodies, poses = three_bodies()
+    mm = MovingMesh((0, 3, 0, 3), bodies, poses, h=0.1)
+    dt = 0.01
+    vel = np.array([[0.2, -0.1, 0.5], [0.0, 0.1, -0.3], [0.1, 0.1, 0.0]])
+    mm.update(poses + dt * vel)
+    w = mm.node_velocity(dt)
+    assert w.shape == mm.points.shape
+    for b in range(3):
+        on = mm.body_of == b
+        x = mm.points[on]
+        # exact finite difference of the rigid motion: rotation by ω dt about the old centre
+        x_prev = mm._prev_points[on]
+        np.testing.assert_allclose(w[on], (x - x_prev) / dt, atol=1e-12)
+        r = x_prev - poses[b, :2]
+        expected = vel[b, :2] + vel[b, 2] * np.column_stack([-r[:, 1], r[:, 0]])
+        np.testing.assert_allclose(w[on], expected, atol=0.05)
+    with pytest.raises(ValueError, match="dt"):
+        mm.node_velocity(0.0)
+
+
+def test_node_velocity_after_retriangulation_is_finite():
+    bodies, poses = three_bodies()
+    mm = MovingMesh((0, 3, 0, 3), bodies, poses, h=0.1, retriangulate_every=1)
+    ev = mm.update(poses + [0.01, 0.0, 0.0])
+    assert ev.retriangulated
+    w = mm.node_velocity(0.1)
+    assert np.all(np.isfinite(w))
+    on = mm.body_of >= 0
+    np.testing.assert_allclose(w[on], np.tile([0.1, 0.0], (on.sum(), 1)), atol=1e-9)
+
+
+def test_skfem_mesh_has_named_boundaries():
+    bodies, poses = three_bodies()
+    mm = MovingMesh((0, 3, 0, 3), bodies, poses, h=0.1)
+    m = mm.skfem_mesh()
+    assert set(m.boundaries) == {"bottom", "right", "top", "left", "body0", "body1", "body2"}
+    for b in range(3):
+        f = m.boundaries[f"body{b}"]
+        mid = m.p[:, m.facets[:, f]].mean(axis=1).T
+        # facets of body b lie on its outline: total length equals the perimeter
+        lengths = np.linalg.norm(m.p[:, m.facets[0, f]] - m.p[:, m.facets[1, f]], axis=0)
+        v = bodies[b]
+        perim = np.linalg.norm(v - np.roll(v, -1, axis=0), axis=1).sum()
+        assert lengths.sum() == pytest.approx(perim, rel=1e-9)
+        assert len(mid) > 0
+    xmin = m.p[0, m.facets[:, m.boundaries["left"]]]
+    np.testing.assert_allclose(xmin, 0.0)
+
+
+def test_fixed_strategy_meshes_once_and_rejects_motion():
+    bodies, poses = three_bodies()
+    mm = MovingMesh((0, 3, 0, 3), bodies, poses, h=0.1, strategy="fixed")
+    p0 = mm.points.copy()
+    ev = mm.update(poses)
+    assert not ev.retriangulated and np.array_equal(mm.points, p0)
+    with pytest.raises(ValueError, match="fixed"):
+        mm.update(poses + [0.1, 0, 0])
+
+
+def test_graded_mesh_is_coarse_far_away():
+    bodies, poses = three_bodies()
+    mm = MovingMesh((0, 12, 0, 6), bodies, poses, h=0.1,
+                    grading={"region": (0, 3, 0, 3), "growth": 1.2, "h_max": 1.0})
+    check_invariants(mm)
+    far = (mm.points[:, 0] > 8).sum() / (4 * 6)
+    near = ((mm.points[:, 0] < 3) & (mm.points[:, 1] < 3)).sum() / 9
+    assert near > 20 * far
+
+
+def test_sliding_past_each_other_with_gap_h_over_10():
+    """Hard case 2 (short run): two bodies sliding in opposite directions, gap h/10."""
+    h = 0.1
+    bodies = [rectangle(1.0, 0.3), rectangle(1.0, 0.3)]
+    poses = np.array([[1.5, 1.0, 0.0], [2.5, 1.3 + h / 10, 0.0]])
+    mm = MovingMesh((0, 4, 0, 2.3), bodies, poses, h=h)
+    n_narrow = []
+    for k in range(60):
+        poses[0, 0] += 0.01
+        poses[1, 0] -= 0.01
+        mm.update(poses)
+        q = check_invariants(mm)
+        n_narrow.append(q.n_narrow_gap_triangles)
+        assert q.min_angle > 15.0 and q.frac_above_135 < 0.01, q
+    assert max(n_narrow) > 0  # the overlap region is a narrow gap
+
+
+# ---------------------------------------------------------------- contacts and pores
+@pytest.mark.parametrize("gap", [0.0, -0.01, 1e-7, 0.002])
+def test_touching_and_overlapping_bodies_mesh_cleanly(gap):
+    """Contact policy: closer than min_gap -> one closed outline; never a zero-area element."""
+    sq = rectangle(0.4, 0.4)
+    poses = np.array([[1.0, 1.0, 0.0], [1.4 + gap, 1.0, 0.0], [1.2, 1.4 + gap, 0.3]])
+    mm = MovingMesh((0, 2.5, 0, 2.5), [sq, sq, sq], poses, h=0.05)
+    check_invariants(mm)
+    if gap <= 0:
+        assert {tuple(c) for c in mm.contacts} >= {(0, 1)}
+    for _ in range(15):
+        poses[1, 0] -= 0.0005  # push into contact / deeper overlap
+        poses[0, 2] += 0.002
+        ev = mm.update(poses)
+        check_invariants(mm)
+    assert len(ev.contacts) >= 2
+
+
+def test_enclosed_pore_is_detected_and_meshed():
+    n, R = 6, 0.5
+    bodies, poses = [], []
+    for i in range(n):
+        a = 2 * np.pi * i / n
+        bodies.append(rectangle(0.52, 0.2))
+        poses.append([1.25 + R * np.cos(a), 1.25 + R * np.sin(a), a + np.pi / 2])
+    mm = MovingMesh((0, 2.5, 0, 2.5), bodies, np.array(poses), h=0.05)
+    check_invariants(mm)
+    assert len(mm.pore_areas) == 1
+    # the pore is the hexagon inside the ring minus nothing: area between 0.4 and 0.7
+    assert 0.4 < mm.pore_areas[0] < 0.7
+    inside = np.hypot(mm.points[:, 0] - 1.25, mm.points[:, 1] - 1.25) < 0.3
+    assert inside.sum() > 20  # the pore is meshed
+    # without contact there is no pore
+    poses2 = np.array(poses)
+    poses2[:, :2] = 1.25 + 1.3 * (poses2[:, :2] - 1.25)
+    assert len(MovingMesh((0, 2.5, 0, 2.5), bodies, poses2, h=0.05).pore_areas) == 0
+
+
+# ---------------------------------------------------------------- bad input
+def test_bad_input_is_rejected_with_clear_errors():
+    sq = rectangle(0.4, 0.4)
+    dom = (0, 2, 0, 2)
+    with pytest.raises(ValueError, match="not inside the domain"):
+        MovingMesh(dom, [sq], [[1.9, 1.0, 0.0]], h=0.1)
+    with pytest.raises(ValueError, match="clockwise"):
+        MovingMesh(dom, [sq[::-1]], [[1.0, 1.0, 0.0]], h=0.1)
+    with pytest.raises(ValueError, match="intersects itself"):
+        MovingMesh(dom, [np.array([[0, 0], [0.4, 0.4], [0.4, 0], [0.2, 0.5], [0, 0.4]]) - 0.2], [[1.0, 1.0, 0.0]], h=0.1)
+    for h in (0.0, -0.1, np.inf):
+        with pytest.raises(ValueError, match="mesh size h"):
+            MovingMesh(dom, [sq], [[1.0, 1.0, 0.0]], h=h)
+    with pytest.raises(ValueError, match="unknown mesh strategy 'warp'"):
+        MovingMesh(dom, [sq], [[1.0, 1.0, 0.0]], h=0.1, strategy="warp")
+    with pytest.raises(ValueError, match=r"\(1, 3\)"):
+        MovingMesh(dom, [sq], [[1.0, 1.0]], h=0.1)
+    with pytest.raises(ValueError, match="domain"):
+        MovingMesh((0, -1, 0, 2), [sq], [[1.0, 1.0, 0.0]], h=0.1)
+    with pytest.raises(ValueError, match="grading"):
+        MovingMesh(dom, [sq], [[1.0, 1.0, 0.0]], h=0.1, grading={"growth": 1.2})
+    mm = MovingMesh(dom, [sq], [[1.0, 1.0, 0.0]], h=0.1)
+    with pytest.raises(ValueError, match="not inside the domain"):
+        mm.update([[2.5, 1.0, 0.0]])
+
+
+def test_body_objects_are_accepted():
+    class Body:  # duck-typed like fluidem.dem bodies
+        def __init__(self, v, name):
+            self.vertices, self.name = v, name
+
+    mm = MovingMesh((0, 2, 0, 2), [Body(rectangle(0.4, 0.4), "box")], [[1.0, 1.0, 0.2]], h=0.1)
+    assert "box" in mm.skfem_mesh().boundaries
