@@ -482,13 +482,11 @@ class MovingMesh:
                         dk, _ = cKDTree(olw[kept]).query(rv)
                     else:
                         dk = np.full(len(rv), np.inf)
-                    newp = rv[dk > max(tol, 1.01 * self.min_gap)]
-                    if len(newp) and len(kept):
-                        # outline nodes too close to a new contact node are dropped
-                        hv = self._target(newp, olw)
-                        near = cKDTree(newp).query(olw[kept])[0] < 0.3 * np.min(hv)
-                        ol_keep[kept[near]] = False
-                        kept = kept[~near]
+                    # ring vertices off the body outline nodes (contact points, bridge
+                    # corners) become contact nodes unless an outline node is within 0.3 h:
+                    # then the ring cuts straight across the contact notch, which lies in the
+                    # fluid (the union is concave there), so no element overlaps a body
+                    newp = rv[dk > 0.3 * self.h]
                     # owner of a contact node: nearest member body
                     if len(newp):
                         dmem = np.column_stack([shapely.distance(polys[m], shapely.points(newp)) for m in mem])
