@@ -11,9 +11,9 @@ __all__ = ["main"]
 #: the options each case accepts from the command line
 _CASE_OPTIONS = {
     "dfg-2d1": ("element", "level"),
-    "dfg-2d2": ("element", "level", "dt", "t_end"),
-    "dfg-2d3": ("element", "level", "dt"),
-    "square-cylinder": ("element", "level", "dt", "t_end"),
+    "dfg-2d2": ("element", "level", "dt", "t_end", "convection"),
+    "dfg-2d3": ("element", "level", "dt", "convection"),
+    "square-cylinder": ("element", "level", "dt", "t_end", "convection"),
 }
 
 
@@ -55,6 +55,8 @@ def _build_parser() -> argparse.ArgumentParser:
     b.add_argument("--level", type=int, help="mesh level (each level halves the cell size), 0-6")
     b.add_argument("--dt", type=_positive_float, help="time step (unsteady cases)")
     b.add_argument("--t-end", type=_positive_float, dest="t_end", help="end time (periodic cases)")
+    b.add_argument("--convection", choices=["semi-implicit", "newton"],
+                   help="convection in time stepping: extrapolated (one linear solve per step) or Newton")
     b.add_argument("--json", action="store_true", help="print one JSON object as the last line")
     b.add_argument("--quiet", action="store_true", help="no progress output")
 
@@ -76,7 +78,7 @@ def main(argv=None) -> int:
 
         fn = get_case(args.name)
         kwargs = {}
-        for opt in ("element", "level", "dt", "t_end"):
+        for opt in ("element", "level", "dt", "t_end", "convection"):
             val = getattr(args, opt)
             if val is None:
                 continue

@@ -69,4 +69,4 @@ def square_cylinder(element: str = "th", level: int = 1, dt: float = 0.05, t_end
     return CaseResult("square-cylinder", element, level, pr.space.n_dofs, q, REFERENCE,
                       {"mesh": t_mesh, "assembly": pr.timings.assembly, "solve": pr.timings.solve},
                       "polygonal", dt, extra={"steps": stepper.n_steps, "periods_measured": sl.n_periods,
-                                              "convection": convection})
+                                              "convection": convection, **stepper.solver_summary()})

@@ -31,7 +31,7 @@ from skfem import asm
 
 from . import forms
 from .assembly import CondensedSystem, VectorAssembler
-from .solvers import DirectSolver, LaggedLUSolver, SolverError
+from .solvers import DirectSolver, LaggedLUSolver
 from .space import FlowSpace, VelocityBC
 
 __all__ = ["FlowProblem", "FlowState", "NewtonError", "solve_stokes", "solve_steady", "BDF2Stepper", "Timings"]
@@ -299,7 +299,8 @@ class BDF2Stepper:
         Default: an LU reused as a GMRES preconditioner across steps, refactorised when
         the iteration count grows (:class:`~fluidem.fluid.solvers.LaggedLUSolver`).
     newton_tol : float
-        Residual tolerance of the Newton iteration per step (``"newton"`` only).
+        Tolerance on the Euclidean norm of the residual (free DOFs, kinematic units) of the
+        Newton iteration per step (``"newton"`` only).
 
     The state advances with :meth:`step`; ``self.state`` holds the newest solution and
     ``self.residual(...)`` the discrete residual used for forces.
@@ -340,11 +341,10 @@ class BDF2Stepper:
             h = h + a2 * self._u_prev
         return self.problem.M @ h / self.dt
 
-    def _convecting_velocity(self, u_new=None):
+    def _convecting_velocity(self):
+        """Extrapolated convecting velocity 2u^n − u^{n−1} (u^n on the first step), minus w on a moving mesh."""
         un = self.state.u
         b = un if self._u_prev is None else 2.0 * un - self._u_prev
-        if u_new is not None:
-            b = u_new
         if self.mesh_velocity is not None:
             b = b - self.mesh_velocity
         return b
@@ -411,6 +411,12 @@ class BDF2Stepper:
         self.t = t_new
         self.n_steps += 1
         return self.state
+
+    def solver_summary(self) -> dict:
+        """Factorisations and Krylov iterations of the linear solver so far (if it counts them)."""
+        s = self.solver
+        return {"linear_solves": getattr(s, "solves", None), "factorizations": getattr(s, "factorizations", None),
+                "krylov_iterations": getattr(s, "total_iterations", None)}
 
     def last_residual(self) -> np.ndarray:
         """Residual of the last step's equations at the new state (for forces)."""
