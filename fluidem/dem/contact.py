@@ -318,7 +318,8 @@ def clip_convex(subj: np.ndarray, n_subj: np.ndarray, edge_a: np.ndarray, edge_d
         nc = nr[:, None]
         prev = np.where(q == 0, nc - 1, q - 1)
         prev = np.where(prev < nc, prev, 0)
-        start = ins & ~np.take_along_axis(ins, prev, axis=1)
+        arc = ar[:, None]
+        start = ins & ~ins[arc, prev]
         s0 = np.argmax(start, axis=1)   # first vertex of the (single, convex) inside run
         e0 = (s0 + r - 1) % nr          # last inside vertex; edge e0 leaves the half-plane
         e1 = (e0 + 1) % nr
@@ -332,14 +333,11 @@ def clip_convex(subj: np.ndarray, n_subj: np.ndarray, edge_a: np.ndarray, edge_d
         g = (s0[:, None] + q) % nc
         rc = r[:, None]
         run, at_out = q < rc, q == rc
-        SX[rows] = np.where(run, np.take_along_axis(X, g, axis=1),
-                            np.where(at_out, xo[:, None], xi[:, None]))
-        SY[rows] = np.where(run, np.take_along_axis(Y, g, axis=1),
-                            np.where(at_out, yo[:, None], yi[:, None]))
+        SX[rows] = np.where(run, X[arc, g], np.where(at_out, xo[:, None], xi[:, None]))
+        SY[rows] = np.where(run, Y[arc, g], np.where(at_out, yo[:, None], yi[:, None]))
         lab_p0 = lab[ar, p0][:, None]
-        on_subj[rows] = np.where(run, np.take_along_axis(lab, g, axis=1), ~at_out & lab_p0)
-        cross[rows] = np.where(run, np.take_along_axis(cr, g, axis=1),
-                               np.where(at_out, lab[ar, e0][:, None], lab_p0))
+        on_subj[rows] = np.where(run, lab[arc, g], ~at_out & lab_p0)
+        cross[rows] = np.where(run, cr[arc, g], np.where(at_out, lab[ar, e0][:, None], lab_p0))
         n[rows] = r + 2
     valid = q < n[:, None]
     SX = np.where(valid, SX, SX[:, :1])
