@@ -55,8 +55,9 @@ def _build_parser() -> argparse.ArgumentParser:
     b.add_argument("--level", type=int, help="mesh level (each level halves the cell size), 0-6")
     b.add_argument("--dt", type=_positive_float, help="time step (unsteady cases)")
     b.add_argument("--t-end", type=_positive_float, dest="t_end", help="end time (periodic cases)")
-    b.add_argument("--convection", choices=["semi-implicit", "newton"],
-                   help="convection in time stepping: extrapolated (one linear solve per step) or Newton")
+    b.add_argument("--convection", choices=["semi-implicit", "newton", "explicit"],
+                   help="convection in time stepping: linearised with an extrapolated convecting velocity "
+                        "(one linear solve per step), Newton, or explicit (one LU per run, CFL-bounded)")
     b.add_argument("--json", action="store_true", help="print one JSON object as the last line")
     b.add_argument("--quiet", action="store_true", help="no progress output")
 

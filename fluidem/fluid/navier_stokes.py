@@ -12,8 +12,12 @@ Time stepping: BDF2 with a BDF1 first step (Hairer & Wanner, *Solving ODEs II*, 
 convection either
 
 * ``"semi-implicit"``: linear in u^{n+1} with the extrapolated convecting velocity
-  b = 2u^n − u^{n−1} (one linear solve per step, second order; Simo & Armero 1994), or
-* ``"newton"``: fully implicit, solved by Newton's method each step.
+  b = 2u^n − u^{n−1} (one linear solve per step, second order; Simo & Armero 1994),
+* ``"newton"``: fully implicit, solved by Newton's method each step, or
+* ``"explicit"``: the whole convection term extrapolated, (b·∇)b with b = 2u^n − u^{n−1}
+  (BDF2/EXT2, Karniadakis, Israeli & Orszag 1991): the matrix never changes, so one LU
+  serves the whole run, but the time step is bounded by a CFL condition (``last_cfl``;
+  keep it below about 0.3 with quadratic elements).
 
 Steady Navier–Stokes: Newton's method from a Stokes start (Girault & Raviart 1986, Ch. IV),
 with a stop on the residual norm (the lift coefficient of DFG 2D-1 needs ≲ 1e-11).
@@ -306,7 +310,7 @@ class BDF2Stepper:
     ``self.residual(...)`` the discrete residual used for forces.
     """
 
-    CONVECTION = ("semi-implicit", "newton")
+    CONVECTION = ("semi-implicit", "newton", "explicit")
 
     def __init__(self, problem: FlowProblem, dt: float, convection: str = "semi-implicit", solver=None,
                  start: FlowState | None = None, t0: float = 0.0, newton_tol: float = 1e-9,
@@ -327,6 +331,9 @@ class BDF2Stepper:
         self.mesh_velocity = mesh_velocity
         self.n_steps = 0
         self.last_b = None
+        self.last_cfl = None
+        self._explicit_conv = None
+        self._explicit_a0 = None
 
     def _bdf(self):
         """Coefficients (a0, a1, a2) of (a0 u^{n+1} + a1 u^n + a2 u^{n-1}) / dt."""
@@ -384,6 +391,19 @@ class BDF2Stepper:
             x -= _solve_free(pr, K, r, self.solver)
             tm.solve += time.perf_counter() - t0
             self.last_b = b
+        elif self.convection == "explicit":
+            b = self._convecting_velocity()
+            self._explicit_conv = pr.convection_vector(b, b)
+            r = self.residual(x, a0, hist, None) + np.concatenate([self._explicit_conv, np.zeros(pr.space.n_p)])
+            tm.assembly += time.perf_counter() - t0
+            t0 = time.perf_counter()
+            if self._explicit_a0 != a0:  # the matrix changes only from the BDF1 to the BDF2 step
+                self._explicit_lu = DirectSolver().factorize(pr.condensed_matrix(base))
+                self._explicit_a0 = a0
+            x[pr.free] -= self._explicit_lu.solve(r[pr.free])
+            tm.solve += time.perf_counter() - t0
+            self.last_b = None
+            self.last_cfl = self._cfl(b)
         else:
             f = pr.free
             for it in range(30):
@@ -403,6 +423,10 @@ class BDF2Stepper:
             else:
                 raise NewtonError(f"Newton did not converge in time step {self.n_steps + 1} (t = {t_new:g})", [res])
             self.last_b = b
+        if not np.all(np.isfinite(x)):
+            raise FloatingPointError(
+                f"the flow solution became non-finite in step {self.n_steps + 1} (t = {t_new:g}); "
+                f"reduce dt = {self.dt:g}" + (f" (CFL was {self.last_cfl:.2f})" if self.last_cfl else ""))
         pr.normalise_pressure(x)
         pr.timings.add(tm)
         self._last = (a0, hist)
@@ -418,7 +442,24 @@ class BDF2Stepper:
         return {"linear_solves": getattr(s, "solves", None), "factorizations": getattr(s, "factorizations", None),
                 "krylov_iterations": getattr(s, "total_iterations", None)}
 
+    def _cfl(self, b: np.ndarray) -> float:
+        """Courant number max_e |b|_e Δt / h_e with h_e the element diameter (longest edge)."""
+        bq = self.problem.assembler.values(b)
+        speed = np.sqrt(bq[0] ** 2 + bq[1] ** 2).max(axis=1)
+        return float((speed * self.dt / self._h_elements()).max())
+
+    def _h_elements(self):
+        if not hasattr(self, "_h_cache"):
+            m = self.problem.space.mesh
+            p, t = m.p, m.t
+            e = [np.linalg.norm(p[:, t[i]] - p[:, t[(i + 1) % 3]], axis=0) for i in range(3)]
+            self._h_cache = np.max(e, axis=0)
+        return self._h_cache
+
     def last_residual(self) -> np.ndarray:
         """Residual of the last step's equations at the new state (for forces)."""
         a0, hist = self._last
-        return self.residual(self.state.x, a0, hist, self.last_b)
+        r = self.residual(self.state.x, a0, hist, self.last_b)
+        if self.convection == "explicit":
+            r[: self.problem.space.n_u] += self._explicit_conv
+        return r
