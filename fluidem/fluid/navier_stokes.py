@@ -393,6 +393,7 @@ class BDF2Stepper:
             self.last_b = b
         elif self.convection == "explicit":
             b = self._convecting_velocity()
+            self.last_cfl = self._cfl(b)
             self._explicit_conv = pr.convection_vector(b, b)
             r = self.residual(x, a0, hist, None) + np.concatenate([self._explicit_conv, np.zeros(pr.space.n_p)])
             tm.assembly += time.perf_counter() - t0
@@ -403,7 +404,6 @@ class BDF2Stepper:
             x[pr.free] -= self._explicit_lu.solve(r[pr.free])
             tm.solve += time.perf_counter() - t0
             self.last_b = None
-            self.last_cfl = self._cfl(b)
         else:
             f = pr.free
             for it in range(30):
@@ -423,10 +423,7 @@ class BDF2Stepper:
             else:
                 raise NewtonError(f"Newton did not converge in time step {self.n_steps + 1} (t = {t_new:g})", [res])
             self.last_b = b
-        if not np.all(np.isfinite(x)):
-            raise FloatingPointError(
-                f"the flow solution became non-finite in step {self.n_steps + 1} (t = {t_new:g}); "
-                f"reduce dt = {self.dt:g}" + (f" (CFL was {self.last_cfl:.2f})" if self.last_cfl else ""))
+        self._check_finite(x, t_new, v)
         pr.normalise_pressure(x)
         pr.timings.add(tm)
         self._last = (a0, hist)
@@ -441,6 +438,18 @@ class BDF2Stepper:
         s = self.solver
         return {"linear_solves": getattr(s, "solves", None), "factorizations": getattr(s, "factorizations", None),
                 "krylov_iterations": getattr(s, "total_iterations", None)}
+
+    def _check_finite(self, x: np.ndarray, t_new: float, boundary_values: np.ndarray) -> None:
+        """Raise a clear error instead of carrying NaN/inf (a diverging run) any further.
+
+        A velocity above 1e6 times the largest boundary speed seen so far counts as diverged.
+        """
+        bmax = np.abs(boundary_values).max(initial=0.0)
+        self._blowup_speed = max(getattr(self, "_blowup_speed", 0.0), 1e6 * max(1.0, bmax))
+        if not np.all(np.isfinite(x)) or np.abs(x[: self.problem.space.n_u]).max() > self._blowup_speed:
+            raise FloatingPointError(
+                f"the flow solution became non-finite in step {self.n_steps + 1} (t = {t_new:g}); "
+                f"reduce dt = {self.dt:g}" + (f" (CFL was {self.last_cfl:.2f})" if self.last_cfl else ""))
 
     def _cfl(self, b: np.ndarray) -> float:
         """Courant number max_e |b|_e Δt / h_e with h_e the element diameter (longest edge)."""
