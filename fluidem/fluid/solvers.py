@@ -117,8 +117,8 @@ __all__ = [
 
 # --------------------------------------------------------------------------
 # Crossover of the automatic choice.  Measured with benchmarks/bench_solvers.py
-# (P2-bubble/P1-discontinuous and P2/P1 on a unit square, one thread); see the
-# CHANGELOG entry of the solver module for the table.
+# (P2-bubble/P1-discontinuous pair on a unit square, one thread, wall clock on a
+# shared machine; the table is in that file's docstring).
 # --------------------------------------------------------------------------
 #: Steady Stokes: LU below this many DOFs, block-preconditioned GMRES above; by
 #: direct backend.  SuperLU: GMRES was 2x faster at 10k DOFs and 5-10x at 50k-200k.
@@ -647,12 +647,16 @@ class BlockKrylovSolver:
         A GMRES restart cycle (MINRES: a window of ``restart`` iterations)
         must reduce the residual below ``stagnation`` times its value at the
         start, otherwise :class:`SolverError` is raised.
-    reuse : {"values", "structure", "never"}
+    reuse : {"values", "always", "never"}
         When ``factorize`` is called again: ``"values"`` keeps the AMG
-        hierarchies if the blocks they were built on are unchanged;
-        ``"structure"`` keeps them while the sparsity pattern is unchanged
-        (a lagged preconditioner; the Krylov method still enforces
-        ``rtol``); ``"never"`` rebuilds them.
+        hierarchies if the blocks they were built on are unchanged (same
+        pattern and values); ``"always"`` keeps them while the block shapes
+        are unchanged, e.g. over time steps on a moving mesh between
+        re-triangulations (a lagged preconditioner: the Krylov method still
+        enforces ``rtol``, only the iteration count may grow); ``"never"``
+        rebuilds them.  ``factorize(K, rebuild=True)`` forces a rebuild.
+        Shapes are compared rather than sparsity patterns because assembly
+        may drop entries that cancel to zero.
     mass_solve : {"exact", "diag"}
         How ``M_p^{-1}`` is applied: sparse LU, or the inverse diagonal
         (spectrally equivalent for P1, Wathen 1987).
@@ -696,8 +700,8 @@ class BlockKrylovSolver:
             raise ValueError(f"schur={schur!r} needs pressure_mass (the pressure mass matrix)")
         if krylov not in ("gmres", "minres"):
             raise ValueError(f"unknown krylov={krylov!r}; use 'gmres' or 'minres'")
-        if reuse not in ("values", "structure", "never"):
-            raise ValueError(f"unknown reuse={reuse!r}; use 'values', 'structure' or 'never'")
+        if reuse not in ("values", "always", "never"):
+            raise ValueError(f"unknown reuse={reuse!r}; use 'values', 'always' or 'never'")
         if mass_solve not in ("exact", "diag"):
             raise ValueError(f"unknown mass_solve={mass_solve!r}; use 'exact' or 'diag'")
         if nu <= 0:
@@ -750,8 +754,8 @@ class BlockKrylovSolver:
     def _keep(self, old, new) -> bool:
         if self.reuse == "never":
             return False
-        if self.reuse == "structure":
-            return _same_structure(old, new)
+        if self.reuse == "always":
+            return old is not None and old.shape == new.shape
         return _same_values(old, new)
 
     def _mass_inverse(self, n_p: int):
@@ -802,7 +806,7 @@ class BlockKrylovSolver:
                 reused.append("L_p")
             else:
                 self._Du_inv = 1.0 / src.diagonal()
-                Lp = (B @ sp.diags(self._Du_inv) @ Bt).tocsr()
+                Lp = (B @ sp.diags(self._Du_inv) @ B.T).tocsr()  # SPD (semi-definite)
                 self._ml_L = self._amg(Lp, symmetric=True)
                 self._B = B
                 self._dkey = dkey
@@ -828,7 +832,7 @@ class BlockKrylovSolver:
 
     def _schur_inverse(self):
         """The map ``r_p -> S~^{-1} r_p``."""
-        A, Bt, B, _ = self._blocks
+        A, _, B, _ = self._blocks
         nu = self.nu
         if self.schur == "mass":
             Mp_inv = self._Mp_inv
@@ -841,9 +845,11 @@ class BlockKrylovSolver:
         # least-squares commutator (Elman et al. 2006), Q = D_u
         Dinv = self._Du_inv
 
+        Btr = B.T.tocsr()
+
         def lsc(r):
             y = Lsolve @ r
-            y = B @ (Dinv * (A @ (Dinv * (Bt @ y))))
+            y = B @ (Dinv * (A @ (Dinv * (Btr @ y))))
             return Lsolve @ y
 
         return lsc
@@ -926,7 +932,7 @@ class LaggedLUSolver:
     """GMRES preconditioned by the LU of an earlier matrix; refactorise on demand.
 
     ``factorize(K)`` stores ``K`` but computes a new LU only when there is
-    none yet, when the shape or sparsity pattern changed, when the last solve
+    none yet, when the shape changed (re-triangulation), when the last solve
     needed more than ``max_iterations_before_refactor`` iterations, or when
     ``force=True``.  ``solve`` then runs GMRES on the current ``K`` with the
     old LU as right preconditioner.  If GMRES fails within ``maxiter``, the
@@ -1002,8 +1008,9 @@ class LaggedLUSolver:
         K = _as_csr(K)
         old_lu = self.direct.K
         self.K = K
-        if (force or old_lu is None or self._refactor_next
-                or not _same_structure(old_lu, K)):
+        # only the shape matters: the old LU preconditions any matrix of that size
+        # (sparsity patterns may differ by entries that cancelled in assembly)
+        if force or old_lu is None or self._refactor_next or old_lu.shape != K.shape:
             self._factorize_current()
         else:
             self._fresh = _same_values(old_lu, K)
