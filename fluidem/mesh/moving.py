@@ -33,8 +33,8 @@ Strategies (``strategy=``):
     bodies do not move: the mesh is built once; :meth:`MovingMesh.update` checks that.
 
 Target size: the user's size field (``h`` and ``grading``); with grading, the bodies carry
-a fine zone with them, ``h_body(x) = h + (growth − 1) d(x)``, ``d`` the distance to the
-nearest body, and the target is ``min(size(x), h_body(x))``.  Between re-triangulations the
+a fine zone with them, ``h_body(x) = h + (growth − 1) max(d(x) − w, 0)``, ``d`` the distance
+to the nearest body and ``w = tow_width · h``, and the target is ``min(size(x), h_body(x))``.  Between re-triangulations the
 target size is attached to the nodes, so a body moving into the coarse region tows its
 nodes (Fig. 6); at re-triangulation it is re-evaluated at the new positions.
 
@@ -193,6 +193,13 @@ class MovingMesh:
         Background nodes for a uniform size: the Friedrichs–Keller square grid (default) or
         a quality Delaunay point set; graded sizes always use the latter.
     relax_params : RelaxParams
+    tow_width : float
+        With grading: width (multiples of ``h``) of the zone of size ``h`` a body carries.
+    drag_reach, drag_full : float
+        Free nodes within ``drag_full · h`` of a body follow its rigid motion fully, with a
+        weight falling linearly to zero at ``drag_reach · h``.
+    retriangulate_iterations : int
+        Relaxation sweeps after a re-triangulation.
     """
 
     def __init__(self, domain, bodies, poses, h: float, grading=None, strategy: str = "drag",
@@ -201,7 +208,8 @@ class MovingMesh:
                  min_gap: float | None = None, junctions: bool = True, background: str | None = None,
                  relax_params: RelaxParams = RelaxParams(), initial_iterations: int = 60,
                  drag_reach: float = 3.0, drag_full: float = 1.0, drag_stiffness: float = 0.8,
-                 gap_purge: float = 1.1, cleanup_passes: int = 1, retriangulate_iterations: int = 20):
+                 gap_purge: float = 1.1, cleanup_passes: int = 1, retriangulate_iterations: int = 20,
+                 tow_width: float = 2.0):
         self.domain = BoxDomain.from_any(domain)
         self.box = (self.domain.xmin, self.domain.xmax, self.domain.ymin, self.domain.ymax)
         if not (isinstance(h, (int, float, np.floating, np.integer)) and np.isfinite(h) and h > 0):
@@ -238,6 +246,9 @@ class MovingMesh:
         self.gap_purge = float(gap_purge)
         self.cleanup_passes = int(cleanup_passes)
         self.retriangulate_iterations = int(retriangulate_iterations)
+        if not (np.isfinite(tow_width) and tow_width >= 0):
+            raise ValueError(f"tow_width must be a number >= 0 (multiple of h), got {tow_width!r}")
+        self.tow_width = float(tow_width)
         self.min_angle_trigger = float(min_angle_trigger)
         self.min_gap = 1e-3 * self.h if min_gap is None else float(min_gap)
         if not (np.isfinite(self.min_gap) and self.min_gap > 0):
@@ -267,6 +278,13 @@ class MovingMesh:
         self._nv = np.array([len(v) for v in verts], dtype=np.int64)
         self._vcat = np.vstack(verts) if verts else np.zeros((0, 2))
         self._vbody = np.repeat(np.arange(self.n_bodies), self._nv)
+        # padded (n_bodies, max_n) indices into _vcat of every edge's start and end vertex
+        # (short outlines repeat their last edge), for vectorised point-body distances
+        mx = int(self._nv.max()) if self.n_bodies else 0
+        first = np.concatenate([[0], np.cumsum(self._nv)[:-1]]) if self.n_bodies else np.zeros(0, np.int64)
+        j = np.minimum(np.arange(mx)[None, :], self._nv[:, None] - 1)
+        self._pad_a = first[:, None] + j
+        self._pad_b = first[:, None] + (j + 1) % self._nv[:, None]
         self.poses = self._check_poses(poses)
 
         self._build_outline_table()
@@ -341,7 +359,7 @@ class MovingMesh:
             if outline_world is None:
                 outline_world = self._world(self._ol_local, self._ol_body, self.poses)
             d, _ = cKDTree(outline_world).query(pts)
-            hs = np.minimum(hs, self.h + (self._growth - 1.0) * d)
+            hs = np.minimum(hs, self.h + (self._growth - 1.0) * np.maximum(d - self.tow_width * self.h, 0.0))
         return hs
 
     def _build_outline_table(self):
@@ -943,6 +961,50 @@ class MovingMesh:
         return self._triangulate_from(self.points, self.kind, self.uid, purge=self.purge_clearance,
                                       adapt=True, n_relax=n_relax, h_cand=self.h_node)
 
+    def _point_body_distance(self, pts, body, world=None) -> np.ndarray:
+        """Distance ``(k,)`` from points ``(k, 2)`` outside their body ``body (k,)`` to its outline."""
+        w = self._world(self._vcat, self._vbody, self.poses) if world is None else world
+        a, b = w[self._pad_a[body]], w[self._pad_b[body]]  # (k, m, 2)
+        d = b - a
+        r = pts[:, None, :] - a
+        tt = np.clip((r * d).sum(axis=2) / np.maximum((d * d).sum(axis=2), 1e-300), 0.0, 1.0)
+        e = r - tt[:, :, None] * d
+        return np.sqrt((e * e).sum(axis=2)).min(axis=1)
+
+    def _box_distance(self, pts) -> np.ndarray:
+        xmin, xmax, ymin, ymax = self.box
+        return np.min(np.column_stack([pts[:, 1] - ymin, xmax - pts[:, 0], ymax - pts[:, 1], pts[:, 0] - xmin]), axis=1)
+
+    def _owner_distance(self, pts, owner, world=None) -> np.ndarray:
+        """Distance from ``pts`` to boundary ``owner`` (a body index, or -2 for the box)."""
+        d = np.empty(len(pts))
+        on = owner >= 0
+        if on.any():
+            d[on] = self._point_body_distance(pts[on], owner[on], world)
+        if (~on).any():
+            d[~on] = self._box_distance(pts[~on])
+        return d
+
+    def _anchored_across_gap(self, tri_idx, world=None) -> np.ndarray:
+        """Elements with an edge joining two different boundaries one end of which lies closer
+        than h/2 to the other end's boundary (they are anchored across a narrow gap)."""
+        t = self.triangles[tri_idx]
+        owner = np.where((self.kind == FREE) | (self.kind == JUNCTION), -3,
+                         np.where(self.body_of >= 0, self.body_of, -2))
+        out = np.zeros(len(tri_idx), dtype=bool)
+        x = self.points
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            a, b = t[:, i], t[:, j]
+            oa, ob = owner[a], owner[b]
+            span = np.flatnonzero((oa != -3) & (ob != -3) & (oa != ob))
+            if not len(span):
+                continue
+            lim = 0.25 * (self.h_node[a[span]] + self.h_node[b[span]])
+            d = np.minimum(self._owner_distance(x[a[span]], ob[span], world),
+                           self._owner_distance(x[b[span]], oa[span], world))
+            out[span[d < lim]] = True
+        return out
+
     def _contacts_changed(self) -> bool:
         """True when bodies came closer than ``min_gap`` or an outline node of a body in contact
         entered another body (the contact outlines must be rebuilt).
@@ -978,6 +1040,8 @@ class MovingMesh:
         ca = -(u.real * w.real + u.imag * w.imag) / np.maximum(lu * lw, 1e-300)
         cb = -(u.real * v.real + u.imag * v.imag) / np.maximum(lu * lv, 1e-300)
         cc = -(v.real * w.real + v.imag * w.imag) / np.maximum(lv * lw, 1e-300)
+        self._last_altitude = 2.0 * np.abs(0.5 * (u.real * (-w.imag) - u.imag * (-w.real))) / np.maximum(
+            np.maximum(np.maximum(lu, lv), lw), 1e-300)
         return np.maximum(np.maximum(ca, cb), cc), np.minimum(np.minimum(ca, cb), cc)
 
     def _set_quality_baseline(self):
@@ -995,13 +1059,26 @@ class MovingMesh:
         hi = np.maximum(135.0, amax + 3.0)
         self._cos_lo = np.where(narrow, 2.0, np.cos(np.radians(np.clip(lo, 0, 180))))
         self._cos_hi = np.where(narrow, -2.0, np.cos(np.radians(np.clip(hi, 0, 180))))
+        # narrow-gap elements are watched too: once the gap they span has opened beyond h/2
+        # (their smallest altitude, about the gap width, exceeds h/2) they must meet the bounds
+        self._base_narrow = narrow
+        self._half_h = 0.5 * self.h_node[self.triangles].mean(axis=1)
+        self._cos_bound = (np.cos(np.radians(self.min_angle_trigger)), np.cos(np.radians(135.0)))
 
     def _quality_dropped(self) -> bool:
         """True when an element outside narrow gaps got an angle below ``min_angle_trigger``
         or above 135° that it did not have after the last triangulation, or one that had
         such an angle lost another 3° on it."""
         cmax, cmin = self._element_cosines()
-        return bool(((cmax > self._cos_lo) | (cmin < self._cos_hi)).any())
+        if ((cmax > self._cos_lo) | (cmin < self._cos_hi)).any():
+            return True
+        # narrow-gap elements are watched too: once the gap has opened (the element is no
+        # longer anchored across a gap narrower than h/2) it must meet the bounds
+        looks_bad = self._base_narrow & ((cmax > self._cos_bound[0]) | (cmin < self._cos_bound[1]))
+        idx = np.flatnonzero(looks_bad)
+        if not len(idx):
+            return False
+        return bool((~self._anchored_across_gap(idx)).any())
 
     def _structural_narrow(self) -> np.ndarray:
         """Triangles whose three vertices are all on boundaries, not all of one owner."""
@@ -1107,33 +1184,7 @@ class MovingMesh:
         narrow[cand] = self._gap_width(c, hh) < hh
         # ... or one of its edges joins two different boundaries and one end of it is closer
         # than h/2 to the other end's boundary (the element is anchored across the gap)
-        owner = np.where((self.kind == FREE) | (self.kind == JUNCTION), -3,
-                         np.where(self.body_of >= 0, self.body_of, -2))
-        x = self.points
-        xmin, xmax, ymin, ymax = self.box
-        polys = self._polygons() if self.n_bodies else None
-        tc = t[cand]
-        for i, j in ((0, 1), (1, 2), (2, 0)):
-            a, b = tc[:, i], tc[:, j]
-            oa, ob = owner[a], owner[b]
-            span = np.flatnonzero((oa != -3) & (ob != -3) & (oa != ob))
-            if not len(span):
-                continue
-            lim = 0.25 * (self.h_node[a[span]] + self.h_node[b[span]])
-            d = np.full(len(span), np.inf)
-            for p_, o_ in ((a[span], ob[span]), (b[span], oa[span])):
-                q = x[p_]
-                on_body = o_ >= 0
-                if on_body.any():
-                    d[on_body] = np.minimum(d[on_body], shapely.distance(
-                        polys[o_[on_body]], shapely.points(q[on_body])))
-                wall = o_ == -2
-                if wall.any():
-                    qw = q[wall]
-                    dw = np.min(np.column_stack([qw[:, 1] - ymin, xmax - qw[:, 0], ymax - qw[:, 1], qw[:, 0] - xmin]),
-                                axis=1)
-                    d[wall] = np.minimum(d[wall], dw)
-            narrow[cand[span[d < lim]]] = True
+        narrow[cand[self._anchored_across_gap(cand)]] = True
         return narrow
 
     def nodes_inside_bodies(self) -> np.ndarray:

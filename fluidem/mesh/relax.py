@@ -65,7 +65,7 @@ class RelaxParams:
     target_weight: float = 0.75
     area_weight: float = 0.05
     max_halvings: int = 5
-    min_quality: float = 0.3
+    min_quality: float = 0.4
 
     def __post_init__(self):
         if not (np.isfinite(self.step) and 0 < self.step <= 0.3):
