@@ -468,6 +468,14 @@ def test_auto_choice_by_size(stokes_p2b, monkeypatch):
     assert s.chosen == "iterative" and s.last_info.iterations > 0
     assert reldiff(y, x) < 1e-7
     assert "DOFs" in s.reason
+    # a failing iterative solve falls back to LU (or raises with fallback=False)
+    f = make_solver("auto", n_u=P["n_u"], pressure_mass=P["Mp"], maxiter=2)
+    z = f.factorize(P["K"]).solve(P["b"])
+    assert f.chosen == "direct" and "fallback" in f.last_info.note and "fell back" in f.reason
+    assert reldiff(z, x) < 1e-10
+    g = make_solver("auto", n_u=P["n_u"], pressure_mass=P["Mp"], maxiter=2, fallback=False)
+    with pytest.raises(SolverError, match="maxiter=2"):
+        g.factorize(P["K"]).solve(P["b"])
     # without n_u the iterative path is impossible: stays direct
     t = make_solver("auto").factorize(P["K"])
     assert t.chosen == "direct"

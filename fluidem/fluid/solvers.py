@@ -1129,6 +1129,9 @@ class AutoSolver:
     direct_options, iterative_options : dict, optional
         Keyword arguments for :class:`DirectSolver` and
         :class:`BlockKrylovSolver` (``pressure_mass``, ``nu``, ``dt`` ...).
+    fallback : bool
+        If the iterative path raises :class:`SolverError`, factorise ``K``
+        and solve directly (noted in ``last_info.note``) instead of raising.
 
     Attributes
     ----------
@@ -1140,9 +1143,11 @@ class AutoSolver:
         The solver in use.
     """
 
-    def __init__(self, n_u: int | None = None,
-                 direct_options: dict | None = None, iterative_options: dict | None = None):
+    def __init__(self, n_u: int | None = None, direct_options: dict | None = None,
+                 iterative_options: dict | None = None, fallback: bool = True):
         self.n_u = n_u
+        self.fallback = fallback
+        self.K: sp.csr_matrix | None = None
         self.direct_options = dict(direct_options or {})
         self.iterative_options = dict(iterative_options or {})
         self.chosen: str | None = None
@@ -1168,6 +1173,7 @@ class AutoSolver:
                            else BlockKrylovSolver(self.n_u, **opts))
             self.chosen = method
         self.reason = reason
+        self.K = K
         if method == "direct":
             self.solver.refactorize_if_changed(K)
         else:
@@ -1175,11 +1181,23 @@ class AutoSolver:
         return self
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """Solve with the chosen solver; ``b`` shape (n,)."""
-        return self.solver.solve(b)
+        """Solve with the chosen solver; ``b`` shape (n,), returns ``x`` shape (n,)."""
+        try:
+            return self.solver.solve(b)
+        except SolverError as err:
+            if not (self.fallback and self.chosen == "iterative"):
+                raise
+            first_line = str(err).splitlines()[0]
+            self.solver = DirectSolver(**self.direct_options).factorize(self.K)
+            self.chosen = "direct"
+            self.reason += f"; iterative path failed ({first_line}), fell back to LU"
+            x = self.solver.solve(b)
+            self.solver.last_info.note = f"fallback after: {first_line}"
+            return x
 
     @property
     def last_info(self) -> SolveInfo | None:
+        """:class:`SolveInfo` of the last solve."""
         return None if self.solver is None else self.solver.last_info
 
     def as_preconditioner(self) -> spla.LinearOperator:
@@ -1210,8 +1228,9 @@ def make_solver(method: str = "auto", **options):
         ``"direct"``: keywords of :class:`DirectSolver`.
         ``"iterative"``: keywords of :class:`BlockKrylovSolver` (``n_u`` is
         required).  ``"lagged"``: keywords of :class:`LaggedLUSolver`.
-        ``"auto"``: ``n_u``, the :class:`DirectSolver` keywords and
-        the :class:`BlockKrylovSolver` keywords, sorted to the two.
+        ``"auto"``: ``n_u``, ``fallback``, the :class:`DirectSolver`
+        keywords and the :class:`BlockKrylovSolver` keywords, sorted to the
+        two.
 
     Returns
     -------
@@ -1232,8 +1251,10 @@ def make_solver(method: str = "auto", **options):
         raise ValueError(f"unknown solver {method!r}; choose from {', '.join(SOLVERS)}")
     if method == "auto":
         n_u = options.pop("n_u", None)
+        fallback = options.pop("fallback", True)
         direct = {k: options.pop(k) for k in _DIRECT_KEYS if k in options}
-        return AutoSolver(n_u=n_u, direct_options=direct, iterative_options=options)
+        return AutoSolver(n_u=n_u, direct_options=direct, iterative_options=options,
+                          fallback=fallback)
     if method == "iterative":
         if "n_u" not in options:
             raise ValueError("make_solver('iterative') needs n_u (number of velocity DOFs)")
