@@ -1,4 +1,7 @@
-"""Command line: ``fluidem bench NAME``, ``fluidem cases``.  ``python -m fluidem`` is the same."""
+"""Command line: ``fluidem bench NAME``, ``fluidem cases``, ``fluidem run | plan | examples | plot``.
+
+``python -m fluidem`` is the same.
+"""
 
 from __future__ import annotations
 
@@ -62,7 +65,111 @@ def _build_parser() -> argparse.ArgumentParser:
     b.add_argument("--quiet", action="store_true", help="no progress output")
 
     sub.add_parser("cases", help="list the built-in cases", description="List the built-in benchmark cases.")
+    _add_scene_commands(sub)
     return p
+
+
+def _add_scene_commands(sub) -> None:
+    """``run``, ``plan``, ``examples`` and ``plot``: the scene path."""
+    r = sub.add_parser("run", help="run a scene file (or a built-in example) and write its output",
+                       description="Run a scene: history.csv, fields and body outlines (VTU + PVD), mesh "
+                                   "quality, events.log and checkpoints in the output directory.")
+    r.add_argument("scene", nargs="?", help="scene TOML file")
+    r.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file (see 'fluidem examples')")
+    r.add_argument("--out", metavar="DIR", help="output directory (default: the scene's [output] dir)")
+    r.add_argument("--restart", nargs="?", const=True, metavar="CHECKPOINT",
+                   help="continue from a checkpoint file, or from the newest one in the output directory")
+    r.add_argument("--steps", type=int, metavar="N", help="stop after N steps in total")
+    r.add_argument("--plot", action="store_true", help="draw the PNG figures at the end")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    pl = sub.add_parser("plan", help="print the effects a scene needs and why",
+                        description="Validate a scene and print its plan: which effects are on, and why.")
+    pl.add_argument("scene", nargs="?", help="scene TOML file")
+    pl.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file")
+    sub.add_parser("examples", help="list the built-in example scenes",
+                   description="List the built-in example scenes ('fluidem run --example NAME').")
+    pt = sub.add_parser("plot", help="draw PNG figures of a run directory",
+                        description="Mesh with bodies, velocity magnitude with streamlines, pressure and body "
+                                    "trajectories, as PNG files in DIR/plots (or --to).")
+    pt.add_argument("dir", help="output directory of 'fluidem run'")
+    pt.add_argument("--to", metavar="DIR", help="where to write the PNG files")
+
+
+class _ProgressBar:
+    """Progress bar on stderr: steps, simulated time, ETA and the last step's cost split."""
+
+    def __init__(self, width: int = 30):
+        self.t0 = time.perf_counter()
+        self.width = width
+        self.k0 = None
+        self.last = 0.0
+
+    def __call__(self, k, n, t, cost):
+        now = time.perf_counter()
+        if self.k0 is None:
+            self.k0 = k - 1
+        if k < n and now - self.last < 0.2:
+            return
+        self.last = now
+        el = now - self.t0
+        done = k - self.k0
+        eta = el / max(done, 1) * (n - k)
+        fill = int(self.width * k / max(n, 1))
+        bar = "#" * fill + "." * (self.width - fill)
+        print(f"\r[{bar}] {k}/{n}  t = {t:.4g}  elapsed {el:.0f} s  ETA {eta:.0f} s  last step: {cost}   ",
+              end="\n" if k >= n else "", file=sys.stderr, flush=True)
+
+
+def _scene_from_args(args):
+    from .scene import Scene
+
+    if args.example and args.scene:
+        raise ValueError("give a scene file or --example NAME, not both")
+    if args.example:
+        from .cases.scenes import example_scene
+
+        return example_scene(args.example)
+    if not args.scene:
+        raise ValueError("no scene: give a scene TOML file or --example NAME (see 'fluidem examples')")
+    return Scene.from_toml(args.scene)
+
+
+def _scene_main(args) -> int:
+    try:
+        if args.command == "examples":
+            from .cases.scenes import example_descriptions
+
+            for name, desc in example_descriptions().items():
+                print(f"{name:18s} {desc}")
+            return 0
+        if args.command == "plot":
+            from .plotting import plot_run
+
+            for path in plot_run(args.dir, args.to):
+                print(path)
+            return 0
+        scene = _scene_from_args(args)
+        if args.command == "plan":
+            print(scene.plan())
+            return 0
+        from .simulation import Simulation
+
+        sim = Simulation(scene)
+        out = args.out or scene.output.dir
+        if not args.quiet:
+            print(sim.plan, file=sys.stderr)
+        result = sim.run(out_dir=out, restart=args.restart, n_steps=args.steps,
+                         progress=None if args.quiet else _ProgressBar())
+        print(result)
+        if args.plot:
+            from .plotting import plot_run
+
+            for path in plot_run(out):
+                print(path)
+        return 0
+    except ValueError as exc:
+        print(f"fluidem: error: {exc}", file=sys.stderr)
+        return 2
 
 
 def main(argv=None) -> int:
@@ -74,6 +181,8 @@ def main(argv=None) -> int:
         for name, fn in sorted(CASES.items()):
             print(f"{name:16s} {(fn.__doc__ or '').strip().splitlines()[0]}")
         return 0
+    if args.command in ("run", "plan", "examples", "plot"):
+        return _scene_main(args)
     if args.command == "bench":
         from .cases import get_case
 

@@ -91,6 +91,11 @@ class OutputWriter:
         else:
             self._truncate_history(hist, restart_step)
             self._hist = open(hist, "a", newline="")
+            ev = self.dir / "events.log"
+            if ev.exists():
+                keep = [ln for ln in ev.read_text().splitlines(True)
+                        if not ln.startswith("step=") or int(ln[5:].split(" ", 1)[0]) <= restart_step]
+                ev.write_text("".join(keep))
             for name in self._series:
                 pvd = self.dir / f"{name}.pvd"
                 if pvd.exists():

@@ -641,7 +641,8 @@ class Scene:
             raise ValueError(f"bodies[{i}].position = {list(self.bodies[i].position)}: the body (extent "
                              f"x {lo[i, 0]:.4g}..{hi[i, 0]:.4g}, y {lo[i, 1]:.4g}..{hi[i, 1]:.4g}) is not inside "
                              f"domain.box = {list(self.domain.box)}; allowed: every vertex strictly inside the box")
-        geoms = shapely.polygons(list(polys)) if len({len(p) for p in polys}) > 1 else shapely.polygons(np.stack(polys))
+        idx = np.repeat(np.arange(len(polys)), [len(p) for p in polys])
+        geoms = shapely.polygons(shapely.linearrings(np.vstack(polys), indices=idx))
         tree = shapely.STRtree(geoms)
         pairs = tree.query(geoms, predicate="intersects")
         i, j = pairs[:, pairs[0] < pairs[1]] if pairs.size else (np.zeros(0, int), np.zeros(0, int))
