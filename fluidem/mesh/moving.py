@@ -5,49 +5,79 @@ Pipeline of one *triangulation* (the "cut-out", Sec. 2.1):
 1. candidate nodes: the background (Friedrichs–Keller square grid for a uniform size, a
    graded Delaunay point set for a graded one; Sec. 2.1, 2.3) or, when dragging, the
    current nodes;
-2. nodes inside a body or closer than ``clearance · h`` to its outline are removed;
+2. nodes inside a body or closer than ``clearance · h`` to its outline are removed, and so
+   are nodes in gaps narrower than ``gap_purge · h`` (such a gap is spanned by one layer
+   of elements between the outline nodes);
 3. outline nodes are added: every body carries a fixed set of outline nodes in body
    coordinates (its polygon edges subdivided at the target size around it);
-4. Voronoi junction points (Sec. 3.2, :mod:`fluidem.mesh.junctions`) are added;
-5. Triangle's constrained Delaunay triangulation of all nodes, with the outlines and the
+4. Triangle's constrained Delaunay triangulation of all nodes, with the outlines and the
    box sides as segments and a hole point in every body: nothing is triangulated inside a
    body;
-6. spring relaxation (:mod:`fluidem.mesh.relax`, eq. 1–3).
+5. Voronoi junction points (Sec. 3.2, :mod:`fluidem.mesh.junctions`): triangles spanning
+   three bodies are split at a junction node;
+6. spring relaxation (:mod:`fluidem.mesh.relax`, eq. 1–3), then one clean-up pass: free
+   nodes of elements still outside the angle bounds (outside narrow gaps) are removed, a
+   node is added in such elements without free nodes, and steps 4–6 run once more.
 
 Strategies (``strategy=``):
 
 ``"regenerate"``
     the older method: every step the background is reset (nodes snap back) and the whole
-    pipeline runs, with ``relax_iterations`` sweeps.
+    pipeline runs, with ``relax_iterations`` sweeps (default 20).
 ``"drag"``
-    mesh dragging (Sec. 4.2): each step the outline nodes move rigidly with their body,
-    their displacement is spread into the surrounding free nodes by a few Jacobi sweeps of
-    displacement averaging (the springs "drag" the mesh), then ``relax_iterations``
-    relaxation sweeps.  Nodes never snap back.  Every ``retriangulate_every`` steps, or
-    earlier when an element inverts or the minimum angle (outside narrow gaps) falls below
-    ``min_angle_trigger``, the current nodes are re-triangulated: nodes swallowed by (or
-    too close to) a body are purged, nodes are removed where the mesh is much finer than
-    the target and added where it is much coarser (so vacated regions coarsen again, Fig. 6),
-    junction points are recomputed.
+    mesh dragging (Sec. 4.2): each step the outline nodes move rigidly with their body;
+    free nodes within ``drag_full · h`` of a body follow its rigid motion, with a weight
+    falling to zero at ``drag_reach · h`` (the body drags the mesh around it); junction
+    nodes keep their barycentric place between their three outline nodes; then
+    ``relax_iterations`` relaxation sweeps (default 3; dragged nodes relax with a reduced
+    step).  Nodes never snap back.  The current nodes are re-triangulated every
+    ``retriangulate_every`` steps (K, default 30) or earlier when
+
+    - an element is inverted by the rigid motion (``"inverted"``) or shrank below a tenth of
+      its area (``"degenerate"``, typically a narrow-gap element whose anchor passes a
+      corner),
+    - bodies came within ``min_gap`` of each other, or a contact changed (``"contact"``),
+    - an element outside narrow gaps crossed the angle bounds ``min_angle_trigger`` (15°)
+      or 135° that it kept after the last triangulation (``"quality"``; an element that
+      was already outside may lose 3° more).
+
+    At re-triangulation nodes swallowed by (or closer than ``purge_clearance · h`` to) a
+    body are purged, an independent set of nodes is removed where the incident edges are on
+    average shorter than ``coarsen_ratio`` (0.7) of their target and nodes are added in triangles larger than ``refine_area`` (1.6) target
+    areas (so
+    vacated regions coarsen again, Fig. 6), and junction points are recomputed.
 ``"fixed"``
     bodies do not move: the mesh is built once; :meth:`MovingMesh.update` checks that.
 
-Target size: the user's size field (``h`` and ``grading``); with grading, the bodies carry
-a fine zone with them, ``h_body(x) = h + (growth − 1) max(d(x) − w, 0)``, ``d`` the distance
-to the nearest body and ``w = tow_width · h``, and the target is ``min(size(x), h_body(x))``.  Between re-triangulations the
-target size is attached to the nodes, so a body moving into the coarse region tows its
-nodes (Fig. 6); at re-triangulation it is re-evaluated at the new positions.
+Oscillating nodes (Sec. 3.3) are detected from the relaxation displacements
+(:class:`fluidem.mesh.quality.OscillationDetector`), reported, and their relaxation step is
+halved each time they are flagged, on top of the per-step iteration limit.
 
-Contact policy ("union outline"): bodies closer than ``min_gap`` (touching or overlapping,
-as the DEM allows small overlaps) are merged for meshing.  The fluid region is the box
-minus the morphological closing (mitre buffer by ``min_gap/2`` out and back in) of the
-union of the cluster, so gaps narrower than ``min_gap`` are filled and no element thinner
-than ``min_gap`` is produced.  Outline nodes of the cluster bodies that lie on the closed
-outline are kept; vertices of the closed outline where it leaves a body outline (the
-contact points and bridge corners) become shared *contact nodes*, owned by the nearest
-body.  Fluid enclosed by a ring of touching bodies (a hole of the closed union) is a
-*pore*: it is meshed, detected, and reported (it needs its own pressure reference).
+Target size: the user's size field (``h`` and ``grading``); with grading, the bodies carry
+a fine zone with them, ``h_body(x) = h + (growth − 1) max(d(x) − w, 0)``, ``d`` the
+distance to the nearest body and ``w = tow_width · h``, and the target is
+``min(size(x), h_body(x))``.  Between re-triangulations the target size is attached to the
+nodes, so a body moving into the coarse region tows its nodes (Fig. 6); at
+re-triangulation it is re-evaluated at the new positions.
+
+Contact policy ("closed union outline"): bodies closer than ``min_gap`` (default
+``1e-3 · h``; touching or overlapping, as the DEM allows small overlaps) are merged for
+meshing.  The fluid region is the box minus the morphological closing (mitre buffer by
+``min_gap/2`` out and back in, then simplified at ``min_gap``) of the union of the cluster,
+so gaps narrower than ``min_gap`` are filled and no element thinner than ``min_gap`` is
+produced.  Outline nodes of the cluster bodies that lie on the closed outline are kept
+(two closer than ``0.1 h`` are merged); vertices of the closed outline farther than
+``0.3 h`` from every kept outline node (deep contact points, bridge corners) become
+*contact nodes*, owned by and moving with the nearest body.  Where no contact node is
+added, the outline cuts straight across the contact notch, which lies in the fluid: no
+element overlaps a body, at the price of a fluid sliver below ``0.3 h`` at each contact.
+Fluid enclosed by a ring of touching bodies (a hole of the closed union) is a *pore*: it is
+meshed, detected and reported (``pore_areas``; it needs its own pressure reference).
 Bodies must stay at least ``min_gap`` inside the box; a body outside raises ``ValueError``.
+
+Narrow gaps: see :mod:`fluidem.mesh.quality`; an element counts as narrow-gap when the gap
+at its centroid is narrower than ``h/2`` or when one of its edges joins two different
+boundaries with one end closer than ``h/2`` to the other end's boundary.
 """
 
 from __future__ import annotations
@@ -209,7 +239,7 @@ class MovingMesh:
                  relax_params: RelaxParams = RelaxParams(), initial_iterations: int = 60,
                  drag_reach: float = 3.0, drag_full: float = 1.0, drag_stiffness: float = 0.8,
                  gap_purge: float = 1.1, cleanup_passes: int = 1, retriangulate_iterations: int = 20,
-                 tow_width: float = 2.0):
+                 tow_width: float = 2.0, refine_area: float = 1.6, coarsen_ratio: float = 0.7):
         self.domain = BoxDomain.from_any(domain)
         self.box = (self.domain.xmin, self.domain.xmax, self.domain.ymin, self.domain.ymax)
         if not (isinstance(h, (int, float, np.floating, np.integer)) and np.isfinite(h) and h > 0):
@@ -249,6 +279,12 @@ class MovingMesh:
         if not (np.isfinite(tow_width) and tow_width >= 0):
             raise ValueError(f"tow_width must be a number >= 0 (multiple of h), got {tow_width!r}")
         self.tow_width = float(tow_width)
+        if not (np.isfinite(refine_area) and refine_area > 1):
+            raise ValueError(f"refine_area must be a number > 1, got {refine_area!r}")
+        self.refine_area = float(refine_area)
+        if not (np.isfinite(coarsen_ratio) and 0 < coarsen_ratio < 1):
+            raise ValueError(f"coarsen_ratio must be in (0, 1), got {coarsen_ratio!r}")
+        self.coarsen_ratio = float(coarsen_ratio)
         self.min_angle_trigger = float(min_angle_trigger)
         self.min_gap = 1e-3 * self.h if min_gap is None else float(min_gap)
         if not (np.isfinite(self.min_gap) and self.min_gap > 0):
@@ -795,9 +831,11 @@ class MovingMesh:
         L = np.linalg.norm(old[e[:, 1]] - old[e[:, 0]], axis=1)
         L0 = 0.5 * (self.h_node[e[:, 0]] + self.h_node[e[:, 1]])
         n_old = len(old)
-        long_edge = L >= 0.6 * L0
-        has_long = np.zeros(n_old, dtype=bool)
-        has_long[e[long_edge].ravel()] = True
+        # mean ratio of incident edge lengths to their targets
+        ratio = L / L0
+        deg = np.bincount(e.ravel(), minlength=n_old)
+        mean_ratio = (np.bincount(e[:, 0], ratio, n_old) + np.bincount(e[:, 1], ratio, n_old)) / np.maximum(deg, 1)
+        has_long = mean_ratio >= self.coarsen_ratio
         # map old nodes to candidate rows by uid
         order = np.argsort(uid)
         pos = np.searchsorted(uid[order], self.uid)
@@ -816,7 +854,7 @@ class MovingMesh:
         # refinement: centroids of triangles much larger than the target
         area = signed_areas(old, t)
         ht = self.h_node[t].mean(axis=1)
-        big = area > 2.5 * (np.sqrt(3) / 4) * ht**2
+        big = area > self.refine_area * (np.sqrt(3) / 4) * ht**2
         newp = old[t[big]].mean(axis=1)
         if stree is not None and len(newp):
             hn = self._target(newp, olw)

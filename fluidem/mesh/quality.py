@@ -4,12 +4,15 @@ Rule of thumb (van Kan et al., REFERENCES.md "Meshes"): no triangle angle above 
 equilateral triangles give the best-conditioned FEM systems.
 
 *Narrow-gap triangles* are those that lie in a gap between two different boundaries
-(two bodies, or a body and a box side) narrower than half the local target size: there a
+(two bodies, or a body and the box) narrower than half the local target size: there a
 triangle cannot be well shaped without nodes the gap has no room for, so these triangles
 are counted on their own and left out of the angle statistics.  A triangle counts as
 narrow-gap when its centroid ``c`` has ``d1 + d2 < h/2``, with ``d1``, ``d2`` the distances
 from ``c`` to the nearest and second-nearest distinct boundary and ``h`` the mean target
-size of its vertices.
+size of its vertices, or when it is anchored across such a gap: one of its edges joins two
+different boundaries and one end of that edge is closer than ``h/2`` to the other end's
+boundary (the elements at the mouth of a narrow gap).  The classification itself lives in
+:class:`fluidem.mesh.MovingMesh`, which knows the bodies.
 """
 
 from __future__ import annotations

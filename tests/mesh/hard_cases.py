@@ -149,3 +149,60 @@ class RandomMotion:
         a, b = shapely.STRtree(polys).query(polys, predicate="dwithin", distance=1.0)
         sel = a < b
         return float(shapely.distance(polys[a[sel]], polys[b[sel]]).min())
+
+
+# ---------------------------------------------------------------- the other hard cases
+def sliding_pair(h):
+    """Case 2: two 1 × 0.3 bars, gap h/10, that slide past each other in opposite directions."""
+    from fluidem.geometry import rectangle
+
+    bodies = [rectangle(1.0, 0.3), rectangle(1.0, 0.3)]
+    poses = np.array([[1.0, 1.0, 0.0], [3.0, 1.3 + h / 10, 0.0]])
+    box = (0.0, 4.0, 0.0, 2.3)
+
+    def poses_at(k, n):
+        p = poses.copy()
+        p[0, 0] += 2.0 * k / n
+        p[1, 0] -= 2.0 * k / n
+        return p
+
+    return bodies, poses, box, poses_at
+
+
+def crossing_body():
+    """Case 3: a hexagon that crosses from the fine region (x < 5) of a graded mesh to x = 7 and back."""
+    from fluidem.geometry import regular_polygon
+
+    bodies = [regular_polygon(0.5, 6)]
+    box = (0.0, 14.0, 0.0, 8.0)
+    grading = {"region": (0.0, 5.0, 0.0, 8.0), "growth": 1.25, "h_max": 1.0}
+
+    def poses_at(k, n):
+        s = k / n
+        x = 2.5 + 4.5 * (1 - abs(1 - 2 * s))
+        return np.array([[x, 4.0, 0.5 * s]])
+
+    return bodies, poses_at(0, 1), box, grading, poses_at
+
+
+def collapsing_step():
+    """Case 4: a 10 × 20 block of squares (side 0.5, gaps 0.05) sliding down and to the side (paper Fig. 6).
+
+    Rows shear to the right and the block spreads and settles by 8 % in height, so that no two
+    squares overlap: a prescribed stand-in for the granular collapse.
+    """
+    from fluidem.geometry import rectangle
+
+    X, Y = np.meshgrid(1.0 + 0.55 * np.arange(10), 0.5 + 0.55 * np.arange(20))
+    base = np.column_stack([X.ravel(), Y.ravel()])
+    bodies = [rectangle(0.5, 0.5)] * len(base)
+    box = (0.0, 30.0, 0.0, 14.0)
+    grading = {"region": (0.0, 7.0, 0.0, 12.0), "growth": 1.2, "h_max": 1.0}
+
+    def poses_at(k, n):
+        s = 0.5 - 0.5 * np.cos(np.pi * k / n)
+        x = base[:, 0] + 0.5 * (base[:, 0] - 1.0) * s + 0.9 * (base[:, 1] - 0.5) * s
+        y = 0.5 + (base[:, 1] - 0.5) * (1 - 0.08 * s)
+        return np.column_stack([x, y, np.zeros(len(x))])
+
+    return bodies, poses_at(0, 1), box, grading, poses_at
