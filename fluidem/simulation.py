@@ -425,7 +425,7 @@ class Simulation:
         self.step_index = int(data["step"])
         self.t = float(data["t"])
 
-    def _record(self, writer, fields: bool):
+    def _record(self, writer, fields: bool, last: bool = False):
         b = self.bodies
         F, T, cnt = b.loads()
         tl = time.perf_counter()
@@ -436,7 +436,7 @@ class Simulation:
         if writer is None:
             return t_loads
         sc = self.scene
-        if self.step_index % sc.output.history_every == 0 or self.step_index == self.plan.n_steps:
+        if self.step_index % sc.output.history_every == 0 or last:
             writer.history(self.step_index, self.t, b.positions, b.angles, b.velocities, b.omegas, F, T, cnt)
         if fields:
             pos, ang = b.positions, b.angles
@@ -512,7 +512,7 @@ class Simulation:
                 self.t = self.step_index * dt
                 t0 = time.perf_counter()
                 last = self.step_index == N
-                st.loads = self._record(writer, fields=(self.step_index % ev == 0 or last))
+                st.loads = self._record(writer, fields=(self.step_index % ev == 0 or last), last=last)
                 if writer is not None and ((ck and self.step_index % ck == 0) or last):
                     writer.checkpoint(self.step_index, self.t, self._state())
                 st.output = time.perf_counter() - t0 - st.loads

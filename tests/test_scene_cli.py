@@ -1,0 +1,59 @@
+"""`fluidem run | plan | examples | plot` and the PNG figures."""
+
+import pytest
+
+from fluidem.cli import main
+from fluidem.io import read_history, read_pvd
+
+
+def test_examples_and_plan(capsys):
+    assert main(["examples"]) == 0
+    out = capsys.readouterr().out
+    for name in ("dfg-cylinder", "wall-correction", "dry-heap", "column-collapse"):
+        assert name in out
+    assert main(["plan", "--example", "dry-heap"]) == 0
+    out = capsys.readouterr().out
+    assert "mesh            off" in out and "contacts        on" in out
+
+
+def test_run_plot_and_restart(tmp_path, capsys):
+    out = tmp_path / "wc"
+    assert main(["run", "--example", "wall-correction", "--out", str(out), "--plot"]) == 0
+    captured = capsys.readouterr()
+    assert "1/1" in captured.err and "ETA" in captured.err and "fluid" in captured.err
+    for f in ("history.csv", "fields.pvd", "bodies.pvd", "events.log", "mesh_quality.csv", "scene.toml",
+              "plots/velocity.png", "plots/pressure.png", "plots/mesh.png", "plots/trajectories.png"):
+        assert (out / f).exists(), f
+    assert len(read_pvd(out / "fields.pvd")) == 2
+    h = read_history(out)
+    assert h["fx"][-1] < 0  # drag on a cylinder moving in +x
+    assert (out / "checkpoints").is_dir()
+    # the scene as run is a valid scene file
+    assert main(["plan", str(out / "scene.toml")]) == 0
+    capsys.readouterr()
+    assert main(["plot", str(out), "--to", str(tmp_path / "png")]) == 0
+    assert (tmp_path / "png" / "velocity.png").exists()
+
+
+def test_dry_run_restart_from_cli(tmp_path, capsys):
+    out = tmp_path / "cc"
+    assert main(["run", "--example", "column-collapse", "--out", str(out), "--steps", "4", "--quiet"]) == 0
+    assert main(["run", "--example", "column-collapse", "--out", str(out), "--steps", "6", "--quiet",
+                 "--restart"]) == 0
+    h = read_history(out)
+    assert sorted(set(h["step"].tolist())) == [0, 4, 5, 6]  # history_every = 5, and each run's last step
+    assert "restart" in (out / "events.log").read_text()
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["run"], ["no scene"]),
+    (["run", "--example", "nope"], ["unknown example scene 'nope'", "dry-heap"]),
+    (["plan", "missing.toml"], ["does not exist"]),
+    (["plot", "."], ["not a fluidem run directory"]),
+])
+def test_cli_errors(argv, words, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    for w in words:
+        assert w in err
