@@ -587,12 +587,16 @@ class MovingMesh:
         keep = np.ones(len(cand), dtype=bool)
         if self.n_bodies:
             stree = shapely.STRtree(np.asarray(solids, dtype=object))
-            qi = np.flatnonzero(inner)
-            ii, _ = stree.query(shapely.points(cand[qi]), predicate="dwithin", distance=purge * hc[qi])
-            keep[qi[np.unique(ii)]] = False
+            # one query serves both tests (the closed contact outlines lie within min_gap
+            # of the bodies, well inside the purge distance)
+            qi = np.flatnonzero(cand_kind == FREE)
+            sp = shapely.points(cand[qi])
+            ii, bb = tree.query(sp, predicate="dwithin", distance=max(purge, self.gap_purge) * hc[qi])
+            dd = shapely.distance(polys[bb], sp[ii])
+            close = dd < purge * hc[qi[ii]]
+            keep[qi[ii[close]]] = False
             # no room in gaps narrower than gap_purge · h: the gap is spanned by one layer
-            qi = qi[keep[qi]]
-            gap = self._gap_width(cand[qi], self.gap_purge * hc[qi], polys, tree)
+            gap = self._gap_from_pairs(cand[qi], ii, dd)
             keep[qi[gap < self.gap_purge * hc[qi]]] = False
             # junction nodes from before are recomputed
         movable = (cand_kind == FREE) | box_nodes
@@ -800,7 +804,7 @@ class MovingMesh:
         tree = shapely.STRtree(polys)
         pts = shapely.points(self.points[free])
         ii, bb = tree.query(pts, predicate="dwithin", distance=reach)
-        dist = shapely.distance(polys[bb], pts[ii])
+        dist = self._point_body_distance(self.points[free[ii]], bb)
         self._drag_node = free[ii]
         self._drag_body = bb
         full = self.drag_full * self.h_node[free][ii]
@@ -1088,7 +1092,7 @@ class MovingMesh:
         Narrow-gap elements (the geometric flag of :meth:`quality` evaluated now, gaps change
         little between re-triangulations, or'ed with the structural one) are left out.
         """
-        narrow = self._narrow_gap() | self._structural_narrow()
+        narrow = self._narrow_gap_owners() | self._structural_narrow()
         self._base_area = signed_areas(self.points, self.triangles)
         cmax, cmin = self._element_cosines()
         amin = np.degrees(np.arccos(np.clip(cmax, -1, 1)))
@@ -1197,7 +1201,18 @@ class MovingMesh:
             pi, bi = tree.query(sp, predicate="dwithin", distance=radius)
             ti.append(pi)
             dd.append(shapely.distance(polys[bi], sp[pi]))
-        ti, dd = np.concatenate(ti), np.concatenate(dd)
+        return self._two_smallest(k, np.concatenate(ti), np.concatenate(dd))
+
+    def _gap_from_pairs(self, pts, pi, d) -> np.ndarray:
+        """:meth:`_gap_width` from precomputed (point, body) pairs and distances."""
+        k = len(pts)
+        return self._two_smallest(k, np.concatenate([np.arange(k), pi]),
+                                  np.concatenate([self._box_distance(pts), d]))
+
+    @staticmethod
+    def _two_smallest(k, ti, dd) -> np.ndarray:
+        """Per point ``0..k-1``: sum of its two smallest distances ``dd`` (``inf`` if fewer)."""
+        out = np.full(k, np.inf)
         o = np.lexsort((dd, ti))
         ti, dd = ti[o], dd[o]
         first = np.ones(len(ti), dtype=bool)
@@ -1207,6 +1222,34 @@ class MovingMesh:
         s2 = start[cnt >= 2]
         out[ti[s2]] = dd[s2] + dd[s2 + 1]
         return out
+
+    def _narrow_gap_owners(self) -> np.ndarray:
+        """Cheap form of :meth:`_narrow_gap` for the re-triangulation trigger: the gap at the
+        centroid is measured between the boundaries the element's own vertices lie on."""
+        t = self.triangles
+        narrow = np.zeros(len(t), dtype=bool)
+        cand = np.flatnonzero((self.kind[t] != FREE).sum(axis=1) >= 2)
+        if not len(cand):
+            return narrow
+        tc = t[cand]
+        c = self.points[tc].mean(axis=1)
+        hh = 0.5 * self.h_node[tc].mean(axis=1)
+        owner = np.where((self.kind == FREE) | (self.kind == JUNCTION), -3,
+                         np.where(self.body_of >= 0, self.body_of, -2))
+        o = owner[tc]
+        world = self._world(self._vcat, self._vbody, self.poses)
+        d = np.full(o.shape, np.inf)
+        for v in range(3):
+            ok = o[:, v] != -3
+            if v >= 1:
+                ok &= o[:, v] != o[:, 0]
+            if v == 2:
+                ok &= o[:, 2] != o[:, 1]
+            d[ok, v] = self._owner_distance(c[ok], o[ok, v], world)
+        d.sort(axis=1)
+        narrow[cand] = d[:, 0] + d[:, 1] < hh
+        narrow[cand[self._anchored_across_gap(cand, world)]] = True
+        return narrow
 
     def _narrow_gap(self) -> np.ndarray:
         """Narrow-gap triangles by the geometric definition of :mod:`fluidem.mesh.quality`."""
