@@ -82,7 +82,7 @@ def _coefficients(space, residual, Ubar):
 
 
 @register_case("dfg-2d1")
-def dfg_2d1(element: str = "p3", level: int = 2, curved: bool = True, solver=None, verbose: bool = False) -> CaseResult:
+def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver=None, verbose: bool = False) -> CaseResult:
     """Steady DFG 2D-1 (U = 0.3, Re = 20): c_D, c_L, Δp by Newton's method."""
     t0 = time.perf_counter()
     mesh = dfg_mesh(level, curved)
