@@ -230,6 +230,39 @@ class MovingMesh:
         weight falling linearly to zero at ``drag_reach · h``.
     retriangulate_iterations : int
         Relaxation sweeps after a re-triangulation.
+    refine_area, coarsen_ratio : float
+        Adaptation at re-triangulation: nodes are added in triangles larger than
+        ``refine_area`` target areas and removed where incident edges average below
+        ``coarsen_ratio`` of their target.
+
+    Attributes
+    ----------
+    points : (n_nodes, 2) float
+        Node positions, length units.
+    triangles : (n_triangles, 3) int
+        Counter-clockwise triangles.
+    kind : (n_nodes,) int8
+        0 free, 1 box side (slides along it), 2 box corner, 3 body outline, 4 junction,
+        5 contact node.
+    body_of : (n_nodes,) int
+        Body of an outline or contact node, ``-1`` otherwise.
+    h_node : (n_nodes,) float
+        Target edge length carried by every node.
+    contacts : (k, 2) int
+        Body pairs meshed as one outline (closer than ``min_gap``).
+    pore_areas : (k,) float
+        Areas of fluid pores enclosed by touching bodies.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fluidem.geometry import rectangle
+    >>> mm = MovingMesh((0, 2, 0, 1), [rectangle(0.3, 0.2)], [[0.6, 0.5, 0.0]], h=0.1)
+    >>> ev = mm.update([[0.62, 0.5, 0.05]])
+    >>> q = mm.quality()
+    >>> q.n_inverted, q.n_nodes_inside_bodies, q.min_angle > 15
+    (0, 0, True)
+    >>> w = mm.node_velocity(0.01)   # ALE mesh velocity, (n_nodes, 2)
     """
 
     def __init__(self, domain, bodies, poses, h: float, grading=None, strategy: str = "drag",
@@ -484,8 +517,7 @@ class MovingMesh:
         # contacts: bodies closer than min_gap are meshed as one closed outline
         ol_keep = np.ones(len(olw), dtype=bool)
         solids = list(polys)
-        solid_is_cluster = np.zeros(len(polys), dtype=bool)
-        extra_pts, extra_body, seg_list, mark_list, holes = [], [], [], [], []
+        extra_pts, extra_body, seg_list, holes = [], [], [], []
         pore_list = []
         contacts = np.zeros((0, 2), dtype=np.int64)
         clustered = np.zeros(self.n_bodies, dtype=bool)
@@ -567,7 +599,6 @@ class MovingMesh:
                     extra_pts.append(newp)
                     extra_body.append(owner)
                     n_extra += len(newp)
-            solid_is_cluster = np.concatenate([np.zeros(len(polys), bool), np.ones(len(solids) - len(polys), bool)])
         self.contacts = contacts
         self.pore_areas = np.array(pore_list)
 
@@ -769,8 +800,6 @@ class MovingMesh:
         no_free = ~free_v.any(axis=1)
         newp = np.zeros((0, 2))
         if no_free.any():
-            owner = np.where(self.kind >= 0, 0, 0)  # placeholder, every vertex "owned" for the split test
-            del owner
             P = self.points[t[no_free]]
             cen = P.mean(axis=1)
             hq = self._target(cen, olw)
@@ -801,10 +830,22 @@ class MovingMesh:
             self._relax_damping = np.ones(len(self.points))
             return
         reach = self.drag_reach * self.h_node[free]
-        tree = shapely.STRtree(polys)
-        pts = shapely.points(self.points[free])
-        ii, bb = tree.query(pts, predicate="dwithin", distance=reach)
+        # candidate bodies: those of the 4 nearest outline nodes within reach (outline nodes
+        # are spaced about h, so a body within reach has one of its nodes nearby); then the
+        # exact distance to each candidate body
+        ol = np.flatnonzero(self.body_of >= 0)
+        k = min(4, len(ol))
+        dnn, inn = cKDTree(self.points[ol]).query(self.points[free], k=k,
+                                                   distance_upper_bound=float(reach.max()) + self.h)
+        dnn, inn = dnn.reshape(len(free), k), inn.reshape(len(free), k)
+        found = np.isfinite(dnn)
+        ii = np.repeat(np.arange(len(free)), k)[found.ravel()]
+        bb = self.body_of[ol[inn[found]]]
+        key = np.unique(ii * self.n_bodies + bb)
+        ii, bb = key // self.n_bodies, key % self.n_bodies
         dist = self._point_body_distance(self.points[free[ii]], bb)
+        sel = dist < reach[ii]
+        ii, bb, dist = ii[sel], bb[sel], dist[sel]
         self._drag_node = free[ii]
         self._drag_body = bb
         full = self.drag_full * self.h_node[free][ii]
