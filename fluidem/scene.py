@@ -50,6 +50,7 @@ Choices made here (see the CHANGELOG):
   only set the number of outline nodes (default: about 2πr/h, even, at least 16).
 * Gravity acting on a fluid with only fixed or prescribed bodies adds a hydrostatic
   pressure and nothing else; it is left out of the fluid solve and the plan says so.
+* Prescribed bodies whose outlines move need the moving mesh (ALE); a spinning disk does not.
 * A Stokes scene is quasi-steady: every step solves the Stokes problem for the geometry and
   body velocities of that instant.  A Stokes scene whose prescribed bodies translate is
   legal without a moving mesh when it has a single time step (``t_end = dt``): the force at

@@ -12,8 +12,12 @@
 * a Stokes scene with translating prescribed bodies and a single step (quasi-steady at
   one instant): the mesh of the initial geometry.
 
-Prescribed translating bodies in an unsteady fluid need the moving mesh (ALE); free bodies
-in a fluid need the coupled solver.  Both are refused with a ``ValueError`` that says so.
+* a fluid scene whose prescribed bodies move their outlines: the moving mesh
+  (:class:`fluidem.mesh.MovingMesh`), ALE Navier–Stokes or quasi-steady Stokes on it
+  (:class:`_MovingMeshFlow`); without the moving-mesh layer such scenes are refused.
+
+Free bodies in a fluid need the coupled solver (a later version) and are refused with a
+``ValueError`` that says so.
 
 Each step's wall time is split into ``bodies``, ``fluid``, ``loads`` and ``output``
 (:class:`StepTimes`), reported to a progress callback.
@@ -341,6 +345,218 @@ class _FixedMeshFlow:
                 st._last = s["last"]
 
 
+def _velocity_bcs(scene: Scene, centers):
+    """Velocity conditions of the box sides and the bodies (rigid motion about ``centers`` (n, 2))."""
+    from .fluid.space import RigidMotion, VelocityBC
+
+    bcs = []
+    for s in ("left", "right", "bottom", "top"):
+        side = scene.domain.side(s)
+        if side.type == "wall":
+            bcs.append(VelocityBC(s, (0.0, 0.0)))
+        elif side.type == "moving-wall":
+            bcs.append(VelocityBC(s, side.velocity))
+        elif side.type == "inflow":
+            bcs.append(VelocityBC(s, _inflow_value(s, scene.domain.box, scene.domain.profile_of(s))))
+    for b, c in zip(scene.bodies, centers):
+        if b.motion == "fixed":
+            bcs.append(VelocityBC(b.name, (0.0, 0.0)))
+        else:
+            bcs.append(VelocityBC(b.name, RigidMotion(b.velocity, b.omega, tuple(map(float, c)))))
+    return bcs
+
+
+def _p1_at_dofs(space, w_nodes: np.ndarray) -> np.ndarray:
+    """Velocity coefficients (n_u,) of the piecewise linear field with vertex values ``w_nodes`` (n_vertices, 2).
+
+    The mesh velocity is linear on each element (the mesh moves affinely), so every element
+    pair represents it exactly: nodal DOFs take its point values, bubble DOFs zero.
+    """
+    ub, mesh = space.ub, space.mesh
+    p, t = mesh.p, mesh.t
+    ed = ub.element_dofs  # (Nbfun, n_elements)
+    loc = ub.doflocs[:, ed]  # (2, Nbfun, n_elements)
+    a, b, c = p[:, t[0]], p[:, t[1]], p[:, t[2]]
+    d1, d2 = b - a, c - a
+    det = d1[0] * d2[1] - d1[1] * d2[0]
+    r = loc - a[:, None, :]
+    l1 = (d2[1] * r[0] - d2[0] * r[1]) / det
+    l2 = (-d1[1] * r[0] + d1[0] * r[1]) / det
+    l0 = 1.0 - l1 - l2
+    comp = np.zeros(ub.N, dtype=int)
+    comp[ub.split_indices()[1]] = 1
+    cd = comp[ed]
+    wv = w_nodes.T  # (2, n_vertices)
+    val = np.where(cd == 0, l0 * wv[0, t[0]] + l1 * wv[0, t[1]] + l2 * wv[0, t[2]],
+                   l0 * wv[1, t[0]] + l1 * wv[1, t[1]] + l2 * wv[1, t[2]])
+    out = np.zeros(ub.N)
+    out[ed.ravel()] = np.nan_to_num(val.ravel(), nan=0.0)  # NaN locations: bubble DOFs
+    return out
+
+
+class _Outline:
+    """A body outline for :class:`fluidem.mesh.MovingMesh`: ``vertices`` in body coordinates and ``name``."""
+
+    def __init__(self, vertices, name):
+        self.vertices = np.asarray(vertices, float)
+        self.name = name
+
+
+class _MovingMeshFlow:
+    """The flow around prescribed bodies whose outlines move: ALE on :class:`fluidem.mesh.MovingMesh`.
+
+    Each step the bodies move to their poses at t + dt, the mesh follows
+    (``MovingMesh.update``), the flow problem is assembled on the new node positions and
+    one BDF2 step is taken with the mesh velocity w in the convection, (u − w)·∇u.  While
+    the connectivity is unchanged the velocity coefficients stay attached to the nodes
+    (no interpolation); at a re-triangulation u^n and u^{n−1} are interpolated from the old
+    mesh at time t onto the new nodes (:func:`fluidem.mesh.transfer.interpolate`), that step
+    is Eulerian (w = 0), and the event is logged.  The history
+    term uses the mass matrix of the new positions (not geometric-conservation exact; first
+    order in the mesh motion per step).  Stokes is quasi-steady: one solve per step on the
+    current mesh, no mesh velocity.  Outlines are polygons (straight edges).
+    """
+
+    def __init__(self, scene: Scene, sim: "Simulation"):
+        from .fluid.navier_stokes import BDF2Stepper
+        from .fluid.solvers import DirectSolver
+        from .mesh import MovingMesh
+
+        fl, ms = scene.fluid, scene.mesh
+        self.scene = scene
+        t0 = time.perf_counter()
+        outlines = [_Outline(b.local_vertices(scene.default_segments(b)), b.name) for b in scene.bodies]
+        self.path = [LinearPath(b.position, b.angle, b.velocity if b.motion != "fixed" else (0, 0),
+                                b.omega if b.motion != "fixed" else 0.0) for b in scene.bodies]
+        grading = None
+        if ms.grading is not None:
+            g = ms.grading
+            region = g["region"] if g["region"] != "bodies" else scene.world_outlines()
+            grading = {"region": region, "growth": g["growth"], "h_max": g["h_max"]}
+        self.mm = MovingMesh(scene.domain.box, outlines, self._poses(0.0), ms.h, grading=grading,
+                             strategy=ms.strategy, retriangulate_every=ms.retriangulate_every)
+        sim.counters["triangulations"] += 1
+        self.sim = sim
+        self.mesh_time = time.perf_counter() - t0
+        self.curved = False
+        self.rho = fl.density
+        self.stokes = fl.model == "stokes"
+        self.names = [b.name for b in scene.bodies]
+        self.t = 0.0
+        self._build(0.0)
+        if self.stokes:
+            self.stepper = None
+            self.x = self.problem.initial_vector(0.0)
+        else:
+            self.stepper = BDF2Stepper(self.problem, scene.time.dt, convection=fl.convection, solver=DirectSolver(),
+                                       mesh_velocity=np.zeros(self.space.n_u))
+            self.x = self.stepper.state.x
+        self.events = []
+        sim.counters["fluid_solvers"] += 1
+
+    def _poses(self, t):
+        return np.array([[*p(t)[0], p(t)[1]] for p in self.path]).reshape(-1, 3)
+
+    def _build(self, t):
+        from .fluid.navier_stokes import FlowProblem
+        from .fluid.space import FlowSpace
+
+        fl = self.scene.fluid
+        self.mesh = self.mm.skfem_mesh()
+        self.space = FlowSpace(self.mesh, fl.element)
+        self.centers = self._poses(t)[:, :2]
+        self.problem = FlowProblem(self.space, fl.viscosity, _velocity_bcs(self.scene, self.centers), rho=fl.density,
+                                   body_force=fl.body_force)
+
+    @property
+    def dofs(self):
+        return self.space.n_dofs
+
+    def step(self, dt):
+        from .fluid.navier_stokes import FlowState, solve_stokes
+        from .mesh import transfer
+
+        t_new = self.t + dt
+        t0 = time.perf_counter()
+        ev = self.mm.update(self._poses(t_new))
+        self.last_event = ev
+        if ev.retriangulated:
+            self.sim.counters["triangulations"] += 1
+        self._build(t_new)
+        self.mesh_seconds = time.perf_counter() - t0
+        if self.stokes:
+            self.t = t_new
+            self.x = solve_stokes(self.problem, t_new).x
+            return
+        st = self.stepper
+        n_u = self.space.n_u
+        if ev.retriangulated:
+            from skfem import Basis, ElementVector, MeshTri
+
+            # the old connectivity at the old positions (time t): the interpolation to the new
+            # nodes at t + dt is Eulerian, so this step has no mesh velocity
+            src = ev.prev_points if ev.prev_points is not None else ev.old_points
+            old = MeshTri(np.asarray(src, float).T.copy(), np.asarray(ev.old_triangles).T.copy())
+            ob = Basis(old, ElementVector(self.space.pair.velocity()))
+            u_n = transfer.interpolate(ob, st.state.u, self.space.ub)
+            u_p = None if st._u_prev is None else transfer.interpolate(ob, st._u_prev, self.space.ub)
+            self.sim.counters["transfers"] = self.sim.counters.get("transfers", 0) + 1
+        else:
+            u_n, u_p = st.state.u, st._u_prev
+        x = np.zeros(self.space.n_dofs)
+        x[:n_u] = u_n
+        st.problem = self.problem
+        st.state = FlowState(x, n_u, self.t)
+        st._u_prev = u_p
+        st.mesh_velocity = (np.zeros(n_u) if ev.retriangulated
+                            else _p1_at_dofs(self.space, self.mm.node_velocity(dt)))
+        st.step()
+        self.t = st.t
+        self.x = st.state.x
+
+    def residual(self):
+        if self.stokes:
+            return self.problem.steady_residual(self.x, convection=False)
+        return self.stepper.last_residual()
+
+    def loads(self):
+        from .fluid.forces import body_loads
+
+        r = self.residual()
+        n = len(self.names)
+        F, T = np.zeros((n, 2)), np.zeros(n)
+        for k, (name, c) in enumerate(zip(self.names, self.centers)):
+            L = body_loads(self.space, r, name, rho=self.rho, center=c)
+            F[k] = L.fx, L.fy
+            T[k] = L.torque
+        return F, T
+
+    def get_state(self):
+        st = self.stepper
+        s = {"t": self.t, "x": self.x.copy(), "mm": self.mm}
+        if st is not None:
+            s.update(u_prev=None if st._u_prev is None else st._u_prev.copy(), n_steps=st.n_steps,
+                     last=st._last if st.n_steps else None)
+        return s
+
+    def set_state(self, s):
+        from .fluid.navier_stokes import FlowState
+
+        self.mm = s["mm"]
+        self.t = s["t"]
+        self._build(self.t)
+        self.x = s["x"].copy()
+        if self.stepper is not None:
+            st = self.stepper
+            st.problem = self.problem
+            st.t = self.t
+            st.state = FlowState(self.x, self.space.n_u, self.t)
+            st._u_prev = s["u_prev"]
+            st.n_steps = s["n_steps"]
+            if s["last"] is not None:
+                st._last = s["last"]
+
+
 # ---------------------------------------------------------------------------------------
 # the driver
 # ---------------------------------------------------------------------------------------
@@ -397,10 +613,12 @@ class Simulation:
         else:
             self.bodies = _Kinematic(scene)
         if scene.fluid is not None:
-            if self.plan.mesh == "moving":  # pragma: no cover - refused by the plan check for now
-                raise ValueError("prescribed translating bodies in an unsteady fluid need the moving mesh (ALE)")
-            self.flow = _FixedMeshFlow(scene, self)
-            self.events.append(("mesh", f"built once: {self.flow.mesh.t.shape[1]} triangles, "
+            if self.plan.mesh == "moving":
+                self.flow = _MovingMeshFlow(scene, self)
+            else:
+                self.flow = _FixedMeshFlow(scene, self)
+            self.events.append(("mesh", ("moving, initial: " if self.plan.mesh == "moving" else "built once: ")
+                                + f"{self.flow.mesh.t.shape[1]} triangles, "
                                         f"{self.flow.dofs} DOFs, {'curved' if self.flow.curved else 'polygonal'}"))
 
     # -- state ------------------------------------------------------------------------------
@@ -507,12 +725,27 @@ class Simulation:
                     t0 = time.perf_counter()
                     self.flow.step(dt)
                     st.fluid = time.perf_counter() - t0
+                    ev_mesh = getattr(self.flow, "last_event", None)
+                    if ev_mesh is not None:
+                        st.mesh = self.flow.mesh_seconds
+                        st.fluid -= st.mesh
+                        if writer is not None:
+                            if ev_mesh.retriangulated:
+                                writer.event(self.step_index + 1, self.t + dt, "retriangulation",
+                                             f"reason={ev_mesh.reason} nodes={ev_mesh.n_nodes} "
+                                             f"triangles={ev_mesh.n_triangles}; fields transferred by interpolation"
+                                             if self.scene.fluid.model != "stokes" else f"reason={ev_mesh.reason}")
+                            if len(ev_mesh.oscillating):
+                                writer.event(self.step_index + 1, self.t + dt, "oscillation",
+                                             f"{len(ev_mesh.oscillating)} oscillating nodes")
                 self.step_index += 1
                 self.counters["steps"] += 1
                 self.t = self.step_index * dt
                 t0 = time.perf_counter()
                 last = self.step_index == N
                 st.loads = self._record(writer, fields=(self.step_index % ev == 0 or last), last=last)
+                if writer is not None and self.plan.mesh == "moving" and (self.step_index % ev == 0 or last):
+                    writer.mesh_quality(self.step_index, self.t, self.flow.mm.quality())
                 if writer is not None and ((ck and self.step_index % ck == 0) or last):
                     writer.checkpoint(self.step_index, self.t, self._state())
                 st.output = time.perf_counter() - t0 - st.loads

@@ -130,11 +130,54 @@ def test_restart_reproduces_a_navier_stokes_run(tmp_path):
     assert _restart_check(d, tmp_path, 6, 2) < 1e-12
 
 
-def test_translating_body_in_unsteady_fluid_and_free_body_in_fluid_are_refused():
-    with pytest.raises(ValueError, match="moving mesh"):
-        Simulation(_channel("navier-stokes", motion="prescribed", velocity=[0.1, 0.0]))
+def test_free_body_in_fluid_is_refused_and_moving_bodies_need_the_moving_mesh(monkeypatch):
+    import fluidem.scene as scene_mod
+
     with pytest.raises(ValueError, match="free bodies in a fluid"):
         Simulation(_channel("stokes", motion="free"))
+    monkeypatch.setattr(scene_mod, "moving_mesh_available", lambda: False)
+    with pytest.raises(ValueError, match="moving bodies in fluid need the moving-mesh layer"):
+        Simulation(_channel("navier-stokes", motion="prescribed", velocity=[0.1, 0.0]))
+
+
+def _moving(model, **kw):
+    d = {"fluid": {"model": model, "viscosity": 0.05, "element": "th"}, "domain": {"box": [0.0, 2.0, 0.0, 1.0]},
+         "bodies": [{"shape": "disk", "radius": 0.1, "position": [0.6, 0.5], "motion": "prescribed",
+                     "velocity": [1.0, 0.0]}],
+         "mesh": {"h": 0.08, "retriangulate_every": 3}, "time": {"dt": 0.02, "t_end": 0.16},
+         "output": {"checkpoint_every": 4}}
+    d.update(kw)
+    return d
+
+
+def test_prescribed_translation_on_the_moving_mesh_and_its_restart(monkeypatch, tmp_path):
+    calls = []
+    _forbid(monkeypatch, tri, "triangulate_box", calls)
+    d = _moving("navier-stokes")
+    sim = Simulation(Scene.from_dict(d))
+    assert sim.plan.mesh == "moving" and sim.plan.on("ale")
+    sim.run(out_dir=tmp_path / "full")
+    assert calls == [] and sim.counters["triangulations"] > 1 and sim.counters["transfers"] >= 1
+    log = (tmp_path / "full" / "events.log").read_text()
+    assert "retriangulation" in log and "transferred" in log
+    h = read_history(tmp_path / "full")
+    assert np.allclose(h["x"][-1], 0.6 + 0.16) and np.all(h["fx"][1:] < 0)
+    assert len((tmp_path / "full" / "mesh_quality.csv").read_text().splitlines()) > 2
+    assert _restart_check(d, tmp_path, 4, 4) == 0.0
+
+
+def test_moving_stokes_cylinder_matches_faxen_at_every_step(tmp_path):
+    d = {"fluid": {"model": "stokes", "viscosity": 1.0, "element": "th"}, "domain": {"box": [-8.0, 8.0, -1.0, 1.0]},
+         "bodies": [{"shape": "disk", "radius": 0.2, "segments": 64, "position": [0.0, 0.0], "motion": "prescribed",
+                     "velocity": [1.0, 0.0]}],
+         "mesh": {"h": 0.03, "grading": {"growth": 1.3, "h_max": 0.3}, "retriangulate_every": 3},
+         "time": {"dt": 0.05, "t_end": 0.2}}
+    sim = Simulation(Scene.from_dict(d))
+    sim.run(out_dir=tmp_path)
+    h = read_history(tmp_path)
+    err = -h["fx"][1:] / faxen(0.2) - 1
+    assert sim.counters["triangulations"] >= 2
+    assert np.abs(err).max() < 5e-3, err
 
 
 def faxen(k):
