@@ -200,3 +200,24 @@ def test_faxen_wall_correction_through_the_scene_path(k):
     F = -sim.last_loads[0][0, 0] / (mu * s.bodies[0].velocity[0])
     assert sim.flow.curved
     assert abs(F / faxen(k) - 1) < 5e-3
+
+
+def test_every_example_scene_loads_and_plans():
+    from fluidem.cases.scenes import example_names, example_scene
+
+    names = example_names()
+    assert {"dfg-cylinder", "wall-correction", "dry-heap", "column-collapse"} <= set(names)
+    for n in names:
+        plan = example_scene(n).plan()
+        assert not plan.unsupported, (n, plan.unsupported)
+
+
+@pytest.mark.slow
+def test_dfg_cylinder_example_drag_coefficient(tmp_path):
+    """DFG 2D-1 through the scene path, run to steady state: c_D = 5.5795 (Nabh 1998) within 0.5 %."""
+    from fluidem.cases.scenes import example_scene
+
+    sim = Simulation(example_scene("dfg-cylinder"))
+    sim.run(out_dir=None)
+    cd = 2.0 * sim.last_loads[0][0, 0] / (0.2**2 * 0.1)
+    assert abs(cd / 5.57953523384 - 1) < 5e-3, cd
