@@ -867,8 +867,9 @@ def _min_distance_linear(dp, dv, T):
 def contact_candidates(scene: Scene) -> tuple[int, int]:
     """(body–body, body–wall) pairs that may touch before ``t_end``.
 
-    Walls: the swept box of a body's centre path, grown by its bounding radius, reaches a
-    solid side.  Bodies (at least one movable): their grown swept boxes overlap and, when
+    Only free bodies feel contact forces, so every pair counted has a free body.  Walls: the
+    swept box of a body's centre path, grown by its bounding radius, reaches a solid side.
+    Bodies: their grown swept boxes overlap and, when
     both have the same acceleration (two free bodies under gravity, or two prescribed or
     fixed bodies), their relative motion is linear and its closest approach is exact.
     """
@@ -878,7 +879,7 @@ def contact_candidates(scene: Scene) -> tuple[int, int]:
     T = scene.time.t_end
     p0, v, acc, bounded = _sweep(scene)
     r = np.array([b.bounding_radius for b in scene.bodies])
-    moving = np.array([b.moves for b in scene.bodies])
+    moving = np.array([b.motion == "free" for b in scene.bodies])
     lo, hi = _swept_boxes(p0, v, acc, T)
     lo, hi = lo - r[:, None], hi + r[:, None]
     lo[~bounded], hi[~bounded] = -np.inf, np.inf
@@ -887,7 +888,7 @@ def contact_candidates(scene: Scene) -> tuple[int, int]:
              scene.domain.side(k).type != "outflow") for k in SIDES}
     hit = {"left": lo[:, 0] <= x0, "right": hi[:, 0] >= x1, "bottom": lo[:, 1] <= y0, "top": hi[:, 1] >= y1}
     n_wall = int(sum((hit[k] & moving).sum() for k in SIDES if solid[k]))
-    if not bounded.all():  # free bodies in a fluid: every pair with a movable body
+    if not bounded.all():  # free bodies in a fluid: every pair with a free body
         nm = int(moving.sum())
         return int(nm * (nm - 1) // 2 + nm * (n - nm)), n_wall
     n_body = 0
@@ -905,6 +906,30 @@ def contact_candidates(scene: Scene) -> tuple[int, int]:
         d = _min_distance_linear(p0[j] - p0[i], v[j] - v[i], T)
         n_body += int((~same | (d < r[i] + r[j])).sum())
     return n_body, n_wall
+
+
+def prescribed_collisions(scene: Scene) -> list:
+    """Descriptions of prescribed bodies that reach a side or another non-free body before ``t_end``."""
+    B = scene.bodies
+    idx = [k for k, b in enumerate(B) if b.motion == "prescribed" and any(b.velocity)]
+    if not idx:
+        return []
+    T = scene.time.t_end
+    p0, v, acc, _ = _sweep(scene)
+    r = np.array([b.bounding_radius for b in B])
+    lo, hi = _swept_boxes(p0, v, acc, T)
+    lo, hi = lo - r[:, None], hi + r[:, None]
+    x0, x1, y0, y1 = scene.domain.box
+    out = []
+    for k in idx:  # prescribed bodies: a handful
+        if lo[k, 0] <= x0 or hi[k, 0] >= x1 or lo[k, 1] <= y0 or hi[k, 1] >= y1:
+            out.append(f"{B[k].name} to a side of the box")
+        others = [j for j, b in enumerate(B) if j != k and b.motion != "free"]
+        if others:
+            o = np.array(others)
+            d = _min_distance_linear(p0[o] - p0[k], v[o] - v[k], T)
+            out += [f"{B[k].name} onto {B[j].name}" for j in o[d < r[o] + r[k]] if j > k or B[j].motion == "fixed"]
+    return out
 
 
 def _make_plan(scene: Scene) -> Plan:
@@ -1016,6 +1041,10 @@ def _make_plan(scene: Scene) -> Plan:
     else:
         E.append(Effect("solver", True, f"BDF2, {fl.convection} convection, solver {fl.solver}", "bdf2"))
 
+    hit = prescribed_collisions(scene)
+    if hit:
+        notes.append("prescribed motion brings " + "; ".join(hit[:3]) + (" ..." if len(hit) > 3 else "")
+                     + " before t_end (prescribed bodies feel no contact forces)")
     # what this version cannot do (the plan still says what would be needed)
     if periodic:
         unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the "
