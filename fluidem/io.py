@@ -21,7 +21,6 @@ torque (without gravity) in dry scenes; ``contacts`` counts each body's contacts
 
 from __future__ import annotations
 
-import csv
 import io as _io
 import os
 import pickle

@@ -66,8 +66,7 @@ from __future__ import annotations
 import copy
 import csv
 import math
-import os
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np

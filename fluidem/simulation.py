@@ -232,7 +232,7 @@ class _FixedMeshFlow:
     def __init__(self, scene: Scene, sim: "Simulation"):
         from .fluid.navier_stokes import BDF2Stepper, FlowProblem
         from .fluid.solvers import DirectSolver, LaggedLUSolver
-        from .fluid.space import FlowSpace, RigidMotion, VelocityBC
+        from .fluid.space import FlowSpace
         from .mesh import triangulate as tri
         from .mesh.background import GradedSize, UniformSize
 
@@ -255,21 +255,7 @@ class _FixedMeshFlow:
         sim.counters["triangulations"] += 1
         self.mesh_time = time.perf_counter() - t0
         self.space = FlowSpace(self.mesh, fl.element)
-        bcs = []
-        box = scene.domain.box
-        for s in ("left", "right", "bottom", "top"):
-            side = scene.domain.side(s)
-            if side.type == "wall":
-                bcs.append(VelocityBC(s, (0.0, 0.0)))
-            elif side.type == "moving-wall":
-                bcs.append(VelocityBC(s, side.velocity))
-            elif side.type == "inflow":
-                bcs.append(VelocityBC(s, _inflow_value(s, box, scene.domain.profile_of(s))))
-        for b in scene.bodies:
-            if b.motion == "fixed":
-                bcs.append(VelocityBC(b.name, (0.0, 0.0)))
-            else:  # prescribed: rigid motion about its centre (spinning disk, or quasi-steady instant)
-                bcs.append(VelocityBC(b.name, RigidMotion(b.velocity, b.omega, b.position)))
+        bcs = _velocity_bcs(scene, [b.position for b in scene.bodies])
         self.rho = fl.density
         self.problem = FlowProblem(self.space, fl.viscosity, bcs, rho=fl.density, body_force=fl.body_force)
         self.stokes = fl.model == "stokes"
