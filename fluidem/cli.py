@@ -1,6 +1,6 @@
-"""Command line: ``fluidem bench NAME``, ``fluidem cases``, ``fluidem run | plan | examples | plot``.
+"""Command line: ``fluidem bench NAME``, ``fluidem cases``.  ``python -m fluidem`` is the same.
 
-``python -m fluidem`` is the same.
+Scenes: ``fluidem run SCENE``, ``fluidem plan SCENE``, ``fluidem examples``, ``fluidem plot DIR``.
 """
 
 from __future__ import annotations
