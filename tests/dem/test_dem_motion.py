@@ -84,3 +84,10 @@ def test_add_bodies_and_contact_output_shapes():
     assert sim.elastic_energy() > 0
     with pytest.raises(ValueError, match="body 2 overlap"):
         sim.add_bodies([Body.disk(0.005, 7, density=RHO, position=sim.positions[1])])
+
+
+def test_docstring_examples_run():
+    import doctest
+
+    import fluidem.dem.simulation as mod
+    assert doctest.testmod(mod).failed == 0
