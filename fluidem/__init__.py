@@ -6,4 +6,7 @@ surfaces), coupled to a polygonal discrete element method.
 
 __version__ = "0.1.0.dev0"
 
-__all__ = ["__version__"]
+from .scene import Scene  # noqa: E402
+from .simulation import Simulation, run  # noqa: E402
+
+__all__ = ["__version__", "Scene", "Simulation", "run"]
