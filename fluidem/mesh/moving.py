@@ -1145,6 +1145,7 @@ class MovingMesh:
         # narrow-gap elements are watched too: once the gap they span has opened beyond h/2
         # (their smallest altitude, about the gap width, exceeds h/2) they must meet the bounds
         self._base_narrow = narrow
+        self._base_cos = (cmax, cmin)
         self._half_h = 0.5 * self.h_node[self.triangles].mean(axis=1)
         self._cos_bound = (np.cos(np.radians(self.min_angle_trigger)), np.cos(np.radians(135.0)))
 
@@ -1158,6 +1159,8 @@ class MovingMesh:
         # narrow-gap elements are watched too: once the gap has opened (the element is no
         # longer anchored across a gap narrower than h/2) it must meet the bounds
         looks_bad = self._base_narrow & ((cmax > self._cos_bound[0]) | (cmin < self._cos_bound[1]))
+        # ... and got worse since the triangulation (the gap of an unchanged element did not open)
+        looks_bad &= (cmax > self._base_cos[0] + 1e-3) | (cmin < self._base_cos[1] - 1e-3)
         idx = np.flatnonzero(looks_bad)
         if not len(idx):
             return False

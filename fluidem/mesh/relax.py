@@ -277,14 +277,13 @@ def relax(points, topo: MeshTopology, h_node, mobility, n_iter: int = 1, params:
         # (elements already below the floor may lose at most 0.1 % of their quality per sweep:
         # round-off must not block every move next to them)
         floor = np.where(qual < params.min_quality, np.where(qual > 0, 0.999 * qual, qual), params.min_quality)
-        for k in range(params.max_halvings + 64):
-            zn = z + dz
-            if bounds is not None:
-                zn = np.clip(zn.real, bounds[0], bounds[1]) + 1j * np.clip(zn.imag, bounds[2], bounds[3])
-            area_n, qual_n = _shape_z(zn, t0, t1, t2)
-            bad = qual_n < floor
-            if not bad.any():
-                break
+        zn = z + dz
+        if bounds is not None:
+            zn = np.clip(zn.real, bounds[0], bounds[1]) + 1j * np.clip(zn.imag, bounds[2], bounds[3])
+        area_n, qual_n = _shape_z(zn, t0, t1, t2)
+        bad = qual_n < floor
+        k = 0
+        while bad.any():
             hit = np.zeros(len(z), dtype=bool)
             hit[tcat[np.tile(bad, 3)]] = True
             if k < params.max_halvings:
@@ -292,5 +291,16 @@ def relax(points, topo: MeshTopology, h_node, mobility, n_iter: int = 1, params:
             else:  # give up on these nodes; repeat until no element is left worse
                 n_blocked += int((hit & (dz != 0.0)).sum())
                 dz[hit] = 0.0
+            k += 1
+            zh = z[hit] + dz[hit]
+            if bounds is not None:
+                zh = np.clip(zh.real, bounds[0], bounds[1]) + 1j * np.clip(zh.imag, bounds[2], bounds[3])
+            zn[hit] = zh
+            # only the elements around the changed nodes need a new shape
+            idx = np.flatnonzero(hit[t0] | hit[t1] | hit[t2])
+            a_sub, q_sub = _shape_z(zn, t0[idx], t1[idx], t2[idx])
+            area_n[idx], qual_n[idx] = a_sub, q_sub
+            bad = np.zeros(len(bad), dtype=bool)
+            bad[idx] = q_sub < floor[idx]
         z, area, qual = zn, area_n, qual_n
     return np.column_stack([z.real, z.imag]), n_blocked
