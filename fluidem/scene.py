@@ -167,8 +167,9 @@ class FluidSpec:
     ``model`` is ``"navier-stokes"`` (unsteady, BDF2) or ``"stokes"`` (quasi-steady, no
     inertia).  ``body_force`` (2,) is per unit mass (length/time²).  ``element`` is an
     element-pair name of :mod:`fluidem.fluid.elements`; ``convection`` the linearisation of
-    the unsteady solver; ``solver`` ``"auto"`` (direct LU below 2e5 DOFs), ``"direct"`` or
-    ``"lagged-lu"``.
+    the unsteady solver; ``solver`` ``"auto"`` (= ``"lagged-lu"``: one LU reused as a GMRES
+    preconditioner across steps, refactorised when iterations grow), ``"direct"`` (a fresh LU
+    every step: restarts reproduce bit for bit; with the lagged LU only to the GMRES tolerance).
     """
 
     density: float = 1.0

@@ -442,6 +442,28 @@ class BDF2Stepper:
         self.n_steps += 1
         return self.state
 
+    def get_state(self) -> dict:
+        """Everything needed to continue the run bit for bit (for checkpoints): time, step count,
+        u^n and p^n, u^{n−1}, and the terms of the last step's residual (for its forces)."""
+        def cp(a):
+            return None if a is None else np.array(a, copy=True)
+
+        return {"t": self.t, "x": cp(self.state.x), "u_prev": cp(self._u_prev), "n_steps": self.n_steps,
+                "last": getattr(self, "_last", None), "last_b": cp(self.last_b),
+                "explicit_conv": cp(self._explicit_conv), "last_cfl": self.last_cfl}
+
+    def set_state(self, state: dict) -> None:
+        """Continue from a state of :meth:`get_state` (on the same mesh and element pair)."""
+        self.t = float(state["t"])
+        self.state = FlowState(np.array(state["x"], copy=True), self.problem.space.n_u, self.t)
+        self._u_prev = None if state["u_prev"] is None else np.array(state["u_prev"], copy=True)
+        self.n_steps = int(state["n_steps"])
+        if state.get("last") is not None:
+            self._last = state["last"]
+        self.last_b = state.get("last_b")
+        self._explicit_conv = state.get("explicit_conv")
+        self.last_cfl = state.get("last_cfl")
+
     def solver_summary(self) -> dict:
         """Factorisations and Krylov iterations of the linear solver so far (if it counts them)."""
         s = self.solver
