@@ -3,6 +3,7 @@
 from .moving import STRATEGIES, MeshEvent, MovingMesh
 from .quality import MeshQuality, OscillationDetector, mesh_quality, triangle_angles
 from .relax import RelaxParams, mesh_topology, relax
+from .transfer import interpolate, project_l2, supermesh
 
 __all__ = [
     "MovingMesh",
@@ -15,4 +16,7 @@ __all__ = [
     "RelaxParams",
     "mesh_topology",
     "relax",
+    "interpolate",
+    "project_l2",
+    "supermesh",
 ]
