@@ -15,3 +15,16 @@ def test_dfg_2d1_finest_level_p3():
     assert errs["cd"] < 1e-7
     assert errs["cl"] < 1e-5
     assert errs["dp"] < 3e-5
+
+
+@pytest.mark.slow
+def test_dfg_2d2_reaches_the_target_accuracy():
+    """Taylor–Hood level 2, BDF2 dt = 0.005, semi-implicit, window [4, 6] (the case defaults):
+    measured St 2.3e-5 and c_D,max 2.2e-3 relative; the target is 0.3 % for both."""
+    from fluidem.cases.dfg import dfg_2d2
+
+    res = dfg_2d2()
+    errs = res.relative_errors()
+    assert errs["st"] < 3e-3
+    assert errs["cd_max"] < 3e-3
+    assert res.extra["periods_measured"] >= 5
