@@ -72,18 +72,24 @@ def test_prescribed_paddle_follows_its_path_and_pushes():
 
 
 def test_add_bodies_and_contact_output_shapes():
-    sim = DEM([Body.disk(0.005, 7, density=RHO, position=(0, 0.005))], walls=(-1, 1, 0, 1))
-    idx = sim.add_bodies([Body.disk(0.005, 7, density=RHO, position=(0, 0.0151))])
+    model = ContactModel(E=1e4, mu=0.5, gamma=0.5)
+    sim = DEM([Body.rectangle(0.01, 0.01, density=RHO, position=(0, 0.005))], walls=(-1, 1, 0, 1),
+              contact=model)
+    idx = sim.add_bodies([Body.rectangle(0.01, 0.01, density=RHO, position=(0, 0.0151))])
     assert list(idx) == [1]
-    sim.run(0.2, sim.dt_max)
+    sim.run(0.1, sim.dt_max)
     c = sim.contacts
     assert sim.positions.shape == (2, 2) and sim.angles.shape == (2,)
     assert c.point.shape == (len(c), 2) and c.normal_force.shape == (len(c), 2)
+    assert sorted(c.j.tolist()) == [-3, 1] and sorted(c.i.tolist()) == [0, 0]
     np.testing.assert_allclose(np.linalg.norm(c.normal, axis=1), 1.0)
-    assert sim.coordination_number() >= 1.0
+    assert sim.coordination_number() == pytest.approx(1.5)   # (2 + 1) / 2 bodies
     assert sim.elastic_energy() > 0
+    # the floor carries both blocks
+    floor = c.j == -3
+    assert c.normal_force[floor, 1].sum() == pytest.approx(2 * sim.mass[0] * G, rel=1e-3)
     with pytest.raises(ValueError, match="body 2 overlap"):
-        sim.add_bodies([Body.disk(0.005, 7, density=RHO, position=sim.positions[1])])
+        sim.add_bodies([Body.rectangle(0.01, 0.01, density=RHO, position=sim.positions[1])])
 
 
 def test_docstring_examples_run():
