@@ -13,10 +13,10 @@ __all__ = ["main"]
 
 #: the options each case accepts from the command line
 _CASE_OPTIONS = {
-    "dfg-2d1": ("element", "level"),
-    "dfg-2d2": ("element", "level", "dt", "t_end", "convection"),
-    "dfg-2d3": ("element", "level", "dt", "convection"),
-    "square-cylinder": ("element", "level", "dt", "t_end", "convection"),
+    "dfg-2d1": ("element", "level", "solver"),
+    "dfg-2d2": ("element", "level", "dt", "t_end", "convection", "solver"),
+    "dfg-2d3": ("element", "level", "dt", "convection", "solver"),
+    "square-cylinder": ("element", "level", "dt", "t_end", "convection", "solver"),
 }
 
 
@@ -61,6 +61,10 @@ def _build_parser() -> argparse.ArgumentParser:
     b.add_argument("--convection", choices=["semi-implicit", "newton", "explicit"],
                    help="convection in time stepping: linearised with an extrapolated convecting velocity "
                         "(one linear solve per step), Newton, or explicit (one LU per run, CFL-bounded)")
+    b.add_argument("--solver", choices=["auto", "direct", "iterative", "lagged"],
+                   help="linear solver: LU, block-preconditioned GMRES, an LU reused as GMRES "
+                        "preconditioner across steps, or auto (by size); default: auto for steady, "
+                        "lagged for unsteady cases")
     b.add_argument("--json", action="store_true", help="print one JSON object as the last line")
     b.add_argument("--quiet", action="store_true", help="no progress output")
 
@@ -188,7 +192,7 @@ def main(argv=None) -> int:
 
         fn = get_case(args.name)
         kwargs = {}
-        for opt in ("element", "level", "dt", "t_end", "convection"):
+        for opt in ("element", "level", "dt", "t_end", "convection", "solver"):
             val = getattr(args, opt)
             if val is None:
                 continue

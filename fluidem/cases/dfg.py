@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from ..fluid.forces import body_loads, periodic_stats
-from ..fluid.navier_stokes import BDF2Stepper, FlowProblem, solve_steady
+from ..fluid.navier_stokes import BDF2Stepper, FlowProblem, make_flow_solver, solve_steady
 from ..fluid.space import FlowSpace, RigidMotion, VelocityBC
 from ..geometry import regular_polygon
 from ..mesh.background import GradedSize
@@ -82,12 +82,18 @@ def _coefficients(space, residual, Ubar):
 
 
 @register_case("dfg-2d1")
-def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver=None, verbose: bool = False) -> CaseResult:
-    """Steady DFG 2D-1 (U = 0.3, Re = 20): c_D, c_L, Δp by Newton's method."""
+def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="auto", verbose: bool = False) -> CaseResult:
+    """Steady DFG 2D-1 (U = 0.3, Re = 20): c_D, c_L, Δp by Newton's method.
+
+    ``solver`` is a name of :func:`~fluidem.fluid.navier_stokes.make_flow_solver` or a solver
+    object.
+    """
     t0 = time.perf_counter()
     mesh = dfg_mesh(level, curved)
     t_mesh = time.perf_counter() - t0
     pr = dfg_problem(mesh, element, lambda t: 0.3)
+    if isinstance(solver, str):
+        solver = make_flow_solver(pr, solver)
     state = solve_steady(pr, solver=solver, verbose=verbose)
     t1 = time.perf_counter()
     cd, cl = _coefficients(pr.space, pr.steady_residual(state.x), 0.2)
@@ -101,8 +107,8 @@ def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver=Non
                              "final_residual": state.residual_history[-1]})
 
 
-def _run_unsteady(pr, dt, t_end, U_of_t, Ubar_of_t, convection, record_dp=False, kick=None, progress=None):
-    stepper = BDF2Stepper(pr, dt, convection=convection)
+def _run_unsteady(pr, dt, t_end, U_of_t, Ubar_of_t, convection, record_dp=False, progress=None, solver="lagged"):
+    stepper = BDF2Stepper(pr, dt, convection=convection, solver=make_flow_solver(pr, solver, dt=dt))
     n = int(round(t_end / dt))
     ts, cds, cls_, dps = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     probe = pr.space.probe_matrix([[0.15, 0.2], [0.25, 0.2]]) if record_dp else None
@@ -127,7 +133,7 @@ def _kick(t_kick: float, omega: float):
 
 @register_case("dfg-2d2")
 def dfg_2d2(element: str = "th", level: int = 2, dt: float = 0.005, t_end: float = 6.0, window: float = 2.0,
-            convection: str = "semi-implicit", curved: bool = True, progress=None) -> CaseResult:
+            convection: str = "semi-implicit", curved: bool = True, progress=None, solver: str = "lagged") -> CaseResult:
     """Periodic DFG 2D-2 (U = 1.5, Re = 100): St, c_D and c_L max/min on the last ``window`` time units.
 
     The run starts from rest with a short cylinder rotation (t < 0.5) that triggers
@@ -138,7 +144,8 @@ def dfg_2d2(element: str = "th", level: int = 2, dt: float = 0.005, t_end: float
     mesh = dfg_mesh(level, curved)
     t_mesh = time.perf_counter() - t0
     pr = dfg_problem(mesh, element, lambda t: 1.5, cylinder_motion=_kick(0.5, 4.0))
-    ts, cd, cl, _, st_ = _run_unsteady(pr, dt, t_end, None, lambda t: 1.0, convection, progress=progress)
+    ts, cd, cl, _, st_ = _run_unsteady(pr, dt, t_end, None, lambda t: 1.0, convection, progress=progress,
+                                       solver=solver)
     sd = periodic_stats(ts, cd, t_end - window)
     sl = periodic_stats(ts, cl, t_end - window)
     q = {"st": D / (sl.period * 1.0), "cd_max": sd.max, "cd_min": sd.min, "cl_max": sl.max, "cl_min": sl.min}
@@ -151,7 +158,7 @@ def dfg_2d2(element: str = "th", level: int = 2, dt: float = 0.005, t_end: float
 
 @register_case("dfg-2d3")
 def dfg_2d3(element: str = "th", level: int = 2, dt: float = 0.005, convection: str = "semi-implicit",
-            curved: bool = True, progress=None) -> CaseResult:
+            curved: bool = True, progress=None, solver: str = "lagged") -> CaseResult:
     """DFG 2D-3 (U(t) = 1.5 sin(π t / 8), t ∈ [0, 8]): c_D,max, c_L,max and Δp(8)."""
     t0 = time.perf_counter()
     mesh = dfg_mesh(level, curved)
@@ -159,7 +166,7 @@ def dfg_2d3(element: str = "th", level: int = 2, dt: float = 0.005, convection: 
     U = lambda t: 1.5 * np.sin(np.pi * t / 8.0)  # noqa: E731
     pr = dfg_problem(mesh, element, U)
     ts, cd, cl, dp, st_ = _run_unsteady(pr, dt, 8.0, U, lambda t: 2.0 * U(t) / 3.0, convection, record_dp=True,
-                                        progress=progress)
+                                        progress=progress, solver=solver)
     # Maxima after the start-up (t ≥ 1, where Ū ≥ 0.38): in the first steps the force of the
     # impulsively accelerated fluid divided by a vanishing Ū² is meaningless.
     late = ts >= 1.0

@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from ..fluid.forces import body_loads, periodic_stats
-from ..fluid.navier_stokes import BDF2Stepper, FlowProblem
+from ..fluid.navier_stokes import BDF2Stepper, FlowProblem, make_flow_solver
 from ..fluid.space import FlowSpace, RigidMotion, VelocityBC
 from ..geometry import rectangle
 from ..mesh.background import GradedSize
@@ -42,7 +42,8 @@ def square_cylinder_mesh(level: int = 1):
 
 @register_case("square-cylinder")
 def square_cylinder(element: str = "th", level: int = 1, dt: float = 0.05, t_end: float = 150.0,
-                    window: float = 50.0, convection: str = "semi-implicit", progress=None) -> CaseResult:
+                    window: float = 50.0, convection: str = "semi-implicit", progress=None,
+                    solver: str = "lagged") -> CaseResult:
     """Square cylinder at Re = 100, 5 % blockage: St, mean C_D and rms C_L on the last ``window``."""
     t0 = time.perf_counter()
     mesh = square_cylinder_mesh(level)
@@ -54,7 +55,7 @@ def square_cylinder(element: str = "th", level: int = 1, dt: float = 0.05, t_end
         VelocityBC("square", kick),
     ]
     pr = FlowProblem(FlowSpace(mesh, element), 0.01, bcs)
-    stepper = BDF2Stepper(pr, dt, convection=convection)
+    stepper = BDF2Stepper(pr, dt, convection=convection, solver=make_flow_solver(pr, solver, dt=dt))
     n = int(round(t_end / dt))
     ts, cd, cl = np.empty(n), np.empty(n), np.empty(n)
     for k in range(n):

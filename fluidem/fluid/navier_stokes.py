@@ -35,10 +35,11 @@ from skfem import asm
 
 from . import forms
 from .assembly import CondensedSystem, VectorAssembler
-from .solvers import DirectSolver, LaggedLUSolver
+from .solvers import SOLVERS, AutoSolver, BlockKrylovSolver, DirectSolver, LaggedLUSolver
 from .space import FlowSpace, VelocityBC
 
-__all__ = ["FlowProblem", "FlowState", "NewtonError", "solve_stokes", "solve_steady", "BDF2Stepper", "Timings"]
+__all__ = ["FlowProblem", "FlowState", "NewtonError", "solve_stokes", "solve_steady", "BDF2Stepper", "Timings",
+           "make_flow_solver"]
 
 
 class NewtonError(RuntimeError):
@@ -225,6 +226,38 @@ class FlowProblem:
         d, v = self.dirichlet_values(t)
         x[d] = v
         return x
+
+
+def make_flow_solver(problem: FlowProblem, method: str = "auto", dt: float | None = None):
+    """A linear solver for the condensed saddle-point systems of ``problem``, by name.
+
+    Parameters
+    ----------
+    method : {"auto", "direct", "iterative", "lagged"}
+        ``"direct"``: :meth:`FlowProblem.direct_solver` (a fresh LU per matrix);
+        ``"lagged"``: that LU reused as a GMRES preconditioner while it converges fast;
+        ``"iterative"``: block-preconditioned GMRES (pyamg on the velocity block; Schur
+        complement ν M_p⁻¹, plus the Cahouet–Chabard term when ``dt`` is given);
+        ``"auto"``: direct or iterative by system size (:func:`~fluidem.fluid.solvers.choose_method`).
+    dt : float, optional
+        Time step of the systems to be solved (time units); ``None`` for steady problems.
+    """
+    if method not in SOLVERS:
+        raise ValueError(f"unknown solver {method!r}; allowed: {', '.join(SOLVERS)}")
+    if method == "direct":
+        return problem.direct_solver()
+    if method == "lagged":
+        return LaggedLUSolver(direct=problem.direct_solver())
+    n_u = problem.space.n_u
+    free_u = int(np.count_nonzero(problem.free < n_u))
+    pf = problem.free[problem.free >= n_u] - n_u
+    Mp = asm(forms.pressure_mass, problem.space.pb).tocsr()[pf][:, pf]
+    Mu = problem.M[problem.free[:free_u]][:, problem.free[:free_u]]
+    iterative = {"pressure_mass": Mp, "nu": problem.nu, "dt": dt, "velocity_mass": Mu}
+    if method == "iterative":
+        return BlockKrylovSolver(free_u, **iterative)
+    direct = {"backend": "superlu", "symmetric_mode": not problem.space.pair.pressure_discontinuous}
+    return AutoSolver(n_u=free_u, direct_options=direct, iterative_options=iterative)
 
 
 def _solve_free(problem: FlowProblem, uu_data: np.ndarray, rhs_full: np.ndarray, solver) -> np.ndarray:
