@@ -47,8 +47,7 @@ def rough_floor(rng, half_width=0.4):
 
 def pour_heap(mu, n=500, batch=15, seed=0, settle=1.0, every=0.03):
     """Pour ``n`` grains in batches of ``batch`` onto a rough floor from a nozzle at x = 0
-    kept 1.5 grain sizes above the heap top, then let the heap come to rest (at most
-    ``settle`` seconds).
+    kept 1.5 grain sizes above the heap top, then let the heap settle for ``settle`` seconds.
 
     Returns the simulation (grains first; the fixed floor grains follow them).
     """
@@ -67,15 +66,14 @@ def pour_heap(mu, n=500, batch=15, seed=0, settle=1.0, every=0.03):
         sim.add_bodies(new)
         poured += k
         sim.run(sim.time + every, sim.dt_max)
-    t_end = sim.time + settle
-    while sim.time < t_end and not _frozen(sim):
-        pass
+    sim.run(sim.time + settle - 0.05, sim.dt_max)
+    _frozen(sim)                    # the last 0.05 s: measure how much grains still move
     return sim
 
 
 def _frozen(sim, window=0.05, tol=0.01):
     """Run ``window`` seconds; True if 99 % of the free grains moved less than ``tol`` · D
-    meanwhile: the deposit's shape no longer changes, while a few single grains may still
+    meanwhile (stored as ``sim.last_move``): the deposit's shape no longer changes, while a few single grains may still
     roll at the toe or rock on a corner (a weakly damped mode of the overlap law, whose
     damping scales with the contact length)."""
     x0 = sim.positions[sim.free].copy()
