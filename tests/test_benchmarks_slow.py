@@ -41,3 +41,18 @@ def test_square_cylinder_re100_against_sohankar():
     errs = res.relative_errors()
     assert errs["st"] < 0.03
     assert errs["cd_mean"] < 0.03
+
+
+@pytest.mark.slow
+def test_dfg_2d3_drag_maximum():
+    """Taylor–Hood level 2, dt = 0.005 (the case defaults), forces normalised with Ū = 1:
+    measured c_D,max 2.95224 at t = 3.935 (+4.5e-4 against John 2004: 2.950921575 at 3.93625).
+    c_L,max is 2.1 % low (0.46783 against 0.47795), outside the 1 % target: the check below
+    holds the current figure (3 %) so a regression shows; see the CHANGELOG notes."""
+    from fluidem.cases.dfg import dfg_2d3
+
+    res = dfg_2d3()
+    errs = res.relative_errors()
+    assert errs["cd_max"] < 0.01
+    assert abs(res.quantities["t_cd_max"] - 3.93625) < 0.01
+    assert errs["cl_max"] < 0.03
