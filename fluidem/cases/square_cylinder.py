@@ -45,6 +45,8 @@ def square_cylinder(element: str = "th", level: int = 1, dt: float = 0.05, t_end
                     window: float = 50.0, convection: str = "semi-implicit", progress=None,
                     solver: str = "lagged") -> CaseResult:
     """Square cylinder at Re = 100, 5 % blockage: St, mean C_D and rms C_L on the last ``window``."""
+    if not 0 < window < t_end:
+        raise ValueError(f"the measuring window ({window:g}) must be positive and shorter than t_end ({t_end:g})")
     t0 = time.perf_counter()
     mesh = square_cylinder_mesh(level)
     t_mesh = time.perf_counter() - t0
