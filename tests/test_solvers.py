@@ -237,14 +237,7 @@ def _unpinned_enclosed(m):
     mesh = MeshTri.init_tensor(np.linspace(0, 1, m + 1), np.linspace(0, 1, m + 1))
     ub = Basis(mesh, ElementVector(ElementTriP2B()), intorder=4)
     pb = ub.with_element(ElementTriP1DG())
-
-    @BilinearForm
-    def viscous(u, v, w):
-        return ddot(grad(u), grad(v))
-
-    @BilinearForm
-    def divergence(u, q, w):
-        return -div(u) * q
+    from fluidem.fluid.forms import divergence, viscous
 
     K = sp.bmat([[viscous.assemble(ub), divergence.assemble(ub, pb).T],
                  [divergence.assemble(ub, pb), None]], format="csr")

@@ -145,7 +145,6 @@ class CondensedSystem:
     """
 
     def __init__(self, assembler: VectorAssembler, B, free: np.ndarray):
-        n_u = assembler.n
         n_p = B.shape[0]
         nnz = assembler.nnz
         B = sp.csr_matrix(B)

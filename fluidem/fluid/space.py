@@ -12,7 +12,7 @@ from typing import Callable, Sequence
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
-from skfem import Basis, ElementVector, MeshTri, MeshTri2
+from skfem import Basis, ElementVector, MeshTri2
 
 from .elements import ElementPair, element_pair
 

@@ -613,7 +613,6 @@ class MovingMesh:
         # candidate nodes: cut out inside / near bodies
         cand = np.asarray(cand, dtype=float)
         box_nodes = (cand_kind == SIDE) | (cand_kind == CORNER)
-        inner = ~box_nodes
         hc = self._target(cand, olw) if h_cand is None else h_cand
         keep = np.ones(len(cand), dtype=bool)
         if self.n_bodies:
@@ -960,7 +959,6 @@ class MovingMesh:
         ci = self._contact_idx
         if len(ci):
             x[ci] = self._world(self._contact_local, self.body_of[ci], new)
-        disp = x - self.points
         fixed = (self._drag_mobility == 0.0).all(axis=1)
         n = len(x)
         # 2. drag (Sec. 4.2): free nodes near a body follow its rigid motion with a weight
