@@ -47,10 +47,11 @@ def test_square_cylinder_re100_against_sohankar():
 
 @pytest.mark.slow
 def test_dfg_2d3_drag_maximum():
-    """Taylor–Hood level 2, dt = 0.005 (the case defaults), forces normalised with Ū = 1:
-    measured c_D,max 2.95224 at t = 3.935 (+4.5e-4 against John 2004: 2.950921575 at 3.93625).
-    c_L,max is 2.1 % low (0.46783 against 0.47795), outside the 1 % target: the check below
-    holds the current figure (3 %) so a regression shows; see the CHANGELOG notes."""
+    """P3/P2 level 2 (41.7k DOFs), dt = 0.0025 (the case defaults), forces normalised with Ū = 1:
+    measured c_D,max 2.950977 at t = 3.9375 (+1.9e-5 against John 2004: 2.950921575 at 3.93625),
+    Δp(8) −0.11145 (−1.3e-3).  c_L,max is +1.5 % (0.48491 at t = 5.690 against 0.47795 at 5.693),
+    outside the 1 % target (second order in dt: +5.7 % at dt = 0.005); the check holds the current
+    figure (3 %) so a regression shows."""
     from fluidem.cases.dfg import dfg_2d3
 
     res = dfg_2d3()

@@ -162,9 +162,13 @@ def dfg_2d2(element: str = "p3", level: int = 2, dt: float = 0.0025, t_end: floa
 
 
 @register_case("dfg-2d3")
-def dfg_2d3(element: str = "th", level: int = 2, dt: float = 0.005, convection: str = "semi-implicit",
+def dfg_2d3(element: str = "p3", level: int = 2, dt: float = 0.0025, convection: str = "semi-implicit",
             curved: bool = True, progress=None, solver: str = "lagged") -> CaseResult:
-    """DFG 2D-3 (U(t) = 1.5 sin(π t / 8), t ∈ [0, 8]): c_D,max, c_L,max and Δp(8)."""
+    """DFG 2D-3 (U(t) = 1.5 sin(π t / 8), t ∈ [0, 8]): c_D,max, c_L,max and Δp(8).
+
+    The lift peak is sharp: with P3/P2 level 2 its error falls from +5.7 % (dt = 0.005) to
+    +1.5 % (dt = 0.0025), second order in dt, while c_D,max is within 2e-5 at both.
+    """
     t0 = time.perf_counter()
     mesh = dfg_mesh(level, curved)
     t_mesh = time.perf_counter() - t0
