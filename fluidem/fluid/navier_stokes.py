@@ -168,11 +168,6 @@ class FlowProblem:
         return asm(forms.body_force, self.space.ub, f=f[:, None, None] * np.ones((1,) + self.space.ub.dx.shape))
 
     # -- operators -----------------------------------------------------------------------
-    def stokes_matrix(self, extra_velocity_block=None) -> sp.csr_matrix:
-        """Saddle-point matrix [[A + extra, Bᵀ], [B, 0]] on all DOFs, CSR."""
-        Auu = self.A if extra_velocity_block is None else self.A + extra_velocity_block
-        return sp.bmat([[Auu, self.B.T], [self.B, None]], format="csr")
-
     def condensed_matrix(self, uu_data: np.ndarray) -> sp.csr_matrix:
         """Saddle-point matrix on the free DOFs for velocity-block data ``uu_data`` on the pattern."""
         return self.system.matrix(uu_data)
