@@ -513,6 +513,17 @@ class DirectSolver:
 # ==========================================================================
 # Krylov driver
 # ==========================================================================
+def _krylov_start(K, b, M, x0):
+    """Common start of the Krylov drivers: size, ‖b‖, initial iterate, counted preconditioner
+    (as a LinearOperator) and the residual history with the initial relative residual."""
+    n = K.shape[0]
+    nb = np.linalg.norm(b) or 1.0
+    x = np.zeros(n) if x0 is None else np.array(x0, dtype=float)
+    Mc = _Counter(M)
+    Mop = spla.LinearOperator((n, n), matvec=Mc, dtype=float)
+    return n, nb, x, Mc, Mop, [np.linalg.norm(b - K @ x) / nb]
+
+
 def _fgmres(K, b, M, x0, rtol, maxiter, restart, stagnation):
     """Restarted right-preconditioned flexible GMRES (Saad 1993).
 
@@ -525,12 +536,7 @@ def _fgmres(K, b, M, x0, rtol, maxiter, restart, stagnation):
     """
     from pyamg.krylov import fgmres
 
-    n = K.shape[0]
-    nb = np.linalg.norm(b) or 1.0
-    x = np.zeros(n) if x0 is None else np.array(x0, dtype=float)
-    Mc = _Counter(M)
-    Mop = spla.LinearOperator((n, n), matvec=Mc, dtype=float)
-    history = [np.linalg.norm(b - K @ x) / nb]
+    n, nb, x, Mc, Mop, history = _krylov_start(K, b, M, x0)
     if history[-1] <= rtol:
         return x, 0, np.array(history), ""
     restart = max(1, min(restart, n - 1))
@@ -570,12 +576,7 @@ def _minres(K, b, M, x0, rtol, maxiter, window, stagnation):
     on its own test first, MINRES is restarted from the current iterate (at
     most three times).
     """
-    n = K.shape[0]
-    nb = np.linalg.norm(b) or 1.0
-    x = np.zeros(n) if x0 is None else np.array(x0, dtype=float)
-    Mc = _Counter(M)
-    Mop = spla.LinearOperator((n, n), matvec=Mc, dtype=float)
-    history = [np.linalg.norm(b - K @ x) / nb]
+    n, nb, x, Mc, Mop, history = _krylov_start(K, b, M, x0)
 
     class _Stop(Exception):
         pass
