@@ -32,6 +32,8 @@ relaxation never inverts an element nor flattens it.
 
 from __future__ import annotations
 
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,6 +115,12 @@ class MeshTopology:
         object.__setattr__(self, "ie0", c(ie[:, 0]))
         object.__setattr__(self, "ie1", c(ie[:, 1]))
 
+    def __getstate__(self):
+        # relax()'s scratch buffers (cached on the topology) are not part of its state
+        state = dict(self.__dict__)
+        state.pop(_WS_ATTR, None)
+        return state
+
 
 def mesh_topology(triangles) -> MeshTopology:
     """Unique edges and edge–triangle incidence of ``triangles`` ``(n_triangles, 3)``."""
@@ -153,78 +161,176 @@ def _areas(x, y, t0, t1, t2):
     return 0.5 * ((x[t1] - ax) * (y[t2] - ay) - (y[t1] - ay) * (x[t2] - ax))
 
 
-def _areas_z(z, t0, t1, t2):
-    """Signed areas from complex positions ``z = x + i y`` (one gather per vertex)."""
-    za = z[t0]
-    u = z[t1] - za
-    v = z[t2] - za
-    return 0.5 * (u.real * v.imag - u.imag * v.real)
+def _shape(x, y, t0, t1, t2, area, qual, tmp):
+    """Signed areas and shape quality ``q = 4√3 A / (l1² + l2² + l3²)`` (1 equilateral, ≤ 0 inverted).
+
+    Written into ``area`` and ``qual`` (one entry per row of ``t0, t1, t2``); ``tmp`` is
+    scratch of shape ``(6, len(t0))``.
+    """
+    xa, ya, ux, uy, vx, vy = tmp
+    _take(x, t0, xa)
+    _take(y, t0, ya)
+    np.subtract(_take(x, t1, ux), xa, out=ux)
+    np.subtract(_take(y, t1, uy), ya, out=uy)
+    np.subtract(_take(x, t2, vx), xa, out=vx)
+    np.subtract(_take(y, t2, vy), ya, out=vy)
+    np.multiply(ux, vy, out=area)  # area = (u × v) / 2
+    area -= np.multiply(uy, vx, out=xa)
+    area *= 0.5
+    l2 = np.multiply(ux, ux, out=ya)  # l2 = |u|² + |v|² + |v − u|²
+    l2 += np.multiply(uy, uy, out=xa)
+    l2 += np.multiply(vx, vx, out=xa)
+    l2 += np.multiply(vy, vy, out=xa)
+    wx = np.subtract(vx, ux, out=ux)
+    l2 += np.multiply(wx, wx, out=xa)
+    wy = np.subtract(vy, uy, out=uy)
+    l2 += np.multiply(wy, wy, out=xa)
+    np.maximum(l2, 1e-300, out=l2)
+    np.multiply(area, 4.0 * _SQRT3, out=qual)
+    qual /= l2
+    return area, qual
 
 
-def _shape_z(z, t0, t1, t2):
-    """Signed areas and shape quality ``q = 4√3 A / (l1² + l2² + l3²)`` (1 equilateral, ≤ 0 inverted)."""
-    za = z[t0]
-    u = z[t1] - za
-    v = z[t2] - za
-    area = 0.5 * (u.real * v.imag - u.imag * v.real)
-    w = v - u
-    l2 = u.real * u.real + u.imag * u.imag + v.real * v.real + v.imag * v.imag + w.real * w.real + w.imag * w.imag
-    return area, (4.0 * _SQRT3) * area / np.maximum(l2, 1e-300)
+def _take(a, idx, out):
+    """``out[:] = a[idx]`` without a temporary (``mode='clip'`` skips numpy's buffered copy;
+    the indices are valid by construction)."""
+    return np.take(a, idx, out=out, mode="clip")
 
 
-def _own_size_power(a_pos, beta):
-    """``s_own^(1−β)`` with ``s_own = sqrt(4 A / √3)``; square-root chains for common β."""
-    q = a_pos * (4.0 / _SQRT3)
-    if beta == 0.5:
-        return np.sqrt(np.sqrt(q))
-    if beta == 0.75:
-        return np.sqrt(np.sqrt(np.sqrt(q)))
-    if beta == 0.0:
-        return np.sqrt(q)
-    return q ** (0.5 * (1.0 - beta))
+def _root_power(a, p, out):
+    """``out = a**p``, by square-root chains for p = 1/2, 1/4, 1/8 (``out`` may be ``a``)."""
+    if p == 0.5:
+        return np.sqrt(a, out=out)
+    if p == 0.25:
+        return np.sqrt(np.sqrt(a, out=out), out=out)
+    if p == 0.125:
+        return np.sqrt(np.sqrt(np.sqrt(a, out=out), out=out), out=out)
+    return np.power(a, p, out=out)
 
 
-def _forces(z, area, topo: MeshTopology, h_beta, params: RelaxParams):
-    """Spring + area-force (eq. 3) accelerations, complex ``(n,)`` in length units.
+class _Workspace:
+    """Preallocated buffers for :func:`relax` on one topology and node count.
+
+    A sweep on a large mesh was dominated not by arithmetic but by page faults: numpy
+    allocated a fresh multi-MB temporary for every operation and glibc returned it to the OS.
+    With these buffers and ``out=`` arguments a sweep allocates no float array of the mesh's
+    size (only boolean masks of the triangles, and the returned positions).  About 65
+    doubles per node; cached on the topology, so dropped with it at re-triangulation.
+    """
+
+    def __init__(self, topo: MeshTopology, n: int):
+        n_t, n_e, n_i = len(topo.t0), len(topo.e0), len(topo.ie0)
+        self.n = n
+        self.lock = threading.Lock()
+        # nodes: positions (current, moved), accelerations then moves, step factors, scratch
+        self.x, self.y, self.xn, self.yn, self.dx, self.dy, self.mx, self.my, self.node_tmp = np.empty((9, n))
+        self.z = np.empty(n, dtype=complex)
+        # triangles: (area, quality) of the current and of the moved positions, scratch of _shape
+        self.shape, self.shape_n = np.empty((2, 2, n_t))
+        self.shape_tmp = np.empty((6, n_t))
+        self.h_beta, self.floor, self.a_pos, self.s_t, self.g_t, self.tri_tmp = np.empty((6, n_t))
+        # interior edges (eq. 3) and all edges (springs)
+        self.diff, self.g = np.empty((2, n_i))
+        self.rest, self.edge_tmp, self.edge_tmp2 = np.empty((3, n_e))
+        self.dz, self.dz_tmp = np.empty((2, n_e), dtype=complex)
+        # h_T^β depends only on h_node, which is fixed between re-triangulations: keep it
+        self.h_key, self.beta_key = None, None
+
+    def h_beta_for(self, topo: MeshTopology, h, beta):
+        """``h_T^β`` per triangle (``h_T`` the mean of the node sizes), recomputed only if ``h`` or β changed."""
+        if self.beta_key == beta and np.array_equal(self.h_key, h):
+            return self.h_beta
+        h_t = np.add(_take(h, topo.t0, self.h_beta), _take(h, topo.t1, self.tri_tmp), out=self.h_beta)
+        h_t += _take(h, topo.t2, self.tri_tmp)
+        h_t /= 3.0
+        if beta != 1.0:
+            np.power(h_t, beta, out=h_t)
+        self.h_key, self.beta_key = h.copy(), beta
+        return h_t
+
+
+_WS_ATTR = "_relax_workspace"
+
+
+@contextmanager
+def _workspace(topo: MeshTopology, n: int):
+    """The topology's cached :class:`_Workspace` for ``n`` nodes (a private one if it is in use)."""
+    ws = getattr(topo, _WS_ATTR, None)
+    if ws is None or ws.n != n:
+        ws = _Workspace(topo, n)
+        object.__setattr__(topo, _WS_ATTR, ws)
+    if not ws.lock.acquire(blocking=False):  # relax running on this topology in another thread
+        ws = _Workspace(topo, n)
+        ws.lock.acquire()
+    try:
+        yield ws
+    finally:
+        ws.lock.release()
+
+
+def _forces(x, y, area, topo: MeshTopology, h_beta, params: RelaxParams, ws: _Workspace, ax, ay):
+    """Spring + area-force (eq. 3) accelerations, written into ``ax, ay`` (length units).
 
     ``area`` are the current signed triangle areas, ``h_beta`` is ``h_T^β`` per triangle
     (fixed while the target sizes are).  The grow/shrink force of eq. 3 acts "on all edges
     uniformly" (paper Sec. 2.2): every edge of triangle ``T`` is pushed apart by
     ``κ g_T`` (pulled together if ``g_T < 0``), edges shared by two triangles get the mean.
+
+    Every operation writes into a buffer of ``ws``.  Their order is kept operation for
+    operation: ``sqrt|A_i − A_T|`` of eq. 3 turns a last-bit change of an area into a
+    relative change of ~1e-8 in the next sweep, so reordering sums is not "just round-off".
     """
-    n = len(z)
-    a_pos = np.maximum(area, 0.0)
+    a_pos = np.maximum(area, 0.0, out=ws.a_pos)
+    # per-triangle target side s_T = s_own^(1−β) h_T^β, s_own = sqrt(4 A / √3)
     beta = params.target_weight
     if beta == 1.0:
         s_t = h_beta
     else:
-        s_t = _own_size_power(a_pos, beta)
+        s_t = np.multiply(a_pos, 4.0 / _SQRT3, out=ws.s_t)
+        _root_power(s_t, 0.5 * (1.0 - beta), out=s_t)
         if beta != 0.0:
             s_t *= h_beta
-    et0, et1 = topo.et0, topo.et1
-    rest = s_t[et0]
-    rest += s_t[et1]
+    # rest length of an edge: mean over its one or two triangles of s_T + κ g_T
+    rest, tmp, tmp2 = ws.rest, ws.edge_tmp, ws.edge_tmp2
+    np.add(_take(s_t, topo.et0, rest), _take(s_t, topo.et1, tmp), out=rest)
     if params.area_weight > 0.0:
         # eq. 3: g_T = Σ_i sgn(A_i − A_T) sqrt|A_i − A_T| over edge neighbours
-        diff = a_pos[topo.ie1] - a_pos[topo.ie0]
-        g = np.sqrt(np.abs(diff))
+        diff, g = ws.diff, ws.g
+        np.subtract(_take(a_pos, topo.ie1, diff), _take(a_pos, topo.ie0, g), out=diff)
+        np.sqrt(np.abs(diff, out=g), out=g)
         np.copysign(g, diff, out=g)
-        m = len(area)
-        g_t = np.bincount(topo.ie0, g, m)
-        g_t -= np.bincount(topo.ie1, g, m)
-        rest += params.area_weight * (g_t[et0] + g_t[et1])
+        g_t = _scatter_diff(topo.ie0, topo.ie1, g, ws.g_t, ws.tri_tmp)
+        np.add(_take(g_t, topo.et0, tmp), _take(g_t, topo.et1, tmp2), out=tmp)
+        tmp *= params.area_weight
+        rest += tmp
     rest *= 0.5
-    e0, e1 = topo.e0, topo.e1
-    dz = z[e1] - z[e0]
-    length = np.abs(dz)
-    k = 1.0 - rest / np.maximum(length, 1e-300)  # > 0: stretched, pull together
-    fx = k * dz.real
-    fy = k * dz.imag
-    ax = np.bincount(e0, fx, n)
-    ax -= np.bincount(e1, fx, n)
-    ay = np.bincount(e0, fy, n)
-    ay -= np.bincount(e1, fy, n)
+    # spring force of every edge, k (r_1 − r_0) with k = 1 − rest / length
+    np.copyto(ws.z.real, x)
+    np.copyto(ws.z.imag, y)
+    dz = np.subtract(_take(ws.z, topo.e1, ws.dz), _take(ws.z, topo.e0, ws.dz_tmp), out=ws.dz)
+    length = np.abs(dz, out=tmp)
+    np.maximum(length, 1e-300, out=length)
+    k = np.divide(rest, length, out=rest)
+    np.subtract(1.0, k, out=k)  # > 0: stretched, pull together
+    _scatter_diff(topo.e0, topo.e1, np.multiply(k, dz.real, out=tmp), ax, ws.node_tmp)
+    _scatter_diff(topo.e0, topo.e1, np.multiply(k, dz.imag, out=tmp), ay, ws.node_tmp)
     return ax, ay
+
+
+def _scatter_diff(i0, i1, w, out, tmp):
+    """``out = bincount(i0, w) − bincount(i1, w)`` into preallocated ``out`` (``tmp``: scratch
+    of the same length); ``np.add.at`` accumulates in the same order as ``bincount``."""
+    out.fill(0.0)
+    np.add.at(out, i0, w)
+    tmp.fill(0.0)
+    np.add.at(tmp, i1, w)
+    return np.subtract(out, tmp, out=out)
+
+
+def _clip(x, lo, hi):
+    """Clamp ``x`` into ``[lo, hi]`` in place (like ``np.clip``, without its overhead)."""
+    np.maximum(x, lo, out=x)
+    return np.minimum(x, hi, out=x)
 
 
 def relax(points, topo: MeshTopology, h_node, mobility, n_iter: int = 1, params: RelaxParams = RelaxParams(),
@@ -236,7 +342,8 @@ def relax(points, topo: MeshTopology, h_node, mobility, n_iter: int = 1, params:
     points : (n_nodes, 2) float
         Node positions, length units; not modified.
     topo : MeshTopology
-        From :func:`mesh_topology`; triangles counter-clockwise.
+        From :func:`mesh_topology`; triangles counter-clockwise.  Scratch buffers for the
+        sweeps are cached on it (about 65 doubles per node) and reused by later calls.
     h_node : (n_nodes,) float
         Target edge length at every node, length units.
     mobility : (n_nodes, 2) float
@@ -257,50 +364,69 @@ def relax(points, topo: MeshTopology, h_node, mobility, n_iter: int = 1, params:
         Number of node moves shortened to zero because they would have inverted elements
         (summed over sweeps).
     """
-    z = points[:, 0] + 1j * points[:, 1]
-    mob = np.asarray(mobility, dtype=float)
-    mx, my = mob[:, 0] * params.step, mob[:, 1] * params.step
-    if damping is not None:
-        mx, my = mx * damping, my * damping
-    h = np.asarray(h_node, dtype=float)
-    t0, t1, t2 = topo.t0, topo.t1, topo.t2
-    h_t = (h[t0] + h[t1] + h[t2]) / 3.0
-    beta = params.target_weight
-    h_beta = h_t if beta == 1.0 else h_t**beta
-    tcat = topo.tcat
-    n_blocked = 0
-    area, qual = _shape_z(z, t0, t1, t2)
-    for _ in range(int(n_iter)):
-        ax, ay = _forces(z, area, topo, h_beta, params)
-        dz = mx * ax + 1j * (my * ay)
-        # no move may bring an element below the shape floor (or worsen one already below)
-        # (elements already below the floor may lose at most 0.1 % of their quality per sweep:
-        # round-off must not block every move next to them)
-        floor = np.where(qual < params.min_quality, np.where(qual > 0, 0.999 * qual, qual), params.min_quality)
-        zn = z + dz
-        if bounds is not None:
-            zn = np.clip(zn.real, bounds[0], bounds[1]) + 1j * np.clip(zn.imag, bounds[2], bounds[3])
-        area_n, qual_n = _shape_z(zn, t0, t1, t2)
-        bad = qual_n < floor
-        k = 0
-        while bad.any():
-            hit = np.zeros(len(z), dtype=bool)
-            hit[tcat[np.tile(bad, 3)]] = True
-            if k < params.max_halvings:
-                dz[hit] *= 0.5
-            else:  # give up on these nodes; repeat until no element is left worse
-                n_blocked += int((hit & (dz != 0.0)).sum())
-                dz[hit] = 0.0
-            k += 1
-            zh = z[hit] + dz[hit]
+    points = np.asarray(points, dtype=float)
+    with _workspace(topo, len(points)) as ws:
+        x, y, xn, yn, dx, dy, mx, my = ws.x, ws.y, ws.xn, ws.yn, ws.dx, ws.dy, ws.mx, ws.my
+        x[:] = points[:, 0]
+        y[:] = points[:, 1]
+        mob = np.asarray(mobility, dtype=float)
+        np.multiply(mob[:, 0], params.step, out=mx)
+        np.multiply(mob[:, 1], params.step, out=my)
+        if damping is not None:
+            mx *= damping
+            my *= damping
+        t0, t1, t2 = topo.t0, topo.t1, topo.t2
+        h = np.asarray(h_node, dtype=float)
+        h_beta = ws.h_beta_for(topo, h, params.target_weight)
+        floor = ws.floor
+        n_blocked = 0
+        (area, qual), (area_n, qual_n) = ws.shape, ws.shape_n
+        _shape(x, y, t0, t1, t2, area, qual, ws.shape_tmp)
+        minq = params.min_quality
+        for _ in range(int(n_iter)):
+            # eq. 2 without v_n: r_{n+1} = r_n + τ² a_n (τ², mobility and damping in mx, my)
+            _forces(x, y, area, topo, h_beta, params, ws, dx, dy)
+            dx *= mx
+            dy *= my
+            # no move may bring an element below the shape floor (or worsen one already below)
+            # (elements already below the floor may lose at most 0.1 % of their quality per sweep:
+            # round-off must not block every move next to them)
+            # floor = min_quality; 0.999 q for 0 < q < min_quality; q for q <= 0
+            np.multiply(qual, 0.999, out=floor)
+            np.copyto(floor, qual, where=qual <= 0)
+            np.copyto(floor, minq, where=~(qual < minq))
+            np.add(x, dx, out=xn)
+            np.add(y, dy, out=yn)
             if bounds is not None:
-                zh = np.clip(zh.real, bounds[0], bounds[1]) + 1j * np.clip(zh.imag, bounds[2], bounds[3])
-            zn[hit] = zh
-            # only the elements around the changed nodes need a new shape
-            idx = np.flatnonzero(hit[t0] | hit[t1] | hit[t2])
-            a_sub, q_sub = _shape_z(zn, t0[idx], t1[idx], t2[idx])
-            area_n[idx], qual_n[idx] = a_sub, q_sub
-            bad = np.zeros(len(bad), dtype=bool)
-            bad[idx] = q_sub < floor[idx]
-        z, area, qual = zn, area_n, qual_n
-    return np.column_stack([z.real, z.imag]), n_blocked
+                _clip(xn, bounds[0], bounds[1])
+                _clip(yn, bounds[2], bounds[3])
+            _shape(xn, yn, t0, t1, t2, area_n, qual_n, ws.shape_tmp)
+            bad = qual_n < floor
+            k = 0
+            while bad.any():
+                hit = np.zeros(len(x), dtype=bool)
+                b = np.flatnonzero(bad)
+                hit[t0[b]] = hit[t1[b]] = hit[t2[b]] = True
+                if k < params.max_halvings:
+                    dx[hit] *= 0.5
+                    dy[hit] *= 0.5
+                else:  # give up on these nodes; repeat until no element is left worse
+                    n_blocked += int((hit & ((dx != 0.0) | (dy != 0.0))).sum())
+                    dx[hit] = 0.0
+                    dy[hit] = 0.0
+                k += 1
+                xh, yh = x[hit] + dx[hit], y[hit] + dy[hit]
+                if bounds is not None:
+                    _clip(xh, bounds[0], bounds[1])
+                    _clip(yh, bounds[2], bounds[3])
+                xn[hit], yn[hit] = xh, yh
+                # only the elements around the changed nodes need a new shape
+                idx = np.flatnonzero(hit[t0] | hit[t1] | hit[t2])
+                sub = np.empty((8, len(idx)))
+                a_sub, q_sub = _shape(xn, yn, t0[idx], t1[idx], t2[idx], sub[0], sub[1], sub[2:])
+                area_n[idx], qual_n[idx] = a_sub, q_sub
+                bad = np.zeros(len(bad), dtype=bool)
+                bad[idx] = q_sub < floor[idx]
+            x, y, xn, yn = xn, yn, x, y
+            area, qual, area_n, qual_n = area_n, qual_n, area, qual
+        return np.column_stack([x, y]), n_blocked
