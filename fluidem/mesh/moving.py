@@ -94,9 +94,10 @@ from scipy.spatial import cKDTree
 
 from ..geometry import validate_polygon
 from .background import GradedSize, SizeField, UniformSize, friedrichs_keller_grid, graded_background, subdivide_segment
-from .junctions import junction_points, split_triangles
-from .quality import MeshQuality, OscillationDetector, mesh_quality, triangle_angles
-from .relax import RelaxParams, mesh_topology, relax, signed_areas
+from .adjacency import edges_from_neighbors, split_with_neighbors
+from .junctions import junction_points
+from .quality import MeshQuality, OscillationDetector, mesh_quality
+from .relax import MeshTopology, RelaxParams, relax, signed_areas
 from .triangulate import SIDE_NAMES, BoxDomain, _facet_lookup
 
 __all__ = ["MovingMesh", "MeshEvent", "STRATEGIES"]
@@ -506,8 +507,12 @@ class MovingMesh:
         return seg, mside + 1
 
     # ------------------------------------------------------------------ triangulation
-    def _triangulate_from(self, cand, cand_kind, cand_uid, purge, adapt, n_relax, h_cand=None):
-        """Cut-out + contacts + junctions + CDT + relaxation from candidate nodes (Sec. 2.1)."""
+    def _triangulate_from(self, cand, cand_kind, cand_uid, purge, adapt, n_relax, h_cand=None, near=None):
+        """Cut-out + contacts + junctions + CDT + relaxation from candidate nodes (Sec. 2.1).
+
+        ``near`` (bool per candidate, optional): only these free candidates can be closer
+        than ``max(purge, gap_purge) · h`` to a body; the others skip the distance query.
+        """
         info = {"n_purged": 0, "n_removed": 0, "n_inserted": 0}
         poses = self.poses
         olw = self._world(self._ol_local, self._ol_body, poses)
@@ -619,7 +624,7 @@ class MovingMesh:
             stree = shapely.STRtree(np.asarray(solids, dtype=object))
             # one query serves both tests (the closed contact outlines lie within min_gap
             # of the bodies, well inside the purge distance)
-            qi = np.flatnonzero(cand_kind == FREE)
+            qi = np.flatnonzero((cand_kind == FREE) if near is None else (cand_kind == FREE) & near)
             sp = shapely.points(cand[qi])
             ii, bb = tree.query(sp, predicate="dwithin", distance=max(purge, self.gap_purge) * hc[qi])
             dd = shapely.distance(polys[bb], sp[ii])
@@ -687,8 +692,9 @@ class MovingMesh:
             }
             if holes_all is not None and len(holes_all):
                 pslg["holes"] = holes_all
-            out = tr.triangulate(pslg, "pQ")
+            out = tr.triangulate(pslg, "pQn")
             t = out["triangles"].astype(np.int64)
+            nbr = out["neighbors"].astype(np.int64)
             if len(out["vertices"]) != len(allpts):
                 raise RuntimeError(
                     f"Triangle added {len(out['vertices']) - len(allpts)} points: outlines intersect "
@@ -706,7 +712,12 @@ class MovingMesh:
                 allpts, kind, body_of, ol_id, uid = allpts[used], kind[used], body_of[used], ol_id[used], uid[used]
                 ex_keep = used[n_c + len(ol_idx): n_c + len(ol_idx) + len(extra_pts)]
                 ex_local = ex_local[ex_keep]
-            t = np.where((signed_areas(allpts, t) < 0)[:, None], t[:, [0, 2, 1]], t)
+            # Triangle returns counter-clockwise triangles; make sure (swap vertices 1, 2 and
+            # the neighbours opposite them together)
+            cw = signed_areas(allpts, t) < 0
+            if cw.any():
+                t[cw] = t[cw][:, [0, 2, 1]]
+                nbr[cw] = nbr[cw][:, [0, 2, 1]]
             if self.use_junctions and self.n_bodies >= 3:
                 # Voronoi junction points (Sec. 3.2): split junction triangles at a new node
                 owner = np.where((kind == OUTLINE) | (kind == CONTACT), body_of, -1)
@@ -723,7 +734,7 @@ class MovingMesh:
                     l1 = (r[:, 0] * e2[:, 1] - r[:, 1] * e2[:, 0]) / det
                     l2 = (e1[:, 0] * r[:, 1] - e1[:, 1] * r[:, 0]) / det
                     jbary = np.column_stack([1 - l1 - l2, l1, l2])
-                    t = split_triangles(t, jt, n0 + np.arange(len(jp)))
+                    t, nbr = split_with_neighbors(t, nbr, jt, n0 + np.arange(len(jp)))
                     allpts = np.vstack([allpts, jp])
                     kind = np.concatenate([kind, np.full(len(jp), JUNCTION, np.int8)])
                     body_of = np.concatenate([body_of, np.full(len(jp), -1)])
@@ -744,7 +755,8 @@ class MovingMesh:
             self._contact_local = ex_local
             self._contact_idx = np.flatnonzero(kind == CONTACT)
             self.triangles = t
-            self.topo = mesh_topology(t)
+            edges, edge_tris = edges_from_neighbors(t, nbr)
+            self.topo = MeshTopology(t, edges, edge_tris, edge_tris[:, 0] != edge_tris[:, 1])
             self.boundary_segments = segs_out
             self.boundary_markers = marks_out
             self.h_node = self._target(allpts, olw)
@@ -782,8 +794,8 @@ class MovingMesh:
         Bad: an angle below ``min_angle_trigger`` or above 135° outside narrow gaps.  Returns
         ``None`` if there is nothing to fix.
         """
-        ang = triangle_angles(self.points, self.triangles)
-        bad = np.flatnonzero((ang.min(axis=1) < self.min_angle_trigger) | (ang.max(axis=1) > 135.0))
+        cmax, cmin = self._element_cosines()
+        bad = np.flatnonzero((cmax > np.cos(np.radians(self.min_angle_trigger))) | (cmin < np.cos(np.radians(135.0))))
         if not len(bad):
             return None
         t = self.triangles[bad]
@@ -838,10 +850,13 @@ class MovingMesh:
                                                    distance_upper_bound=float(reach.max()) + self.h)
         dnn, inn = dnn.reshape(len(free), k), inn.reshape(len(free), k)
         found = np.isfinite(dnn)
-        ii = np.repeat(np.arange(len(free)), k)[found.ravel()]
-        bb = self.body_of[ol[inn[found]]]
-        key = np.unique(ii * self.n_bodies + bb)
-        ii, bb = key // self.n_bodies, key % self.n_bodies
+        # distinct bodies per node: drop a column whose body already appeared to its left
+        bod = np.where(found, self.body_of[ol[np.minimum(inn, len(ol) - 1)]], -1)
+        first = found.copy()
+        for c in range(1, k):  # k ≤ 4 columns
+            first[:, c] &= (bod[:, :c] != bod[:, c:c + 1]).all(axis=1)
+        ii = np.repeat(np.arange(len(free)), k)[first.ravel()]
+        bb = bod[first]
         dist = self._point_body_distance(self.points[free[ii]], bb)
         sel = dist < reach[ii]
         ii, bb, dist = ii[sel], bb[sel], dist[sel]
@@ -870,15 +885,17 @@ class MovingMesh:
     def _adapt(self, pts, kind, uid, h, olw, stree):
         """Coarsen where edges are much shorter than the target, refine where triangles are too big."""
         # coarsening: an independent set of free nodes whose incident edges are all short
-        e, t = self.topo.edges, self.triangles
+        t = self.triangles
+        e0, e1 = self.topo.e0, self.topo.e1
         old = self.points
-        L = np.linalg.norm(old[e[:, 1]] - old[e[:, 0]], axis=1)
-        L0 = 0.5 * (self.h_node[e[:, 0]] + self.h_node[e[:, 1]])
+        z = old[:, 0] + 1j * old[:, 1]
+        L = np.abs(z[e1] - z[e0])
+        L0 = 0.5 * (self.h_node[e0] + self.h_node[e1])
         n_old = len(old)
         # mean ratio of incident edge lengths to their targets
         ratio = L / L0
-        deg = np.bincount(e.ravel(), minlength=n_old)
-        mean_ratio = (np.bincount(e[:, 0], ratio, n_old) + np.bincount(e[:, 1], ratio, n_old)) / np.maximum(deg, 1)
+        deg = np.bincount(e0, minlength=n_old) + np.bincount(e1, minlength=n_old)
+        mean_ratio = (np.bincount(e0, ratio, n_old) + np.bincount(e1, ratio, n_old)) / np.maximum(deg, 1)
         has_long = mean_ratio >= self.coarsen_ratio
         # map old nodes to candidate rows by uid
         order = np.argsort(uid)
@@ -890,14 +907,15 @@ class MovingMesh:
         rng = np.random.default_rng(self.step_count)
         prio = np.where(cand, rng.random(n_old), -1.0)
         nb_max = np.full(n_old, -1.0)
-        np.maximum.at(nb_max, e[:, 0], prio[e[:, 1]])
-        np.maximum.at(nb_max, e[:, 1], prio[e[:, 0]])
+        np.maximum.at(nb_max, e0, prio[e1])
+        np.maximum.at(nb_max, e1, prio[e0])
         remove_old = cand & (prio > nb_max)
         keep = np.ones(len(pts), dtype=bool)
         keep[row[remove_old]] = False
         # refinement: centroids of triangles much larger than the target
         area = signed_areas(old, t)
-        ht = self.h_node[t].mean(axis=1)
+        tp = self.topo
+        ht = (self.h_node[tp.t0] + self.h_node[tp.t1] + self.h_node[tp.t2]) / 3.0
         big = area > self.refine_area * (np.sqrt(3) / 4) * ht**2
         newp = old[t[big]].mean(axis=1)
         if stree is not None and len(newp):
@@ -1040,17 +1058,40 @@ class MovingMesh:
         """
         n_relax = self.retriangulate_iterations if n_relax is None else n_relax
         return self._triangulate_from(self.points, self.kind, self.uid, purge=self.purge_clearance,
-                                      adapt=True, n_relax=n_relax, h_cand=self.h_node)
+                                      adapt=True, n_relax=n_relax, h_cand=self.h_node, near=self._near_outline(3))
+
+    def _near_outline(self, hops: int) -> np.ndarray:
+        """Nodes at most ``hops`` edges from a body outline or contact node (bool per node).
+
+        In a valid mesh a free node closer than ``max(purge_clearance, gap_purge) · h ≈ h`` to
+        a body is a neighbour of one of its outline nodes, or of a neighbour of one (the
+        element on an outline edge is no flatter than the 15° quality bound); three edges
+        leave a margin.  A node swallowed by a body got there by inverting an element at the
+        outline, which triggers a re-triangulation in the same step: it is a neighbour too.
+        """
+        mask = (self.kind == OUTLINE) | (self.kind == CONTACT)
+        e0, e1 = self.topo.e0, self.topo.e1
+        for _ in range(hops):
+            grown = mask.copy()
+            grown[e0[mask[e1]]] = True
+            grown[e1[mask[e0]]] = True
+            mask = grown
+        return mask
 
     def _point_body_distance(self, pts, body, world=None) -> np.ndarray:
         """Distance ``(k,)`` from points ``(k, 2)`` outside their body ``body (k,)`` to its outline."""
         w = self._world(self._vcat, self._vbody, self.poses) if world is None else world
-        a, b = w[self._pad_a[body]], w[self._pad_b[body]]  # (k, m, 2)
-        d = b - a
-        r = pts[:, None, :] - a
-        tt = np.clip((r * d).sum(axis=2) / np.maximum((d * d).sum(axis=2), 1e-300), 0.0, 1.0)
-        e = r - tt[:, :, None] * d
-        return np.sqrt((e * e).sum(axis=2)).min(axis=1)
+        wx, wy = np.ascontiguousarray(w[:, 0]), np.ascontiguousarray(w[:, 1])
+        ia, ib = self._pad_a[body], self._pad_b[body]  # (k, m) edge ends
+        ax, ay = wx[ia], wy[ia]
+        dx, dy = wx[ib] - ax, wy[ib] - ay
+        rx, ry = pts[:, 0:1] - ax, pts[:, 1:2] - ay
+        # foot of the perpendicular on each edge, clamped to the edge
+        tt = (rx * dx + ry * dy) / np.maximum(dx * dx + dy * dy, 1e-300)
+        np.clip(tt, 0.0, 1.0, out=tt)
+        rx -= tt * dx
+        ry -= tt * dy
+        return np.sqrt((rx * rx + ry * ry).min(axis=1))
 
     def _box_distance(self, pts) -> np.ndarray:
         xmin, xmax, ymin, ymax = self.box
@@ -1197,8 +1238,8 @@ class MovingMesh:
         """Mesh velocity ``w`` ``(n_nodes, 2)`` for ALE, length units per time unit.
 
         ``(x_now − x_prev) / dt`` per node for nodes that existed before the last
-        :meth:`update`; nodes created by a re-triangulation get the velocity interpolated
-        (barycentric, on the previous connectivity) from the nodes around them.
+        :meth:`update`; a node created by a re-triangulation gets the mean velocity of its
+        mesh neighbours that existed before (neighbours of neighbours if none did).
         """
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"time step dt must be a positive number, got {dt!r}")
@@ -1208,18 +1249,23 @@ class MovingMesh:
         w = np.zeros_like(self.points)
         j = order[pos[match]]
         w[match] = (self.points[match] - self._prev_points[j]) / dt
-        if (~match).any():
-            # interpolate from the matched nodes of the current mesh (linear in the new triangles)
-            from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
-
-            src = self.points[match]
-            if len(src) >= 3:
-                li = LinearNDInterpolator(src, w[match])
-                val = li(self.points[~match])
-                nanr = np.isnan(val).any(axis=1)
-                if nanr.any():
-                    val[nanr] = NearestNDInterpolator(src, w[match])(self.points[~match][nanr])
-                w[~match] = val
+        # nodes created by the re-triangulation: mean velocity of their known mesh
+        # neighbours, spreading outwards until every node has one (a few passes over the
+        # edges; Qhull-based interpolation of all nodes cost seconds at 100k nodes)
+        known = match.copy()
+        e0, e1 = self.topo.e0, self.topo.e1
+        n = len(w)
+        while not known.all():
+            k0, k1 = known[e0], known[e1]
+            cnt = np.bincount(e0, k1, n) + np.bincount(e1, k0, n)
+            sx = np.bincount(e0, k1 * w[e1, 0], n) + np.bincount(e1, k0 * w[e0, 0], n)
+            sy = np.bincount(e0, k1 * w[e1, 1], n) + np.bincount(e1, k0 * w[e0, 1], n)
+            new = ~known & (cnt > 0)
+            if not new.any():  # a component without any known node (cannot happen in a mesh with bodies)
+                break
+            w[new, 0] = sx[new] / cnt[new]
+            w[new, 1] = sy[new] / cnt[new]
+            known |= new
         return w
 
     def _gap_width(self, pts, radius, polys=None, tree=None) -> np.ndarray:
