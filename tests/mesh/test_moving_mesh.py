@@ -79,6 +79,11 @@ def test_node_velocity_after_retriangulation_is_finite():
     assert np.all(np.isfinite(w))
     on = mm.body_of >= 0
     np.testing.assert_allclose(w[on], np.tile([0.1, 0.0], (on.sum(), 1)), atol=1e-9)
+    # nodes new to this mesh take means of old nodes' velocities: they stay within their range
+    old = np.isin(mm.uid, mm._prev_uid)
+    assert (~old).any(), "the re-triangulation inserted no node: the test needs one"
+    lo, hi = w[old].min(axis=0), w[old].max(axis=0)
+    assert np.all(w[~old] >= lo - 1e-12) and np.all(w[~old] <= hi + 1e-12)
 
 
 def test_skfem_mesh_has_named_boundaries():
