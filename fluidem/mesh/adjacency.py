@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .junctions import split_triangles
+
 __all__ = ["edges_from_neighbors", "split_with_neighbors"]
 
 
@@ -51,25 +53,24 @@ def split_with_neighbors(triangles, neighbors, tri, new_index) -> tuple[np.ndarr
 
     Triangle ``k = (a, b, c)`` becomes ``k = (a, b, j)``, ``m + i = (b, c, j)`` and
     ``m + K + i = (c, a, j)`` (``i`` its place in ``tri``, ``K = len(tri)``, orientation kept),
-    as :func:`fluidem.mesh.junctions.split_triangles` does.
+    by :func:`fluidem.mesh.junctions.split_triangles`.
 
     Returns
     -------
     triangles : (m + 2K, 3) int
     neighbors : (m + 2K, 3) int
     """
-    t = np.asarray(triangles, dtype=np.int64).copy()
+    t0 = np.asarray(triangles, dtype=np.int64)
     nb = np.asarray(neighbors, dtype=np.int64).copy()
     tri = np.asarray(tri, dtype=np.int64)
     j = np.asarray(new_index, dtype=np.int64)
-    m, K = len(t), len(tri)
+    m, K = len(t0), len(tri)
     if not K:
-        return t, nb
-    a, b, c = t[tri, 0], t[tri, 1], t[tri, 2]
+        return t0.copy(), nb
+    a, b = t0[tri, 0], t0[tri, 1]
     n_a, n_b, n_c = nb[tri, 0], nb[tri, 1], nb[tri, 2]  # across (b, c), (c, a), (a, b)
     c0, c1, c2 = tri, m + np.arange(K), m + K + np.arange(K)
-    t[tri] = np.column_stack([a, b, j])
-    t = np.vstack([t, np.column_stack([b, c, j]), np.column_stack([c, a, j])])
+    t = split_triangles(t0, tri, j)
     nb[tri] = np.column_stack([c1, c2, n_c])
     nb = np.vstack([nb, np.column_stack([c2, c0, n_a]), np.column_stack([c0, c1, n_b])])
     # outer triangles still name the split triangle k across the edges (b, c) and (c, a):
