@@ -96,6 +96,7 @@ from ..geometry import validate_polygon
 from .background import GradedSize, SizeField, UniformSize, friedrichs_keller_grid, graded_background, subdivide_segment
 from .adjacency import edges_from_neighbors, split_with_neighbors
 from .junctions import junction_points
+from .proximity import PolygonTable
 from .quality import MeshQuality, OscillationDetector, mesh_quality
 from .relax import MeshTopology, RelaxParams, relax, signed_areas
 from .triangulate import SIDE_NAMES, BoxDomain, _facet_lookup
@@ -348,13 +349,6 @@ class MovingMesh:
         self._nv = np.array([len(v) for v in verts], dtype=np.int64)
         self._vcat = np.vstack(verts) if verts else np.zeros((0, 2))
         self._vbody = np.repeat(np.arange(self.n_bodies), self._nv)
-        # padded (n_bodies, max_n) indices into _vcat of every edge's start and end vertex
-        # (short outlines repeat their last edge), for vectorised point-body distances
-        mx = int(self._nv.max()) if self.n_bodies else 0
-        first = np.concatenate([[0], np.cumsum(self._nv)[:-1]]) if self.n_bodies else np.zeros(0, np.int64)
-        j = np.minimum(np.arange(mx)[None, :], self._nv[:, None] - 1)
-        self._pad_a = first[:, None] + j
-        self._pad_b = first[:, None] + (j + 1) % self._nv[:, None]
         self.poses = self._check_poses(poses)
 
         self._build_outline_table()
@@ -507,17 +501,14 @@ class MovingMesh:
         return seg, mside + 1
 
     # ------------------------------------------------------------------ triangulation
-    def _triangulate_from(self, cand, cand_kind, cand_uid, purge, adapt, n_relax, h_cand=None, near=None):
-        """Cut-out + contacts + junctions + CDT + relaxation from candidate nodes (Sec. 2.1).
-
-        ``near`` (bool per candidate, optional): only these free candidates can be closer
-        than ``max(purge, gap_purge) · h`` to a body; the others skip the distance query.
-        """
+    def _triangulate_from(self, cand, cand_kind, cand_uid, purge, adapt, n_relax, h_cand=None):
+        """Cut-out + contacts + junctions + CDT + relaxation from candidate nodes (Sec. 2.1)."""
         info = {"n_purged": 0, "n_removed": 0, "n_inserted": 0}
         poses = self.poses
         olw = self._world(self._ol_local, self._ol_body, poses)
         polys = self._polygons(poses)
         tree = shapely.STRtree(polys) if self.n_bodies else None
+        table = self._outline_table(poses)
 
         # contacts: bodies closer than min_gap are meshed as one closed outline
         ol_keep = np.ones(len(olw), dtype=bool)
@@ -624,10 +615,8 @@ class MovingMesh:
             stree = shapely.STRtree(np.asarray(solids, dtype=object))
             # one query serves both tests (the closed contact outlines lie within min_gap
             # of the bodies, well inside the purge distance)
-            qi = np.flatnonzero((cand_kind == FREE) if near is None else (cand_kind == FREE) & near)
-            sp = shapely.points(cand[qi])
-            ii, bb = tree.query(sp, predicate="dwithin", distance=max(purge, self.gap_purge) * hc[qi])
-            dd = shapely.distance(polys[bb], sp[ii])
+            qi = np.flatnonzero(cand_kind == FREE)
+            ii, bb, dd = table.pairs_within(cand[qi], max(purge, self.gap_purge) * hc[qi], solid=True)
             close = dd < purge * hc[qi[ii]]
             keep[qi[ii[close]]] = False
             # no room in gaps narrower than gap_purge · h: the gap is spanned by one layer
@@ -643,6 +632,7 @@ class MovingMesh:
             cpts, ckind, cuid, ch, nrem, nins = self._adapt(cpts, ckind, cuid, ch, olw, stree if self.n_bodies else None)
             info["n_removed"], info["n_inserted"] = nrem, nins
 
+        final_cosines = None
         for attempt in range(self.cleanup_passes + 1):
             # assemble nodes: [candidates | outline | contact nodes | junctions]
             ol_idx = np.flatnonzero(ol_keep)
@@ -772,8 +762,9 @@ class MovingMesh:
             if attempt == self.cleanup_passes:
                 break
             # clean-up: bad elements outside narrow gaps lose their free nodes, or get one
-            fix = self._cleanup_points(polys, tree, olw)
+            fix = self._cleanup_points(table, tree, olw)
             if fix is None:
+                final_cosines = self._cleanup_cosines  # of the mesh kept
                 break
             cpts, ckind, cuid = fix
         self._steps_since = 0
@@ -783,25 +774,26 @@ class MovingMesh:
             self._near_pairs = np.column_stack([a[sel], b[sel]])
         else:
             self._near_pairs = np.zeros((0, 2), dtype=np.int64)
-        self._drag_association(polys)
-        self._set_quality_baseline()
+        self._drag_association(table)
+        self._set_quality_baseline(final_cosines)
         info["n_junctions"] = self.n_junctions
         return info
 
-    def _cleanup_points(self, polys, tree, olw):
+    def _cleanup_points(self, table, tree, olw):
         """New candidate nodes after removing free vertices of bad elements / adding nodes in them.
 
         Bad: an angle below ``min_angle_trigger`` or above 135° outside narrow gaps.  Returns
         ``None`` if there is nothing to fix.
         """
         cmax, cmin = self._element_cosines()
+        self._cleanup_cosines = (cmax, cmin)
         bad = np.flatnonzero((cmax > np.cos(np.radians(self.min_angle_trigger))) | (cmin < np.cos(np.radians(135.0))))
         if not len(bad):
             return None
         t = self.triangles[bad]
         c = self.points[t].mean(axis=1)
         hh = 0.5 * self.h_node[t].mean(axis=1)
-        bad = bad[~(self._gap_width(c, hh, polys, tree) < hh)]
+        bad = bad[~(self._gap_width(c, hh, table) < hh)]
         if not len(bad):
             return None
         t = self.triangles[bad]
@@ -831,7 +823,7 @@ class MovingMesh:
             return None
         return cpts, ckind, cuid
 
-    def _drag_association(self, polys):
+    def _drag_association(self, table):
         """Pairs (free node, body) within ``drag_reach · h`` and their drag weights."""
         free = np.flatnonzero((self._drag_mobility != 0.0).any(axis=1))
         if not self.n_bodies or not len(free) or self.drag_reach <= 0:
@@ -841,25 +833,7 @@ class MovingMesh:
             self._relax_damping = np.ones(len(self.points))
             return
         reach = self.drag_reach * self.h_node[free]
-        # candidate bodies: those of the 4 nearest outline nodes within reach (outline nodes
-        # are spaced about h, so a body within reach has one of its nodes nearby); then the
-        # exact distance to each candidate body
-        ol = np.flatnonzero(self.body_of >= 0)
-        k = min(4, len(ol))
-        dnn, inn = cKDTree(self.points[ol]).query(self.points[free], k=k,
-                                                   distance_upper_bound=float(reach.max()) + self.h)
-        dnn, inn = dnn.reshape(len(free), k), inn.reshape(len(free), k)
-        found = np.isfinite(dnn)
-        # distinct bodies per node: drop a column whose body already appeared to its left
-        bod = np.where(found, self.body_of[ol[np.minimum(inn, len(ol) - 1)]], -1)
-        first = found.copy()
-        for c in range(1, k):  # k ≤ 4 columns
-            first[:, c] &= (bod[:, :c] != bod[:, c:c + 1]).all(axis=1)
-        ii = np.repeat(np.arange(len(free)), k)[first.ravel()]
-        bb = bod[first]
-        dist = self._point_body_distance(self.points[free[ii]], bb)
-        sel = dist < reach[ii]
-        ii, bb, dist = ii[sel], bb[sel], dist[sel]
+        ii, bb, dist = table.pairs_within(self.points[free], reach)
         self._drag_node = free[ii]
         self._drag_body = bb
         full = self.drag_full * self.h_node[free][ii]
@@ -1058,73 +1032,57 @@ class MovingMesh:
         """
         n_relax = self.retriangulate_iterations if n_relax is None else n_relax
         return self._triangulate_from(self.points, self.kind, self.uid, purge=self.purge_clearance,
-                                      adapt=True, n_relax=n_relax, h_cand=self.h_node, near=self._near_outline(3))
+                                      adapt=True, n_relax=n_relax, h_cand=self.h_node)
 
-    def _near_outline(self, hops: int) -> np.ndarray:
-        """Nodes at most ``hops`` edges from a body outline or contact node (bool per node).
+    def _outline_table(self, poses=None) -> PolygonTable:
+        """The bodies' polygons in world coordinates, for vectorised point queries."""
+        poses = self.poses if poses is None else poses
+        key = poses.tobytes()
+        cached = getattr(self, "_table_cache", None)
+        if cached is None or cached[0] != key:
+            cached = (key, PolygonTable(self._world(self._vcat, self._vbody, poses), self._nv))
+            self._table_cache = cached
+        return cached[1]
 
-        In a valid mesh a free node closer than ``max(purge_clearance, gap_purge) · h ≈ h`` to
-        a body is a neighbour of one of its outline nodes, or of a neighbour of one (the
-        element on an outline edge is no flatter than the 15° quality bound); three edges
-        leave a margin.  A node swallowed by a body got there by inverting an element at the
-        outline, which triggers a re-triangulation in the same step: it is a neighbour too.
-        """
-        mask = (self.kind == OUTLINE) | (self.kind == CONTACT)
-        e0, e1 = self.topo.e0, self.topo.e1
-        for _ in range(hops):
-            grown = mask.copy()
-            grown[e0[mask[e1]]] = True
-            grown[e1[mask[e0]]] = True
-            mask = grown
-        return mask
-
-    def _point_body_distance(self, pts, body, world=None) -> np.ndarray:
+    def _point_body_distance(self, pts, body, table=None) -> np.ndarray:
         """Distance ``(k,)`` from points ``(k, 2)`` outside their body ``body (k,)`` to its outline."""
-        w = self._world(self._vcat, self._vbody, self.poses) if world is None else world
-        wx, wy = np.ascontiguousarray(w[:, 0]), np.ascontiguousarray(w[:, 1])
-        ia, ib = self._pad_a[body], self._pad_b[body]  # (k, m) edge ends
-        ax, ay = wx[ia], wy[ia]
-        dx, dy = wx[ib] - ax, wy[ib] - ay
-        rx, ry = pts[:, 0:1] - ax, pts[:, 1:2] - ay
-        # foot of the perpendicular on each edge, clamped to the edge
-        tt = (rx * dx + ry * dy) / np.maximum(dx * dx + dy * dy, 1e-300)
-        np.clip(tt, 0.0, 1.0, out=tt)
-        rx -= tt * dx
-        ry -= tt * dy
-        return np.sqrt((rx * rx + ry * ry).min(axis=1))
+        table = self._outline_table() if table is None else table
+        return table.distance(pts, body)
 
     def _box_distance(self, pts) -> np.ndarray:
         xmin, xmax, ymin, ymax = self.box
         return np.min(np.column_stack([pts[:, 1] - ymin, xmax - pts[:, 0], ymax - pts[:, 1], pts[:, 0] - xmin]), axis=1)
 
-    def _owner_distance(self, pts, owner, world=None) -> np.ndarray:
+    def _owner_distance(self, pts, owner, table=None) -> np.ndarray:
         """Distance from ``pts`` to boundary ``owner`` (a body index, or -2 for the box)."""
         d = np.empty(len(pts))
         on = owner >= 0
         if on.any():
-            d[on] = self._point_body_distance(pts[on], owner[on], world)
+            d[on] = self._point_body_distance(pts[on], owner[on], table)
         if (~on).any():
             d[~on] = self._box_distance(pts[~on])
         return d
 
-    def _anchored_across_gap(self, tri_idx, world=None) -> np.ndarray:
+    def _anchored_across_gap(self, tri_idx, table=None) -> np.ndarray:
         """Elements with an edge joining two different boundaries one end of which lies closer
         than h/2 to the other end's boundary (they are anchored across a narrow gap)."""
         t = self.triangles[tri_idx]
         owner = np.where((self.kind == FREE) | (self.kind == JUNCTION), -3,
                          np.where(self.body_of >= 0, self.body_of, -2))
+        # the three edges of every element, stacked: (a, b) = (t[:, i], t[:, j])
+        a = np.concatenate([t[:, 0], t[:, 1], t[:, 2]])
+        b = np.concatenate([t[:, 1], t[:, 2], t[:, 0]])
+        oa, ob = owner[a], owner[b]
+        span = np.flatnonzero((oa != -3) & (ob != -3) & (oa != ob))
         out = np.zeros(len(tri_idx), dtype=bool)
+        if not len(span):
+            return out
+        a, b, oa, ob = a[span], b[span], oa[span], ob[span]
+        lim = 0.25 * (self.h_node[a] + self.h_node[b])
         x = self.points
-        for i, j in ((0, 1), (1, 2), (2, 0)):
-            a, b = t[:, i], t[:, j]
-            oa, ob = owner[a], owner[b]
-            span = np.flatnonzero((oa != -3) & (ob != -3) & (oa != ob))
-            if not len(span):
-                continue
-            lim = 0.25 * (self.h_node[a[span]] + self.h_node[b[span]])
-            d = np.minimum(self._owner_distance(x[a[span]], ob[span], world),
-                           self._owner_distance(x[b[span]], oa[span], world))
-            out[span[d < lim]] = True
+        d = self._owner_distance(np.vstack([x[a], x[b]]), np.concatenate([ob, oa]), table)
+        d = np.minimum(d[:len(span)], d[len(span):])
+        out[span[d < lim] % len(tri_idx)] = True
         return out
 
     def _contacts_changed(self) -> bool:
@@ -1166,26 +1124,33 @@ class MovingMesh:
             np.maximum(np.maximum(lu, lv), lw), 1e-300)
         return np.maximum(np.maximum(ca, cb), cc), np.minimum(np.minimum(ca, cb), cc)
 
-    def _set_quality_baseline(self):
+    def _set_quality_baseline(self, cosines=None):
         """Per-element thresholds for the quality trigger, set after each triangulation.
 
         Narrow-gap elements (the geometric flag of :meth:`quality` evaluated now, gaps change
         little between re-triangulations, or'ed with the structural one) are left out.
+        ``cosines``: :meth:`_element_cosines` of the current mesh if the caller has them.
         """
         narrow = self._narrow_gap_owners() | self._structural_narrow()
         self._base_area = signed_areas(self.points, self.triangles)
-        cmax, cmin = self._element_cosines()
-        amin = np.degrees(np.arccos(np.clip(cmax, -1, 1)))
-        amax = np.degrees(np.arccos(np.clip(cmin, -1, 1)))
-        lo = np.minimum(self.min_angle_trigger, amin - 3.0)
-        hi = np.maximum(135.0, amax + 3.0)
+        cmax, cmin = self._element_cosines() if cosines is None else cosines
+        # an element may lose 3° from where it starts if it starts outside the bounds:
+        # thresholds min(trigger, angle − 3°) and max(135°, angle + 3°); arccos only where
+        # the angle is within 3° of a bound (the other elements get the bound itself)
+        lo = np.full(len(cmax), float(self.min_angle_trigger))
+        near = np.flatnonzero(cmax > np.cos(np.radians(self.min_angle_trigger + 3.0)))
+        lo[near] = np.minimum(lo[near], np.degrees(np.arccos(np.clip(cmax[near], -1, 1))) - 3.0)
+        hi = np.full(len(cmin), 135.0)
+        near = np.flatnonzero(cmin < np.cos(np.radians(132.0)))
+        hi[near] = np.maximum(hi[near], np.degrees(np.arccos(np.clip(cmin[near], -1, 1))) + 3.0)
         self._cos_lo = np.where(narrow, 2.0, np.cos(np.radians(np.clip(lo, 0, 180))))
         self._cos_hi = np.where(narrow, -2.0, np.cos(np.radians(np.clip(hi, 0, 180))))
         # narrow-gap elements are watched too: once the gap they span has opened beyond h/2
         # (their smallest altitude, about the gap width, exceeds h/2) they must meet the bounds
         self._base_narrow = narrow
         self._base_cos = (cmax, cmin)
-        self._half_h = 0.5 * self.h_node[self.triangles].mean(axis=1)
+        tp = self.topo
+        self._half_h = (self.h_node[tp.t0] + self.h_node[tp.t1] + self.h_node[tp.t2]) / 6.0
         self._cos_bound = (np.cos(np.radians(self.min_angle_trigger)), np.cos(np.radians(135.0)))
 
     def _quality_dropped(self) -> bool:
@@ -1207,14 +1172,13 @@ class MovingMesh:
 
     def _structural_narrow(self) -> np.ndarray:
         """Triangles whose three vertices are all on boundaries, not all of one owner."""
-        t = self.triangles
+        tp = self.topo
         bnd = self.kind != FREE
         bnd &= self.kind != JUNCTION
         owner = np.where(self.body_of >= 0, self.body_of, -2)
-        allb = bnd[t].all(axis=1)
-        o = owner[t]
-        mixed = (o[:, 0] != o[:, 1]) | (o[:, 1] != o[:, 2])
-        return allb & mixed
+        allb = bnd[tp.t0] & bnd[tp.t1] & bnd[tp.t2]
+        o0, o1, o2 = owner[tp.t0], owner[tp.t1], owner[tp.t2]
+        return allb & ((o0 != o1) | (o1 != o2))
 
     # ------------------------------------------------------------------ outputs
     def skfem_mesh(self):
@@ -1268,55 +1232,49 @@ class MovingMesh:
             known |= new
         return w
 
-    def _gap_width(self, pts, radius, polys=None, tree=None) -> np.ndarray:
+    def _gap_width(self, pts, radius, table=None) -> np.ndarray:
         """Width ``d1 + d2`` of the gap at ``pts``: distances to the nearest and second-nearest
         distinct boundary (bodies; the box counts as one), ``inf`` if fewer than two lie within
         ``radius`` (array or float)."""
         pts = np.asarray(pts, dtype=float)
-        k = len(pts)
-        out = np.full(k, np.inf)
-        if not k:
-            return out
-        radius = np.broadcast_to(np.asarray(radius, dtype=float), (k,))
-        xmin, xmax, ymin, ymax = self.box
-        walls = np.min(np.column_stack([pts[:, 1] - ymin, xmax - pts[:, 0], ymax - pts[:, 1], pts[:, 0] - xmin]),
-                       axis=1)
-        ti, dd = [np.arange(k)], [walls]
+        if not len(pts):
+            return np.zeros(0)
+        pi = np.zeros(0, dtype=np.int64)
+        d = np.zeros(0)
         if self.n_bodies:
-            polys = self._polygons() if polys is None else polys
-            tree = shapely.STRtree(polys) if tree is None else tree
-            sp = shapely.points(pts)
-            pi, bi = tree.query(sp, predicate="dwithin", distance=radius)
-            ti.append(pi)
-            dd.append(shapely.distance(polys[bi], sp[pi]))
-        return self._two_smallest(k, np.concatenate(ti), np.concatenate(dd))
+            table = self._outline_table() if table is None else table
+            pi, _, d = table.pairs_within(pts, radius, solid=True)
+        return self._gap_from_pairs(pts, pi, d)
 
     def _gap_from_pairs(self, pts, pi, d) -> np.ndarray:
-        """:meth:`_gap_width` from precomputed (point, body) pairs and distances."""
+        """:meth:`_gap_width` from (point, body) pairs sorted by point and their distances."""
         k = len(pts)
-        return self._two_smallest(k, np.concatenate([np.arange(k), pi]),
-                                  np.concatenate([self._box_distance(pts), d]))
+        m1, m2 = np.full(k, np.inf), np.full(k, np.inf)
+        if len(pi):
+            # per point the smallest and second smallest body distance
+            starts = np.flatnonzero(np.concatenate([[True], pi[1:] != pi[:-1]]))
+            g = pi[starts]
+            lo = np.minimum.reduceat(d, starts)
+            is_min = d == np.repeat(lo, np.diff(np.append(starts, len(d))))
+            second = np.minimum.reduceat(np.where(is_min, np.inf, d), starts)
+            m1[g] = lo
+            m2[g] = np.where(np.add.reduceat(is_min, starts) >= 2, lo, second)
+        # ... and the box as one more boundary: the two smallest of {m1 ≤ m2, box}
+        box = self._box_distance(pts)
+        return np.minimum(m1, box) + np.minimum(np.maximum(m1, box), m2)
 
-    @staticmethod
-    def _two_smallest(k, ti, dd) -> np.ndarray:
-        """Per point ``0..k-1``: sum of its two smallest distances ``dd`` (``inf`` if fewer)."""
-        out = np.full(k, np.inf)
-        o = np.lexsort((dd, ti))
-        ti, dd = ti[o], dd[o]
-        first = np.ones(len(ti), dtype=bool)
-        first[1:] = ti[1:] != ti[:-1]
-        start = np.flatnonzero(first)
-        cnt = np.diff(np.append(start, len(ti)))
-        s2 = start[cnt >= 2]
-        out[ti[s2]] = dd[s2] + dd[s2 + 1]
-        return out
+    def _non_free_count(self) -> np.ndarray:
+        """Per triangle: how many of its vertices are not free nodes (0..3)."""
+        nf = (self.kind != FREE).view(np.int8)
+        tp = self.topo
+        return nf[tp.t0] + nf[tp.t1] + nf[tp.t2]
 
     def _narrow_gap_owners(self) -> np.ndarray:
         """Cheap form of :meth:`_narrow_gap` for the re-triangulation trigger: the gap at the
         centroid is measured between the boundaries the element's own vertices lie on."""
         t = self.triangles
         narrow = np.zeros(len(t), dtype=bool)
-        cand = np.flatnonzero((self.kind[t] != FREE).sum(axis=1) >= 2)
+        cand = np.flatnonzero(self._non_free_count() >= 2)
         if not len(cand):
             return narrow
         tc = t[cand]
@@ -1325,7 +1283,7 @@ class MovingMesh:
         owner = np.where((self.kind == FREE) | (self.kind == JUNCTION), -3,
                          np.where(self.body_of >= 0, self.body_of, -2))
         o = owner[tc]
-        world = self._world(self._vcat, self._vbody, self.poses)
+        table = self._outline_table()
         d = np.full(o.shape, np.inf)
         for v in range(3):
             ok = o[:, v] != -3
@@ -1333,10 +1291,10 @@ class MovingMesh:
                 ok &= o[:, v] != o[:, 0]
             if v == 2:
                 ok &= o[:, 2] != o[:, 1]
-            d[ok, v] = self._owner_distance(c[ok], o[ok, v], world)
+            d[ok, v] = self._owner_distance(c[ok], o[ok, v], table)
         d.sort(axis=1)
         narrow[cand] = d[:, 0] + d[:, 1] < hh
-        narrow[cand[self._anchored_across_gap(cand, world)]] = True
+        narrow[cand[self._anchored_across_gap(cand, table)]] = True
         return narrow
 
     def _narrow_gap(self) -> np.ndarray:
@@ -1345,7 +1303,7 @@ class MovingMesh:
         narrow = np.zeros(len(t), dtype=bool)
         # free nodes are purged from gaps narrower than gap_purge · h, so a triangle in a
         # narrow gap has at most one free vertex
-        cand = np.flatnonzero((self.kind[t] != FREE).sum(axis=1) >= 2)
+        cand = np.flatnonzero(self._non_free_count() >= 2)
         if not len(cand):
             return narrow
         c = self.points[t[cand]].mean(axis=1)

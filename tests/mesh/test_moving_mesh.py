@@ -212,3 +212,55 @@ def test_body_objects_are_accepted():
 
     mm = MovingMesh((0, 2, 0, 2), [Body(rectangle(0.4, 0.4), "box")], [[1.0, 1.0, 0.2]], h=0.1)
     assert "box" in mm.skfem_mesh().boundaries
+
+
+def _packed_mesh():
+    from hard_cases import packing
+
+    bodies, poses, box = packing(n=30, phi=0.45, sizes=(0.5, 1.5), n_vertices=(3, 8), min_gap=0.01, seed=4)
+    return MovingMesh(box, bodies, poses, h=0.12), bodies, poses
+
+
+def test_drag_association_finds_every_body_within_reach():
+    """Each free node is tied to every body whose outline is closer than drag_reach · h
+    (brute force over all bodies with GEOS), with the linear weight of the docstring."""
+    import shapely
+    from hard_cases import world_polygons
+
+    mm, bodies, poses = _packed_mesh()
+    polys = world_polygons(bodies, poses)
+    free = np.flatnonzero((mm._drag_mobility != 0.0).any(axis=1))
+    d = shapely.distance(shapely.boundary(polys)[None, :], shapely.points(mm.points[free])[:, None])
+    reach = mm.drag_reach * mm.h_node[free]
+    ni, bi = np.nonzero(d < reach[:, None])
+    assert len(ni) > len(free) // 4  # a dense packing: many nodes are dragged
+    assert set(zip(free[ni].tolist(), bi.tolist())) == set(zip(mm._drag_node.tolist(), mm._drag_body.tolist()))
+    # weight 1 within drag_full · h, falling linearly to 0 at drag_reach · h
+    k = {(a, b): j for j, (a, b) in enumerate(zip(mm._drag_node.tolist(), mm._drag_body.tolist()))}
+    w = mm._drag_weight[[k[(a, b)] for a, b in zip(free[ni].tolist(), bi.tolist())]]
+    hn = mm.h_node[free[ni]]
+    ref = np.clip((mm.drag_reach * hn - d[ni, bi]) / ((mm.drag_reach - mm.drag_full) * hn), 0.0, 1.0)
+    assert np.allclose(w, ref, rtol=0, atol=1e-12)
+
+
+def test_gap_width_is_the_two_nearest_boundaries():
+    """Gap width = sum of the two smallest distances to bodies within the radius and the box."""
+    import shapely
+    from hard_cases import world_polygons
+
+    mm, bodies, poses = _packed_mesh()
+    polys = world_polygons(bodies, poses)
+    rng = np.random.default_rng(0)
+    xmin, xmax, ymin, ymax = mm.box
+    pts = np.column_stack([rng.uniform(xmin, xmax, 4000), rng.uniform(ymin, ymax, 4000)])
+    radius = rng.uniform(0.0, 3.0 * mm.h, len(pts))
+    got = mm._gap_width(pts, radius)
+    d = shapely.distance(polys[None, :], shapely.points(pts)[:, None])
+    d = np.where(d < radius[:, None], d, np.inf)
+    box = np.min(np.column_stack([pts[:, 0] - xmin, xmax - pts[:, 0], pts[:, 1] - ymin, ymax - pts[:, 1]]), axis=1)
+    allb = np.sort(np.column_stack([d, box]), axis=1)
+    ref = allb[:, 0] + allb[:, 1]
+    assert np.isfinite(ref).sum() > 100 and np.isinf(ref).sum() > 100
+    assert np.array_equal(np.isinf(got), np.isinf(ref))
+    fin = np.isfinite(ref)
+    assert np.allclose(got[fin], ref[fin], rtol=0, atol=1e-12)
