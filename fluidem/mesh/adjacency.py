@@ -33,18 +33,22 @@ def edges_from_neighbors(triangles, neighbors) -> tuple[np.ndarray, np.ndarray]:
     edge_tris : (n_edges, 2) int
         The triangles on both sides (a boundary edge repeats its only triangle).
     """
-    t = np.asarray(triangles, dtype=np.int64)
+    tt = np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).T)
     nb = np.asarray(neighbors, dtype=np.int64)
-    m = len(t)
+    m = tt.shape[1]
     # half-edge opposite vertex j: (t[:, j+1], t[:, j+2]), stacked j = 0, 1, 2
-    a = np.concatenate([t[:, 1], t[:, 2], t[:, 0]])
-    b = np.concatenate([t[:, 2], t[:, 0], t[:, 1]])
+    a = np.concatenate([tt[1], tt[2], tt[0]])
+    b = np.concatenate([tt[2], tt[0], tt[1]])
     own = np.tile(np.arange(m, dtype=np.int64), 3)
     other = np.ascontiguousarray(nb.T).ravel()
-    keep = (own < other) | (other < 0)
-    a, b, own, other = a[keep], b[keep], own[keep], other[keep]
-    edges = np.column_stack([np.minimum(a, b), np.maximum(a, b)])
-    edge_tris = np.column_stack([own, np.where(other >= 0, other, own)])
+    keep = np.flatnonzero((own < other) | (other < 0))
+    a, b, own, other = a.take(keep), b.take(keep), own.take(keep), other.take(keep)
+    edges = np.empty((len(keep), 2), dtype=np.int64)
+    np.minimum(a, b, out=edges[:, 0])
+    np.maximum(a, b, out=edges[:, 1])
+    edge_tris = np.empty((len(keep), 2), dtype=np.int64)
+    edge_tris[:, 0] = own
+    edge_tris[:, 1] = np.where(other >= 0, other, own)
     return edges, edge_tris
 
 

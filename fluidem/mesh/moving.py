@@ -632,7 +632,7 @@ class MovingMesh:
             cpts, ckind, cuid, ch, nrem, nins = self._adapt(cpts, ckind, cuid, ch, olw, stree if self.n_bodies else None)
             info["n_removed"], info["n_inserted"] = nrem, nins
 
-        final_cosines = None
+        final_shape = None
         for attempt in range(self.cleanup_passes + 1):
             # assemble nodes: [candidates | outline | contact nodes | junctions]
             ol_idx = np.flatnonzero(ol_keep)
@@ -764,7 +764,7 @@ class MovingMesh:
             # clean-up: bad elements outside narrow gaps lose their free nodes, or get one
             fix = self._cleanup_points(table, tree, olw)
             if fix is None:
-                final_cosines = self._cleanup_cosines  # of the mesh kept
+                final_shape = self._cleanup_shape  # of the mesh kept
                 break
             cpts, ckind, cuid = fix
         self._steps_since = 0
@@ -775,7 +775,7 @@ class MovingMesh:
         else:
             self._near_pairs = np.zeros((0, 2), dtype=np.int64)
         self._drag_association(table)
-        self._set_quality_baseline(final_cosines)
+        self._set_quality_baseline(final_shape)
         info["n_junctions"] = self.n_junctions
         return info
 
@@ -785,8 +785,8 @@ class MovingMesh:
         Bad: an angle below ``min_angle_trigger`` or above 135° outside narrow gaps.  Returns
         ``None`` if there is nothing to fix.
         """
-        cmax, cmin = self._element_cosines()
-        self._cleanup_cosines = (cmax, cmin)
+        cmax, cmin, area = self._element_cosines(with_area=True)
+        self._cleanup_shape = (cmax, cmin, area)
         bad = np.flatnonzero((cmax > np.cos(np.radians(self.min_angle_trigger))) | (cmin < np.cos(np.radians(135.0))))
         if not len(bad):
             return None
@@ -1109,48 +1109,52 @@ class MovingMesh:
         pi, bi = shapely.STRtree(polys).query(shapely.points(self.points[inv]), predicate="within")
         return bool((self.body_of[inv[pi]] != bi).any())
 
-    def _element_cosines(self):
-        """Per element: largest and smallest cosine of its angles (no arccos: cheap per step)."""
-        z = self.points[:, 0] + 1j * self.points[:, 1]
+    def _element_cosines(self, with_area: bool = False):
+        """Per element: largest and smallest cosine of its angles (no arccos: cheap per step),
+        and with ``with_area`` its signed area (positive for counter-clockwise)."""
+        x, y = self.points[:, 0], self.points[:, 1]
         t = self.topo
-        a, b, c = z[t.t0], z[t.t1], z[t.t2]
-        u, v, w = b - a, c - b, a - c
-        lu, lv, lw = np.abs(u), np.abs(v), np.abs(w)
-        # cos at a: (b − a)·(c − a) = −u·w
-        ca = -(u.real * w.real + u.imag * w.imag) / np.maximum(lu * lw, 1e-300)
-        cb = -(u.real * v.real + u.imag * v.imag) / np.maximum(lu * lv, 1e-300)
-        cc = -(v.real * w.real + v.imag * w.imag) / np.maximum(lv * lw, 1e-300)
-        self._last_altitude = 2.0 * np.abs(0.5 * (u.real * (-w.imag) - u.imag * (-w.real))) / np.maximum(
-            np.maximum(np.maximum(lu, lv), lw), 1e-300)
-        return np.maximum(np.maximum(ca, cb), cc), np.minimum(np.minimum(ca, cb), cc)
+        ax, ay = x[t.t0], y[t.t0]
+        ux, uy = x[t.t1] - ax, y[t.t1] - ay  # u = b − a
+        wx, wy = ax - x[t.t2], ay - y[t.t2]  # w = a − c
+        vx, vy = -(ux + wx), -(uy + wy)  # v = c − b
+        lu2, lv2, lw2 = ux * ux + uy * uy, vx * vx + vy * vy, wx * wx + wy * wy
+        # cos at a: (b − a)·(c − a)/(|b − a||c − a|) = −u·w/(|u||w|), and likewise at b, c
+        ca = -(ux * wx + uy * wy) / np.sqrt(np.maximum(lu2 * lw2, 1e-300))
+        cb = -(ux * vx + uy * vy) / np.sqrt(np.maximum(lu2 * lv2, 1e-300))
+        cc = -(vx * wx + vy * wy) / np.sqrt(np.maximum(lv2 * lw2, 1e-300))
+        cmax = np.maximum(np.maximum(ca, cb), cc)
+        cmin = np.minimum(np.minimum(ca, cb), cc)
+        if with_area:
+            return cmax, cmin, 0.5 * (uy * wx - ux * wy)  # ½ (b − a) × (c − a)
+        return cmax, cmin
 
-    def _set_quality_baseline(self, cosines=None):
+    def _set_quality_baseline(self, shape=None):
         """Per-element thresholds for the quality trigger, set after each triangulation.
 
         Narrow-gap elements (the geometric flag of :meth:`quality` evaluated now, gaps change
         little between re-triangulations, or'ed with the structural one) are left out.
-        ``cosines``: :meth:`_element_cosines` of the current mesh if the caller has them.
+        ``shape``: ``_element_cosines(with_area=True)`` of the current mesh if the caller has it.
         """
         narrow = self._narrow_gap_owners() | self._structural_narrow()
-        self._base_area = signed_areas(self.points, self.triangles)
-        cmax, cmin = self._element_cosines() if cosines is None else cosines
+        cmax, cmin, self._base_area = self._element_cosines(with_area=True) if shape is None else shape
         # an element may lose 3° from where it starts if it starts outside the bounds:
         # thresholds min(trigger, angle − 3°) and max(135°, angle + 3°); arccos only where
         # the angle is within 3° of a bound (the other elements get the bound itself)
-        lo = np.full(len(cmax), float(self.min_angle_trigger))
-        near = np.flatnonzero(cmax > np.cos(np.radians(self.min_angle_trigger + 3.0)))
-        lo[near] = np.minimum(lo[near], np.degrees(np.arccos(np.clip(cmax[near], -1, 1))) - 3.0)
-        hi = np.full(len(cmin), 135.0)
+        trig = float(self.min_angle_trigger)
+        self._cos_lo = np.full(len(cmax), np.cos(np.radians(trig)))
+        near = np.flatnonzero(cmax > np.cos(np.radians(trig + 3.0)))
+        lo = np.minimum(trig, np.degrees(np.arccos(np.clip(cmax[near], -1, 1))) - 3.0)
+        self._cos_lo[near] = np.cos(np.radians(np.clip(lo, 0, 180)))
+        self._cos_hi = np.full(len(cmin), np.cos(np.radians(135.0)))
         near = np.flatnonzero(cmin < np.cos(np.radians(132.0)))
-        hi[near] = np.maximum(hi[near], np.degrees(np.arccos(np.clip(cmin[near], -1, 1))) + 3.0)
-        self._cos_lo = np.where(narrow, 2.0, np.cos(np.radians(np.clip(lo, 0, 180))))
-        self._cos_hi = np.where(narrow, -2.0, np.cos(np.radians(np.clip(hi, 0, 180))))
-        # narrow-gap elements are watched too: once the gap they span has opened beyond h/2
-        # (their smallest altitude, about the gap width, exceeds h/2) they must meet the bounds
+        hi = np.maximum(135.0, np.degrees(np.arccos(np.clip(cmin[near], -1, 1))) + 3.0)
+        self._cos_hi[near] = np.cos(np.radians(np.clip(hi, 0, 180)))
+        # narrow-gap elements are left out here, and watched by _quality_dropped instead
+        self._cos_lo[narrow] = 2.0
+        self._cos_hi[narrow] = -2.0
         self._base_narrow = narrow
         self._base_cos = (cmax, cmin)
-        tp = self.topo
-        self._half_h = (self.h_node[tp.t0] + self.h_node[tp.t1] + self.h_node[tp.t2]) / 6.0
         self._cos_bound = (np.cos(np.radians(self.min_angle_trigger)), np.cos(np.radians(135.0)))
 
     def _quality_dropped(self) -> bool:
@@ -1272,26 +1276,25 @@ class MovingMesh:
     def _narrow_gap_owners(self) -> np.ndarray:
         """Cheap form of :meth:`_narrow_gap` for the re-triangulation trigger: the gap at the
         centroid is measured between the boundaries the element's own vertices lie on."""
-        t = self.triangles
-        narrow = np.zeros(len(t), dtype=bool)
+        narrow = np.zeros(len(self.triangles), dtype=bool)
         cand = np.flatnonzero(self._non_free_count() >= 2)
         if not len(cand):
             return narrow
-        tc = t[cand]
-        c = self.points[tc].mean(axis=1)
-        hh = 0.5 * self.h_node[tc].mean(axis=1)
+        tp, x, h = self.topo, self.points, self.h_node
+        i0, i1, i2 = tp.t0[cand], tp.t1[cand], tp.t2[cand]
+        c = (x[i0] + x[i1] + x[i2]) / 3.0
+        hh = (h[i0] + h[i1] + h[i2]) / 6.0
         owner = np.where((self.kind == FREE) | (self.kind == JUNCTION), -3,
                          np.where(self.body_of >= 0, self.body_of, -2))
-        o = owner[tc]
-        table = self._outline_table()
+        o = np.column_stack([owner[i0], owner[i1], owner[i2]])
+        # the distinct boundaries among the three vertices' owners
+        ok = o != -3
+        ok[:, 1] &= o[:, 1] != o[:, 0]
+        ok[:, 2] &= (o[:, 2] != o[:, 0]) & (o[:, 2] != o[:, 1])
+        rows, cols = np.nonzero(ok)
         d = np.full(o.shape, np.inf)
-        for v in range(3):
-            ok = o[:, v] != -3
-            if v >= 1:
-                ok &= o[:, v] != o[:, 0]
-            if v == 2:
-                ok &= o[:, 2] != o[:, 1]
-            d[ok, v] = self._owner_distance(c[ok], o[ok, v], table)
+        table = self._outline_table()
+        d[rows, cols] = self._owner_distance(c[rows], o[rows, cols], table)
         d.sort(axis=1)
         narrow[cand] = d[:, 0] + d[:, 1] < hh
         narrow[cand[self._anchored_across_gap(cand, table)]] = True

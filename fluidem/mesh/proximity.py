@@ -8,7 +8,7 @@ plain array arithmetic:
   coordinate, so a distance is a loop over the few vertex *slots*, each a vectorised pass
   over all queried points (short polygons pad with a zero-length edge at their first
   vertex, which changes neither the distance nor the crossing count);
-- candidate (point, polygon) pairs come from a uniform grid of cells about one polygon
+- candidate (point, polygon) pairs come from a uniform grid of cells about half a polygon
   wide: a point meets the polygons whose bounding box, grown by its radius, covers its
   cell, and then the exact bounding-box test.
 
@@ -155,10 +155,10 @@ class PolygonTable:
         rmax = float(r.max())
         lo = self.bounds[:, :2] - rmax
         hi = self.bounds[:, 2:] + rmax
-        # cells about one grown polygon wide, at most ~4 per polygon over the covered area
+        # cells about half a grown polygon wide, at most ~16 per polygon over the covered area
         ext = hi.max(axis=0) - lo.min(axis=0)
-        cell = max(float(np.median((hi - lo).max(axis=1))),
-                   float(np.sqrt(ext[0] * ext[1] / (4.0 * self.n_polygons))), 1e-300)
+        cell = max(0.5 * float(np.median((hi - lo).max(axis=1))),
+                   float(np.sqrt(ext[0] * ext[1] / (16.0 * self.n_polygons))), 1e-300)
         origin = lo.min(axis=0)
         i0 = np.floor((lo - origin) / cell).astype(np.int64)
         i1 = np.floor((hi - origin) / cell).astype(np.int64)

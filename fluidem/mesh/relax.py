@@ -102,18 +102,20 @@ class MeshTopology:
 
     def __post_init__(self):
         # numpy gathers of single columns are much faster than of (n, 2) rows
-        c = np.ascontiguousarray
-        object.__setattr__(self, "t0", c(self.triangles[:, 0]))
-        object.__setattr__(self, "t1", c(self.triangles[:, 1]))
-        object.__setattr__(self, "t2", c(self.triangles[:, 2]))
-        object.__setattr__(self, "tcat", c(self.triangles.T.ravel()))
-        object.__setattr__(self, "e0", c(self.edges[:, 0]))
-        object.__setattr__(self, "e1", c(self.edges[:, 1]))
-        object.__setattr__(self, "et0", c(self.edge_tris[:, 0]))
-        object.__setattr__(self, "et1", c(self.edge_tris[:, 1]))
-        ie = self.edge_tris[self.interior]
-        object.__setattr__(self, "ie0", c(ie[:, 0]))
-        object.__setattr__(self, "ie1", c(ie[:, 1]))
+        # (one transposed copy per array; the columns are its contiguous rows)
+        tt = np.ascontiguousarray(self.triangles.T)
+        object.__setattr__(self, "tcat", tt.ravel())
+        object.__setattr__(self, "t0", tt[0])
+        object.__setattr__(self, "t1", tt[1])
+        object.__setattr__(self, "t2", tt[2])
+        et = np.ascontiguousarray(self.edges.T)
+        object.__setattr__(self, "e0", et[0])
+        object.__setattr__(self, "e1", et[1])
+        ett = np.ascontiguousarray(self.edge_tris.T)
+        object.__setattr__(self, "et0", ett[0])
+        object.__setattr__(self, "et1", ett[1])
+        object.__setattr__(self, "ie0", np.compress(self.interior, ett[0]))
+        object.__setattr__(self, "ie1", np.compress(self.interior, ett[1]))
 
     def __getstate__(self):
         # relax()'s scratch buffers (cached on the topology) are not part of its state
