@@ -629,7 +629,12 @@ class MovingMesh:
         cpts, ckind, cuid, ch = cand[keep], cand_kind[keep], cand_uid[keep], hc[keep]
 
         if adapt:
-            cpts, ckind, cuid, ch, nrem, nins = self._adapt(cpts, ckind, cuid, ch, olw, stree if self.n_bodies else None)
+            # adaptation works on the current mesh: the candidates are its nodes
+            if len(cand) != len(self.points):
+                raise RuntimeError("adaptation needs the current nodes as candidates")
+            old_row = np.where(keep, np.cumsum(keep) - 1, -1)
+            cpts, ckind, cuid, ch, nrem, nins = self._adapt(cpts, ckind, cuid, ch, olw,
+                                                            stree if self.n_bodies else None, old_row)
             info["n_removed"], info["n_inserted"] = nrem, nins
 
         final_shape = None
@@ -856,8 +861,12 @@ class MovingMesh:
             mob[side_idx[~horiz], 0] = 0.0
         return mob
 
-    def _adapt(self, pts, kind, uid, h, olw, stree):
-        """Coarsen where edges are much shorter than the target, refine where triangles are too big."""
+    def _adapt(self, pts, kind, uid, h, olw, stree, old_row):
+        """Coarsen where edges are much shorter than the target, refine where triangles are too big.
+
+        ``pts, kind, uid, h``: the candidate nodes; ``old_row (n_nodes,)``: the candidate row of
+        every current node, -1 where it was purged.
+        """
         # coarsening: an independent set of free nodes whose incident edges are all short
         t = self.triangles
         e0, e1 = self.topo.e0, self.topo.e1
@@ -871,12 +880,9 @@ class MovingMesh:
         deg = np.bincount(e0, minlength=n_old) + np.bincount(e1, minlength=n_old)
         mean_ratio = (np.bincount(e0, ratio, n_old) + np.bincount(e1, ratio, n_old)) / np.maximum(deg, 1)
         has_long = mean_ratio >= self.coarsen_ratio
-        # map old nodes to candidate rows by uid
-        order = np.argsort(uid)
-        pos = np.searchsorted(uid[order], self.uid)
-        pos = np.minimum(pos, len(uid) - 1)
-        present = uid[order][pos] == self.uid
-        row = np.where(present, order[pos], -1)
+        # candidate row of every old node (-1 if purged)
+        row = old_row
+        present = row >= 0
         cand = present & (self.kind == FREE) & ~has_long
         rng = np.random.default_rng(self.step_count)
         prio = np.where(cand, rng.random(n_old), -1.0)
