@@ -53,6 +53,7 @@ class PolygonTable:
                 f"vertices must be (sum counts, 2) with counts >= 3, got vertices {v.shape}, counts {n.tolist()}"
             )
         self.n_polygons = len(n)
+        self.counts = n
         first = np.concatenate([[0], np.cumsum(n)[:-1]])
         m = int(n.max()) if len(n) else 0
         j = np.arange(m)[:, None]
@@ -91,17 +92,31 @@ class PolygonTable:
         p = np.asarray(points, dtype=float)
         poly = np.asarray(polygon, dtype=np.int64)
         k = len(p)
+        n_slots = self._ax.shape[0]
         px, py = np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1])
+        # with polygons of very different vertex counts (disks among triangles), sort the
+        # pairs by count so that slot j only visits pairs whose polygon has more than j
+        # vertices; else every pair pays for the largest polygon's padding
+        cnt = self.counts[poly]
+        order = None
+        active = np.full(n_slots, k)
+        if k and n_slots > 1.5 * cnt.mean():
+            order = np.argsort(-cnt, kind="stable")
+            poly, px, py = poly[order], px[order], py[order]
+            active = k - np.cumsum(np.bincount(cnt, minlength=n_slots + 1))[:n_slots]
         best = np.full(k, np.inf)
-        rx, ry, dx, dy, tt, tmp = (np.empty(k) for _ in range(6))
+        rx_all, ry_all, dx_all, dy_all, tt_all, tmp_all = np.empty((6, k))
         odd = np.zeros(k, dtype=bool) if solid else None
-        for j in range(self._ax.shape[0]):  # vertex slots (≤ the largest polygon's count)
-            self._ax[j].take(poly, out=tt)
-            np.subtract(px, tt, out=rx)
-            self._ay[j].take(poly, out=tt)
-            np.subtract(py, tt, out=ry)
-            self._dx[j].take(poly, out=dx)
-            self._dy[j].take(poly, out=dy)
+        for j in range(n_slots):  # vertex slots (≤ the largest polygon's count)
+            a = int(active[j])
+            rx, ry, dx, dy, tt, tmp = rx_all[:a], ry_all[:a], dx_all[:a], dy_all[:a], tt_all[:a], tmp_all[:a]
+            pa, xa, ya = poly[:a], px[:a], py[:a]
+            self._ax[j].take(pa, out=tt)
+            np.subtract(xa, tt, out=rx)
+            self._ay[j].take(pa, out=tt)
+            np.subtract(ya, tt, out=ry)
+            self._dx[j].take(pa, out=dx)
+            self._dy[j].take(pa, out=dy)
             if solid:
                 # the edge crosses the horizontal line through p right of p (even–odd rule)
                 ay_above = ry < 0.0
@@ -111,12 +126,12 @@ class PolygonTable:
                 # x of the crossing relative to p: a_x − p_x + (p_y − a_y)·dx/dy
                 with np.errstate(divide="ignore", invalid="ignore"):
                     xc = (ry * dx) / dy - rx
-                odd ^= cross & (xc > 0.0)
+                odd[:a] ^= cross & (xc > 0.0)
             # foot of the perpendicular, clamped to the edge (Ericson 2005, Sec. 5.1.2)
             np.multiply(rx, dx, out=tt)
             np.multiply(ry, dy, out=tmp)
             tt += tmp
-            self._inv_len2[j].take(poly, out=tmp)
+            self._inv_len2[j].take(pa, out=tmp)
             tt *= tmp
             np.clip(tt, 0.0, 1.0, out=tt)
             dx *= tt
@@ -126,10 +141,14 @@ class PolygonTable:
             rx *= rx
             ry *= ry
             rx += ry
-            np.minimum(best, rx, out=best)
+            np.minimum(best[:a], rx, out=best[:a])
         np.sqrt(best, out=best)
         if solid:
             best[odd] = 0.0
+        if order is not None:
+            out = np.empty(k)
+            out[order] = best
+            return out
         return best
 
     def candidate_pairs(self, points, radius) -> tuple[np.ndarray, np.ndarray]:

@@ -68,6 +68,26 @@ def test_pairs_within_finds_exactly_the_pairs_geos_finds(setup):
     assert np.allclose(d2, ref, rtol=0, atol=1e-12) and (d2 < 0.25).all()
 
 
+def test_mixed_vertex_counts_match_shapely():
+    """Disks (64-gons) among triangles: the pairs are sorted by vertex count internally."""
+    rng = np.random.default_rng(5)
+    verts, counts, polys = [], [], []
+    for i in range(40):
+        m = 64 if i % 10 == 0 else 3
+        ang = np.sort(rng.uniform(0, 2 * np.pi, m)) if m == 3 else np.linspace(0, 2 * np.pi, m, endpoint=False)
+        v = rng.uniform(0, 10, 2) + 0.6 * np.column_stack([np.cos(ang), np.sin(ang)])
+        verts.append(v)
+        counts.append(m)
+        polys.append(shapely.Polygon(v))
+    tab = PolygonTable(np.vstack(verts), counts)
+    polys = np.array(polys, dtype=object)
+    pts = rng.uniform(-1, 11, (20000, 2))
+    body = rng.integers(0, len(polys), len(pts))
+    sp = shapely.points(pts)
+    assert np.allclose(tab.distance(pts, body), shapely.distance(shapely.boundary(polys[body]), sp), atol=1e-12)
+    assert np.allclose(tab.distance(pts, body, solid=True), shapely.distance(polys[body], sp), atol=1e-12)
+
+
 def test_far_points_and_empty_inputs_give_no_pairs(setup):
     tab, _, _, _ = setup
     far = np.array([[100.0, 100.0], [-50.0, 3.0]])
