@@ -767,9 +767,9 @@ class MovingMesh:
             if attempt == self.cleanup_passes:
                 break
             # clean-up: bad elements outside narrow gaps lose their free nodes, or get one
-            fix = self._cleanup_points(table, tree, olw)
+            fix, shape = self._cleanup_points(table, tree, olw)
             if fix is None:
-                final_shape = self._cleanup_shape  # of the mesh kept
+                final_shape = shape  # of the mesh kept
                 break
             cpts, ckind, cuid = fix
         self._steps_since = 0
@@ -788,19 +788,20 @@ class MovingMesh:
         """New candidate nodes after removing free vertices of bad elements / adding nodes in them.
 
         Bad: an angle below ``min_angle_trigger`` or above 135° outside narrow gaps.  Returns
-        ``None`` if there is nothing to fix.
+        ``(fix, shape)``: ``fix`` is ``None`` if there is nothing to fix, ``shape`` is
+        ``_element_cosines(with_area=True)`` of the current mesh.
         """
-        cmax, cmin, area = self._element_cosines(with_area=True)
-        self._cleanup_shape = (cmax, cmin, area)
+        shape = self._element_cosines(with_area=True)
+        cmax, cmin, _ = shape
         bad = np.flatnonzero((cmax > np.cos(np.radians(self.min_angle_trigger))) | (cmin < np.cos(np.radians(135.0))))
         if not len(bad):
-            return None
+            return None, shape
         t = self.triangles[bad]
         c = self.points[t].mean(axis=1)
         hh = 0.5 * self.h_node[t].mean(axis=1)
         bad = bad[~(self._gap_width(c, hh, table) < hh)]
         if not len(bad):
-            return None
+            return None, shape
         t = self.triangles[bad]
         free_v = self.kind[t] == FREE
         remove = np.zeros(len(self.points), dtype=bool)
@@ -825,8 +826,8 @@ class MovingMesh:
         cuid = np.concatenate([self.uid[keep], self._next_uid + np.arange(len(newp))])
         self._next_uid += len(newp)
         if not remove.any() and not len(newp):
-            return None
-        return cpts, ckind, cuid
+            return None, shape
+        return (cpts, ckind, cuid), shape
 
     def _drag_association(self, table):
         """Pairs (free node, body) within ``drag_reach · h`` and their drag weights."""
