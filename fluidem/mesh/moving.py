@@ -362,7 +362,6 @@ class MovingMesh:
         self.contacts = np.zeros((0, 2), dtype=np.int64)
         self._prev_points = None
         self._prev_uid = None
-        self._vel_interp = None
         self._triangulate_from(self._bg_points, self._bg_kind, self._bg_uid, purge=self.clearance,
                                adapt=False, n_relax=self.initial_iterations)
         self._prev_points = self.points.copy()
@@ -929,7 +928,6 @@ class MovingMesh:
         ev = MeshEvent(step=self.step_count)
         self._prev_points = self.points.copy()
         self._prev_uid = self.uid.copy()
-        self._vel_interp = None
         if self.strategy == "fixed":
             if not np.allclose(new, self.poses, rtol=0, atol=1e-12 * max(1.0, np.abs(self.poses).max(initial=0))):
                 raise ValueError("strategy 'fixed' is for bodies that do not move; poses changed "
