@@ -1009,8 +1009,8 @@ class MovingMesh:
         ev.oscillating = osc
         self.points = xr
         self._steps_since += 1
-        # 4. re-triangulate?
-        area = signed_areas(xr, self.triangles)
+        # 4. re-triangulate?  (one pass over the elements gives areas and angle cosines)
+        cmax, cmin, area = self._element_cosines(with_area=True)
         reason = ""
         if (area <= 0).any():
             reason = "inverted"
@@ -1020,7 +1020,7 @@ class MovingMesh:
             reason = "contact"
         elif self._steps_since >= self.retriangulate_every:
             reason = "periodic"
-        elif self._quality_dropped():
+        elif self._quality_dropped(cmax, cmin):
             reason = "quality"
         if reason:
             ev.old_points, ev.old_triangles = xr.copy(), self.triangles.copy()
@@ -1162,11 +1162,10 @@ class MovingMesh:
         self._base_cos = (cmax, cmin)
         self._cos_bound = (np.cos(np.radians(self.min_angle_trigger)), np.cos(np.radians(135.0)))
 
-    def _quality_dropped(self) -> bool:
+    def _quality_dropped(self, cmax, cmin) -> bool:
         """True when an element outside narrow gaps got an angle below ``min_angle_trigger``
         or above 135° that it did not have after the last triangulation, or one that had
-        such an angle lost another 3° on it."""
-        cmax, cmin = self._element_cosines()
+        such an angle lost another 3° on it.  ``cmax, cmin``: :meth:`_element_cosines` now."""
         if ((cmax > self._cos_lo) | (cmin < self._cos_hi)).any():
             return True
         # narrow-gap elements are watched too: once the gap has opened (the element is no
