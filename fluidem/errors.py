@@ -1,0 +1,57 @@
+"""The exception family of fluidem; the command line catches :class:`FluidemError` as a whole.
+
+Every error raised at the boundary of the package for something a user typed or built names
+the offending value and what is allowed, in one line.
+
+* :class:`InputError` — a value is not allowed (a name, a range, a shape); also a
+  :class:`ValueError`, so ``except ValueError`` keeps working.
+* :class:`SceneError` — an :class:`InputError` in a scene description (file or dict).
+* :class:`MeshError` — the geometry cannot be meshed as asked (bodies too close to a wall,
+  a triangulation that fails); also a :class:`RuntimeError`.
+* :class:`SolverError` — a linear or nonlinear solve failed (singular matrix, no
+  convergence, stagnation); also a :class:`RuntimeError`.
+
+Examples
+--------
+>>> from fluidem.errors import FluidemError, SceneError
+>>> try:
+...     raise SceneError("fluid.viscosity = -1: expected a positive finite number")
+... except FluidemError as err:
+...     print(type(err).__name__, isinstance(err, ValueError))
+SceneError True
+"""
+
+from __future__ import annotations
+
+__all__ = ["FluidemError", "InputError", "SceneError", "MeshError", "SolverError"]
+
+
+class FluidemError(Exception):
+    """Base class of every error fluidem raises on purpose."""
+
+
+class InputError(FluidemError, ValueError):
+    """A value given to fluidem is not allowed; the message names it and what is allowed."""
+
+
+class SceneError(InputError):
+    """A scene description (TOML file, dict or CSV table) holds a value that is not allowed."""
+
+
+class MeshError(FluidemError, RuntimeError):
+    """The geometry cannot be meshed as asked; the message says which body, gap or setting."""
+
+
+class SolverError(FluidemError, RuntimeError):
+    """A linear or nonlinear solve failed: singular matrix, no convergence or stagnation.
+
+    Attributes
+    ----------
+    info : object or None
+        State of the failed solve (for linear solves a ``SolveInfo`` with the residual
+        history), when known.
+    """
+
+    def __init__(self, message: str, info=None):
+        super().__init__(message)
+        self.info = info

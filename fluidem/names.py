@@ -1,0 +1,141 @@
+"""One table of every name a user types, with its meaning, and one lookup for all of them.
+
+Scene files, the command line (``choices=``) and the Python factories read the same table,
+so a name means the same everywhere and an unknown one gets the same one-line error::
+
+    fluid.solver = 'lu': expected one of 'auto', 'direct', 'iterative', 'lagged' (solver)
+
+Old spellings stay accepted as *aliases* (``"lagged-lu"`` is ``"lagged"``).
+
+Examples
+--------
+>>> from fluidem import names
+>>> names.lookup("solver", "lagged-lu", where="fluid.solver")
+'lagged'
+>>> names.choices("side")
+('bottom', 'right', 'top', 'left')
+>>> names.lookup("element", "p4", where="--element")
+Traceback (most recent call last):
+...
+fluidem.errors.InputError: --element = 'p4': expected one of 'p2b', 'th', 'p3', 'mini' (element pair)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .errors import InputError
+
+__all__ = ["Kind", "REGISTRY", "lookup", "choices", "meaning", "kinds"]
+
+
+@dataclass(frozen=True)
+class Kind:
+    """A family of user-typed names: ``entries`` name -> meaning, ``aliases`` old name -> name."""
+
+    title: str
+    entries: dict
+    aliases: dict = field(default_factory=dict)
+
+
+REGISTRY: dict[str, Kind] = {
+    "element": Kind("element pair", {
+        "p2b": "P2 + cubic bubble velocity / discontinuous P1 pressure (Crouzeix-Raviart); default for particle flows",
+        "th": "P2 velocity / P1 pressure (Taylor-Hood)",
+        "p3": "P3 velocity / P2 pressure",
+        "mini": "P1 + cubic bubble velocity / P1 pressure (MINI), first order",
+    }),
+    "solver": Kind("solver", {
+        "auto": "chosen by problem kind and size (fluidem.fluid.solvers.choose_method)",
+        "direct": "a fresh sparse LU every solve (bit-for-bit reproducible restarts)",
+        "iterative": "block-preconditioned Krylov (FGMRES, pyamg on the velocity block)",
+        "lagged": "an LU reused as a GMRES preconditioner while its iterations stay low",
+    }, aliases={"lagged-lu": "lagged"}),
+    "convection": Kind("convection scheme", {
+        "semi-implicit": "linear in u^{n+1}, extrapolated convecting velocity 2u^n - u^{n-1}",
+        "newton": "fully implicit, Newton's method every step",
+        "explicit": "extrapolated convection term (BDF2/EXT2), CFL-bounded time step",
+    }),
+    "strategy": Kind("mesh strategy", {
+        "drag": "nodes move with nearby bodies; re-triangulate every K steps or when quality drops",
+        "regenerate": "a new triangulation every step",
+        "fixed": "the mesh never changes (outlines must not move)",
+    }),
+    "shape": Kind("body shape", {
+        "disk": "circle of `radius` (curved outline in fluid scenes)",
+        "polygon": "convex or simple polygon from `vertices` (body coordinates)",
+        "rectangle": "`width` x `height`",
+        "ellipse": "semi-axes `a`, `b`",
+    }),
+    "motion": Kind("body motion", {
+        "free": "moved by gravity, contacts and (with the coupled solver) the fluid",
+        "fixed": "never moves",
+        "prescribed": "constant `velocity` and `omega`",
+    }),
+    "side type": Kind("side type", {
+        "wall": "no-slip wall at rest",
+        "inflow": "velocity profile into the box (`inflow_profile`)",
+        "outflow": "do-nothing outflow",
+        "periodic": "periodic with the opposite side",
+        "moving-wall": "no-slip wall moving with `velocity`",
+    }),
+    "side": Kind("box side", {
+        "bottom": "y = ymin", "right": "x = xmax", "top": "y = ymax", "left": "x = xmin",
+    }),
+    "fluid model": Kind("fluid model", {
+        "navier-stokes": "unsteady incompressible Navier-Stokes",
+        "stokes": "quasi-steady Stokes flow (no inertia)",
+    }),
+    "profile": Kind("inflow profile", {
+        "parabolic": "4 umax s (L - s) / L^2 across the side",
+        "uniform": "umax across the side",
+    }),
+    "case": Kind("benchmark case", {
+        "dfg-2d1": "DFG flow around a cylinder, steady, Re = 20",
+        "dfg-2d2": "DFG flow around a cylinder, periodic, Re = 100",
+        "dfg-2d3": "DFG flow around a cylinder, unsteady inflow, 0 <= t <= 8",
+        "square-cylinder": "square cylinder at Re = 100 (Sohankar et al. 1998)",
+    }),
+    "example": Kind("example scene", {
+        "dfg-cylinder": "DFG 2D-2 channel as a scene",
+        "wall-correction": "Stokes drag of a disk between two walls (Faxen)",
+        "dry-heap": "granular heap, DEM only",
+        "column-collapse": "granular column collapse, DEM only",
+    }),
+    "schur": Kind("Schur-complement approximation", {
+        "mass": "nu M_p^-1 (Stokes)",
+        "cahouet-chabard": "nu M_p^-1 + (alpha/dt) (B D_u^-1 B^T)^-1 (unsteady)",
+        "lsc": "least-squares commutator",
+    }),
+}
+
+
+def kinds() -> tuple:
+    """The kinds of names in the registry."""
+    return tuple(REGISTRY)
+
+
+def choices(kind: str) -> tuple:
+    """The canonical names of ``kind``, in the registry's order (aliases excluded)."""
+    return tuple(REGISTRY[kind].entries)
+
+
+def meaning(kind: str, name: str) -> str:
+    """What name ``name`` of ``kind`` means (aliases resolved)."""
+    return REGISTRY[kind].entries[lookup(kind, name)]
+
+
+def lookup(kind: str, value, where: str | None = None, error=InputError) -> str:
+    """The canonical name for ``value`` (a name or an alias) of ``kind``.
+
+    Raises ``error`` (default :class:`fluidem.errors.InputError`, a ``ValueError``) naming
+    ``where`` the value was typed (default: the kind), the value and the allowed names.
+    """
+    k = REGISTRY[kind]
+    if isinstance(value, str):
+        if value in k.entries:
+            return value
+        if value in k.aliases:
+            return k.aliases[value]
+    allowed = ", ".join(repr(n) for n in k.entries)
+    raise error(f"{where or kind} = {value!r}: expected one of {allowed} ({k.title})")
