@@ -193,18 +193,20 @@ class BodySpec:
     ----------
     shape : {"disk", "polygon", "rectangle", "ellipse"}
         ``disk``: ``radius``, ``segments``; ``polygon``: ``vertices`` (n, 2) in body
-        coordinates (centroid shifted to the origin), counter-clockwise, convex;
-        ``rectangle``: ``width``, ``height``; ``ellipse``: ``a``, ``b``, ``segments``.
+        coordinates (shifted so that their area centroid is the origin), counter-clockwise,
+        convex; ``rectangle``: ``width``, ``height``; ``ellipse``: semi-axes ``a``, ``b``,
+        ``segments``.  Every size is a length.
     position : (2,) float
         Centre of mass, length.
     angle : float
         Orientation, rad.
     density : float
-        Areal density, mass/length².
+        Areal density, mass/length² (as the fluid's ``density``).
     motion : {"free", "fixed", "prescribed"}
         ``prescribed`` bodies move with constant ``velocity`` (2,) and ``omega`` (rad/time).
     velocity, omega
-        Initial (free) or prescribed (prescribed) velocity and angular velocity.
+        Initial (free) or prescribed (prescribed) velocity (2,), length/time, and angular
+        velocity, rad/time.
     name : str
         Boundary name of its outline on the mesh; default ``body<i>``.
     """
@@ -304,9 +306,19 @@ class BodySpec:
 
 @dataclass
 class ContactSpec:
-    """Contact law of :class:`fluidem.dem.ContactModel`: ``E`` (force/length), ``mu``, ``gamma``.
+    """Contact law of :class:`fluidem.dem.ContactModel`.
 
-    ``enabled = false`` switches contacts off whatever the geometry.
+    Parameters
+    ----------
+    E : float
+        2D stiffness of the overlap law ``F = E A / l`` (overlap area A, characteristic
+        length l), force/length (forces per unit depth), > 0.
+    mu : float
+        Coulomb friction coefficient, ≥ 0.
+    gamma : float
+        Normal damping coefficient (dimensionless), ≥ 0.
+    enabled : bool
+        ``false`` switches contacts off whatever the geometry.
     """
 
     E: float = 1e7
@@ -329,8 +341,9 @@ class MeshSpec:
 
     ``grading = {region = [xmin, xmax, ymin, ymax] | "bodies", growth = g, h_max = H}``: size
     ``h`` in the region, growing by ``g`` per cell away from it up to ``H`` (default 8h).
-    ``strategy`` and ``retriangulate_every`` apply to a moving mesh; ``curved`` meshes disks
-    as circles; ``element`` overrides ``[fluid] element``.
+    ``strategy`` (``"drag"``, ``"regenerate"`` or ``"fixed"``, see ``names.meaning("strategy",
+    ...)``) and ``retriangulate_every`` (steps) apply to a moving mesh; ``curved`` meshes disks
+    as circles.
     """
 
     h: float = 0.05
