@@ -90,10 +90,10 @@ def get_case(name: str) -> Callable:
     >>> from fluidem.cases import get_case
     >>> get_case("dfg-2d1").__name__
     'dfg_2d1'
-    >>> get_case("dfg-2d4")
+    >>> get_case("dfg-2d4")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    fluidem.errors.InputError: case = 'dfg-2d4': expected one of 'dfg-2d1', 'dfg-2d2', 'dfg-2d3', 'square-cylinder' (benchmark case)
+    fluidem.errors.InputError: case = 'dfg-2d4': expected one of 'dfg-2d1', ..., 'square-cylinder' (benchmark case)
     """
     if isinstance(name, str) and name in CASES:  # also cases registered outside fluidem.names
         return CASES[name]

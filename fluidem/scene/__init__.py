@@ -90,10 +90,10 @@ Examples
 ...                                  "motion": "fixed"}]})
 >>> s.fluid.solver
 'lagged'
->>> Scene.from_dict({"domain": {"box": [0, 1, 0, 1], "left": "slippery"}})
+>>> Scene.from_dict({"domain": {"box": [0, 1, 0, 1], "left": "slippery"}})  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
-fluidem.errors.SceneError: domain.left = 'slippery': expected one of 'wall', 'inflow', 'outflow', 'periodic', 'moving-wall' (side type)
+fluidem.errors.SceneError: domain.left = 'slippery': expected one of 'wall', 'inflow', ..., 'moving-wall' (side type)
 """
 
 from .. import names as _names

@@ -108,7 +108,9 @@ class DomainSpec:
     """The box ``(xmin, xmax, ymin, ymax)`` (length) and what each side is.
 
     Sides are named and ordered as ``names.choices("side")``: bottom (y = ymin), right
-    (x = xmax), top (y = ymax), left (x = xmin).  ``inflow_profile`` is ``{type = "parabolic" | "uniform", umax = U, ramp = T}``: the
+    (x = xmax), top (y = ymax), left (x = xmin).
+
+    ``inflow_profile`` is ``{type = "parabolic" | "uniform", umax = U, ramp = T}``: the
     inflow speed normal to an inflow side (parabolic: ``4 U s (L − s) / L²`` along the
     side, ``U`` in length/time), raised smoothly from 0 over ``ramp`` time units (``0``: at once).
     """
@@ -138,7 +140,8 @@ class DomainSpec:
                 or not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
                            and math.isfinite(float(v)) for v in b)
                 or not (b[1] > b[0] and b[3] > b[2])):
-            raise fail(f"{where}.box", b, "[xmin, xmax, ymin, ymax], finite, with xmax > xmin and ymax > ymin", SceneError)
+            raise fail(f"{where}.box", b, "[xmin, xmax, ymin, ymax], finite, with xmax > xmin and ymax > ymin",
+                       SceneError)
         self.box = tuple(float(v) for v in b)
         for s in names.choices("side"):
             side = getattr(self, s)
@@ -148,7 +151,8 @@ class DomainSpec:
                 check_keys(side, SideSpec.KEYS, f"{where}.{s}", error=SceneError)
                 side = SideSpec(**side)
             if not isinstance(side, SideSpec):
-                raise fail(f"{where}.{s}", side, "a side type string or a table {type = ..., velocity = ...}", SceneError)
+                raise fail(f"{where}.{s}", side, "a side type string or a table {type = ..., velocity = ...}",
+                           SceneError)
             side.type = names.lookup("side type", side.type,
                                      f"{where}.{s}" if isinstance(getattr(self, s), str) else f"{where}.{s}.type",
                                      SceneError)
@@ -164,7 +168,8 @@ class DomainSpec:
         for s in names.choices("side"):
             if getattr(self, s).type == "inflow" and self.profile_of(s) is None:
                 raise SceneError(f"{where}.{s} = 'inflow' has no profile: add {where}.inflow_profile = "
-                                 f"{{ type = 'parabolic', umax = ... }} (allowed types: {', '.join(names.choices('profile'))})")
+                                 f"{{ type = 'parabolic', umax = ... }} (allowed types: "
+                                 f"{', '.join(names.choices('profile'))})")
         for a, b_ in (("left", "right"), ("bottom", "top")):
             pa, pb = getattr(self, a).type == "periodic", getattr(self, b_).type == "periodic"
             if pa != pb:
@@ -243,7 +248,8 @@ class BodySpec:
             if getattr(self, k) is not None:
                 if k not in self.SHAPE_KEYS[self.shape]:
                     raise fail(f"{where}.{k}", getattr(self, k),
-                               f"no {k} for shape {self.shape!r} (it takes {', '.join(self.SHAPE_KEYS[self.shape])})", SceneError)
+                               f"no {k} for shape {self.shape!r} (it takes {', '.join(self.SHAPE_KEYS[self.shape])})",
+                               SceneError)
                 setattr(self, k, positive(f"{where}.{k}", getattr(self, k), error=SceneError))
         if self.segments is not None:
             self.segments = integer(f"{where}.segments", self.segments, lo=3, error=SceneError)
@@ -471,7 +477,7 @@ class Scene:
 
     # -- loading ------------------------------------------------------------------------
     @classmethod
-    def from_toml(cls, path) -> "Scene":
+    def from_toml(cls, path) -> Scene:
         """Read and validate a scene file (relative ``bodies_table.file`` is relative to it)."""
         path = Path(path)
         data = files.read_toml(path)
@@ -481,7 +487,7 @@ class Scene:
         return scene
 
     @classmethod
-    def from_dict(cls, data: dict, base_dir=".") -> "Scene":
+    def from_dict(cls, data: dict, base_dir=".") -> Scene:
         """Build and validate a scene from the nested dict of a TOML file."""
         check_keys(data, _TOP_KEYS, "", error=SceneError)
         kw = {}
@@ -514,7 +520,7 @@ class Scene:
         return scene
 
     # -- validation ---------------------------------------------------------------------
-    def validate(self) -> "Scene":
+    def validate(self) -> Scene:
         """Check every value and the geometry; returns ``self``.
 
         Names are made canonical (aliases resolved), numbers converted to ``float``, pairs to
@@ -607,12 +613,12 @@ class Scene:
         """Write the scene as a TOML scene file (:func:`fluidem.scene.files.write_scene_toml`)."""
         files.write_scene_toml(self, path)
 
-    def copy(self) -> "Scene":
+    def copy(self) -> Scene:
         """A deep copy."""
         return copy.deepcopy(self)
 
     # -- the plan -------------------------------------------------------------------------
-    def plan(self) -> "Plan":
+    def plan(self) -> Plan:
         """The effects this scene needs and why, see :class:`fluidem.plan.Plan`."""
         from ..plan import make_plan
 
