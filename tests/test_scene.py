@@ -264,3 +264,24 @@ def test_scene_in_python_and_round_trip(tmp_path):
     assert s.bodies[0].name == "body0"
     s2 = Scene.from_dict(s.to_dict())
     assert s2.to_dict() == s.to_dict()
+
+
+@pytest.mark.parametrize("module", ["fluidem.scene", "fluidem.plan"])
+def test_plan_sees_moving_mesh_availability_replaced_in_either_module(module, monkeypatch):
+    import importlib
+
+    move = _fluid("navier-stokes", [{"shape": "disk", "radius": 0.1, "position": [1.0, 0.5], "motion": "prescribed",
+                                     "velocity": [0.1, 0.0]}])
+    assert not move.plan().unsupported
+    monkeypatch.setattr(importlib.import_module(module), "moving_mesh_available", lambda: False)
+    assert any("moving-mesh layer" in u for u in move.plan().unsupported)
+
+
+def test_old_spellings_are_stored_canonically_and_plan_modules_agree():
+    import fluidem.plan
+    import fluidem.scene
+
+    s = _fluid("navier-stokes", [], fluid={"model": "navier-stokes", "viscosity": 0.1, "solver": "lagged-lu"})
+    assert s.fluid.solver == "lagged" and "solver lagged" in str(s.plan())
+    assert fluidem.scene.Plan is fluidem.plan.Plan and fluidem.scene.contact_candidates is fluidem.plan.contact_candidates
+    assert fluidem.scene.SIDES == ("bottom", "right", "top", "left")
