@@ -1,6 +1,13 @@
 """Command line: ``fluidem bench NAME``, ``fluidem cases``.  ``python -m fluidem`` is the same.
 
 Scenes: ``fluidem run SCENE``, ``fluidem plan SCENE``, ``fluidem examples``, ``fluidem plot DIR``.
+
+Every name an option takes (cases, element pairs, convection schemes, solvers, example
+scenes) comes from :mod:`fluidem.names`, the table scene files and the Python factories
+read too; old spellings are accepted as aliases.  An error fluidem raises on purpose
+(:class:`fluidem.errors.FluidemError`, or a ``ValueError`` from validation) prints one line
+``fluidem: error: <message>`` to stderr and exits with status 2; ``--debug`` shows the
+traceback instead.
 """
 
 from __future__ import annotations
@@ -8,6 +15,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+
+from . import names
+from .errors import FluidemError
 
 __all__ = ["main"]
 
@@ -42,26 +52,49 @@ def _positive_float(text):
     return v
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    from .cases import CASES
-    from .fluid.elements import ELEMENT_PAIRS
+def _name(kind: str):
+    """An argparse ``type`` that turns a registry name or alias of ``kind`` into its canonical name.
 
+    Unknown values pass through unchanged, so that argparse's ``choices`` check reports them.
+    """
+    def convert(text):
+        try:
+            return names.lookup(kind, text)
+        except ValueError:
+            return text
+
+    convert.__name__ = kind  # argparse names the type in its messages
+    return convert
+
+
+def _named(kind: str) -> dict:
+    """``type=`` and ``choices=`` of an option taking a name of ``kind`` from :mod:`fluidem.names`."""
+    return {"type": _name(kind), "choices": names.choices(kind)}
+
+
+def _add_debug(parser, default=False) -> None:
+    parser.add_argument("--debug", action="store_true", default=default,
+                        help="on an error, show the traceback instead of one line")
+
+
+def _build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="fluidem", description="Resolved particle-laden flow: FEM fluid + polygonal DEM.")
+    _add_debug(p)
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
     b = sub.add_parser("bench", help="run a built-in benchmark case and compare with published values",
                        description="Run a benchmark case; print its quantities, the reference values, relative "
                                    "errors, DOFs and the wall-time split. Defaults are each case's own.")
-    b.add_argument("name", choices=sorted(CASES), help="benchmark case")
-    b.add_argument("--element", choices=sorted(ELEMENT_PAIRS), help="velocity/pressure element pair")
+    b.add_argument("name", help="benchmark case", **_named("case"))
+    b.add_argument("--element", help="velocity/pressure element pair", **_named("element"))
     b.add_argument("--level", type=int, help="mesh level (each level halves the cell size), 0-6")
     b.add_argument("--dt", type=_positive_float, help="time step (unsteady cases)")
     b.add_argument("--t-end", type=_positive_float, dest="t_end", help="end time (periodic cases)")
-    b.add_argument("--convection", choices=["semi-implicit", "newton", "explicit"],
+    b.add_argument("--convection", **_named("convection"),
                    help="convection in time stepping: linearised with an extrapolated convecting velocity "
                         "(one linear solve per step), Newton, or explicit (one LU per run, CFL-bounded)")
-    b.add_argument("--solver", choices=["auto", "direct", "iterative", "lagged"],
+    b.add_argument("--solver", **_named("solver"),
                    help="linear solver: LU, block-preconditioned GMRES, an LU reused as GMRES "
                         "preconditioner across steps, or auto (by size); default: auto for steady, "
                         "lagged for unsteady cases")
@@ -70,6 +103,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("cases", help="list the built-in cases", description="List the built-in benchmark cases.")
     _add_scene_commands(sub)
+    for command in sub.choices.values():  # --debug after the command too; absent there, the top level's counts
+        _add_debug(command, default=argparse.SUPPRESS)
     return p
 
 
@@ -79,7 +114,8 @@ def _add_scene_commands(sub) -> None:
                        description="Run a scene: history.csv, fields and body outlines (VTU + PVD), mesh "
                                    "quality, events.log and checkpoints in the output directory.")
     r.add_argument("scene", nargs="?", help="scene TOML file")
-    r.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file (see 'fluidem examples')")
+    r.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file: "
+                   + ", ".join(names.choices("example")) + " (see 'fluidem examples')")
     r.add_argument("--out", metavar="DIR", help="output directory (default: the scene's [output] dir)")
     r.add_argument("--restart", nargs="?", const=True, metavar="CHECKPOINT",
                    help="continue from a checkpoint file, or from the newest one in the output directory")
@@ -89,7 +125,8 @@ def _add_scene_commands(sub) -> None:
     pl = sub.add_parser("plan", help="print the effects a scene needs and why",
                         description="Validate a scene and print its plan: which effects are on, and why.")
     pl.add_argument("scene", nargs="?", help="scene TOML file")
-    pl.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file")
+    pl.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file: "
+                    + ", ".join(names.choices("example")))
     sub.add_parser("examples", help="list the built-in example scenes",
                    description="List the built-in example scenes ('fluidem run --example NAME').")
     pt = sub.add_parser("plot", help="draw PNG figures of a run directory",
@@ -125,92 +162,107 @@ class _ProgressBar:
 
 
 def _scene_from_args(args):
+    from .errors import InputError
     from .scene import Scene
 
     if args.example and args.scene:
-        raise ValueError("give a scene file or --example NAME, not both")
+        raise InputError("give a scene file or --example NAME, not both")
     if args.example:
         from .cases.scenes import example_scene
 
         return example_scene(args.example)
     if not args.scene:
-        raise ValueError("no scene: give a scene TOML file or --example NAME (see 'fluidem examples')")
+        raise InputError("no scene: give a scene TOML file or --example NAME (see 'fluidem examples')")
     return Scene.from_toml(args.scene)
 
 
 def _scene_main(args) -> int:
-    try:
-        if args.command == "examples":
-            from .cases.scenes import example_descriptions
+    if args.command == "examples":
+        from .cases.scenes import example_descriptions
 
-            for name, desc in example_descriptions().items():
-                print(f"{name:18s} {desc}")
-            return 0
-        if args.command == "plot":
-            from .plotting import plot_run
-
-            for path in plot_run(args.dir, args.to):
-                print(path)
-            return 0
-        scene = _scene_from_args(args)
-        if args.command == "plan":
-            print(scene.plan())
-            return 0
-        from .simulation import Simulation
-
-        sim = Simulation(scene)
-        out = args.out or scene.output.dir
-        if not args.quiet:
-            print(sim.plan, file=sys.stderr)
-        result = sim.run(out_dir=out, restart=args.restart, n_steps=args.steps,
-                         progress=None if args.quiet else _ProgressBar())
-        print(result)
-        if args.plot:
-            from .plotting import plot_run
-
-            for path in plot_run(out):
-                print(path)
+        for name, desc in example_descriptions().items():
+            print(f"{name:18s} {desc}")
         return 0
-    except ValueError as exc:
-        print(f"fluidem: error: {exc}", file=sys.stderr)
-        return 2
+    if args.command == "plot":
+        from .plotting import plot_run
+
+        for path in plot_run(args.dir, args.to):
+            print(path)
+        return 0
+    scene = _scene_from_args(args)
+    if args.command == "plan":
+        print(scene.plan())
+        return 0
+    from .simulation import Simulation
+
+    sim = Simulation(scene)
+    out = args.out or scene.output.dir
+    if not args.quiet:
+        print(sim.plan, file=sys.stderr)
+    result = sim.run(out_dir=out, restart=args.restart, n_steps=args.steps,
+                     progress=None if args.quiet else _ProgressBar())
+    print(result)
+    if args.plot:
+        from .plotting import plot_run
+
+        for path in plot_run(out):
+            print(path)
+    return 0
 
 
-def main(argv=None) -> int:
-    parser = _build_parser()
-    args = parser.parse_args(argv)
+def _bench_main(args, parser) -> int:
+    from .cases import get_case
+
+    fn = get_case(args.name)
+    kwargs = {}
+    for opt in ("element", "level", "dt", "t_end", "convection", "solver"):
+        val = getattr(args, opt)
+        if val is None:
+            continue
+        if opt not in _CASE_OPTIONS[args.name]:
+            parser.error(f"--{opt.replace('_', '-')} does not apply to {args.name}")
+        kwargs[opt] = val
+    if args.name != "dfg-2d1" and not args.quiet:
+        kwargs["progress"] = _Progress()
+    result = fn(**kwargs)
+    print(result)
+    if args.json:
+        print(result.to_json())
+    return 0
+
+
+def _dispatch(args, parser) -> int:
     if args.command == "cases":
-        from .cases import CASES
+        from .cases import get_case
 
-        for name, fn in sorted(CASES.items()):
-            print(f"{name:16s} {(fn.__doc__ or '').strip().splitlines()[0]}")
+        for name in names.choices("case"):
+            print(f"{name:16s} {(get_case(name).__doc__ or '').strip().splitlines()[0]}")
         return 0
     if args.command in ("run", "plan", "examples", "plot"):
         return _scene_main(args)
     if args.command == "bench":
-        from .cases import get_case
-
-        fn = get_case(args.name)
-        kwargs = {}
-        for opt in ("element", "level", "dt", "t_end", "convection", "solver"):
-            val = getattr(args, opt)
-            if val is None:
-                continue
-            if opt not in _CASE_OPTIONS[args.name]:
-                parser.error(f"--{opt.replace('_', '-')} does not apply to {args.name}")
-            kwargs[opt] = val
-        if args.name != "dfg-2d1" and not args.quiet:
-            kwargs["progress"] = _Progress()
-        try:
-            result = fn(**kwargs)
-        except ValueError as exc:
-            print(f"fluidem: error: {exc}", file=sys.stderr)
-            return 2
-        print(result)
-        if args.json:
-            print(result.to_json())
-        return 0
+        return _bench_main(args, parser)
     return 1
+
+
+def main(argv=None) -> int:
+    """Run the command line ``argv`` (default: ``sys.argv[1:]``); returns the exit status.
+
+    Errors fluidem raises on purpose (:class:`~fluidem.errors.FluidemError`, and the
+    ``ValueError`` of validation) print ``fluidem: error: <message>`` on one line to stderr
+    and return 2; with ``--debug`` they propagate with their traceback.  Usage errors exit
+    through argparse (status 2).
+    """
+    parser = _build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return _dispatch(args, parser)
+    except (FluidemError, ValueError) as exc:
+        if args.debug:
+            raise
+        message = " ".join(str(exc).splitlines()) or type(exc).__name__
+        print(f"fluidem: error: {message}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -91,7 +91,7 @@ def test_every_contract_key_is_parsed(contract_file):
     d = s.bodies[0]
     assert (d.shape, d.radius, d.segments, d.position, d.angle, d.density, d.motion) == (
         "disk", 0.1, 48, (1.0, 7.2), 0.0, 1.01, "free")
-    assert np.allclose(s.bodies[1].vertices.mean(axis=0), 0.0, atol=0.05)  # centroid at the origin
+    assert np.allclose(_area_centroid(s.bodies[1].vertices), 0.0, atol=1e-12)  # area centroid at the origin
     assert s.bodies[2].omega == 0.5 and s.bodies[2].velocity == (0.0, 0.1)
     assert (s.bodies[3].a, s.bodies[3].b) == (0.1, 0.05)
     assert s.bodies[4].density == 2.0 and s.bodies[5].shape == "rectangle" and s.bodies[5].angle == 0.3
@@ -103,6 +103,27 @@ def test_every_contract_key_is_parsed(contract_file):
     plan = s.plan()
     assert plan.on("fluid") and plan.on("inertia") and plan.mesh == "moving"
     assert any("free bodies in a fluid" in u for u in plan.unsupported)
+
+
+def _area_centroid(v):
+    """Centroid of the polygon area (shoelace formula), not the mean of its vertices."""
+    v = np.asarray(v, float)
+    x, y = v[:, 0], v[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    a = 0.5 * cross.sum()
+    return np.array([((x + xn) * cross).sum(), ((y + yn) * cross).sum()]) / (6.0 * a)
+
+
+def test_polygon_vertices_are_shifted_to_their_area_centroid():
+    """A quadrilateral whose vertex mean and area centroid differ: ``position`` places the latter."""
+    quad = [[0.0, 0.0], [0.4, 0.0], [0.4, 0.1], [0.0, 0.3]]
+    s = Scene.from_dict({"domain": {"box": [0.0, 2.0, 0.0, 1.0]},
+                         "bodies": [{"shape": "polygon", "vertices": quad, "position": [1.0, 0.5]}]})
+    v = s.bodies[0].vertices
+    assert np.allclose(_area_centroid(v), 0.0, atol=1e-12)
+    assert np.allclose(v - v[0], np.asarray(quad) - quad[0])  # a pure shift
+    assert np.linalg.norm(v.mean(axis=0)) > 0.01  # the vertex mean is not what is zeroed
 
 
 def _mutate(text, old, new):
@@ -243,3 +264,24 @@ def test_scene_in_python_and_round_trip(tmp_path):
     assert s.bodies[0].name == "body0"
     s2 = Scene.from_dict(s.to_dict())
     assert s2.to_dict() == s.to_dict()
+
+
+@pytest.mark.parametrize("module", ["fluidem.scene", "fluidem.plan"])
+def test_plan_sees_moving_mesh_availability_replaced_in_either_module(module, monkeypatch):
+    import importlib
+
+    move = _fluid("navier-stokes", [{"shape": "disk", "radius": 0.1, "position": [1.0, 0.5], "motion": "prescribed",
+                                     "velocity": [0.1, 0.0]}])
+    assert not move.plan().unsupported
+    monkeypatch.setattr(importlib.import_module(module), "moving_mesh_available", lambda: False)
+    assert any("moving-mesh layer" in u for u in move.plan().unsupported)
+
+
+def test_old_spellings_are_stored_canonically_and_plan_modules_agree():
+    import fluidem.plan
+    import fluidem.scene
+
+    s = _fluid("navier-stokes", [], fluid={"model": "navier-stokes", "viscosity": 0.1, "solver": "lagged-lu"})
+    assert s.fluid.solver == "lagged" and "solver lagged" in str(s.plan())
+    assert fluidem.scene.Plan is fluidem.plan.Plan and fluidem.scene.contact_candidates is fluidem.plan.contact_candidates
+    assert fluidem.scene.SIDES == ("bottom", "right", "top", "left")

@@ -57,3 +57,38 @@ def test_cli_errors(argv, words, capsys, tmp_path, monkeypatch):
     err = capsys.readouterr().err
     for w in words:
         assert w in err
+
+
+def test_errors_are_one_line_and_debug_shows_the_traceback(capsys, tmp_path, monkeypatch):
+    from fluidem.errors import FluidemError, SceneError
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bad.toml").write_text('[domain]\nbox = [0.0, 1.0, 0.0, 1.0]\nleft = "slippery"\n')
+    assert main(["plan", "bad.toml"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("fluidem: error: domain.left = 'slippery': expected one of")
+    assert "Traceback" not in err
+    for argv in (["--debug", "plan", "bad.toml"], ["plan", "bad.toml", "--debug"]):
+        with pytest.raises(SceneError, match="slippery"):
+            main(argv)
+
+    class Broken(FluidemError):
+        pass
+
+    def fail(*args, **kw):
+        raise Broken("the mesher gave up\non two lines")
+
+    import fluidem.cases.scenes
+
+    monkeypatch.setattr(fluidem.cases.scenes, "example_scene", fail)
+    assert main(["plan", "--example", "dry-heap"]) == 2
+    assert capsys.readouterr().err == "fluidem: error: the mesher gave up on two lines\n"
+
+
+def test_cli_accepts_registry_aliases():
+    from fluidem.cli import _build_parser
+
+    args = _build_parser().parse_args(["bench", "dfg-2d2", "--solver", "lagged-lu"])
+    assert args.solver == "lagged"
+    with pytest.raises(SystemExit):
+        _build_parser().parse_args(["bench", "dfg-2d2", "--solver", "lu"])

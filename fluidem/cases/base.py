@@ -6,6 +6,9 @@ import json
 from dataclasses import dataclass, field
 from typing import Callable
 
+from .. import names
+from ..errors import InputError
+
 __all__ = ["CaseResult", "CASES", "register_case", "get_case"]
 
 
@@ -75,7 +78,26 @@ def register_case(name: str):
 
 
 def get_case(name: str) -> Callable:
-    try:
+    """The function of the benchmark case ``name`` (a name of ``names.choices("case")`` or an alias).
+
+    Raises
+    ------
+    fluidem.errors.InputError
+        (a ``ValueError``) naming the value and the allowed cases.
+
+    Examples
+    --------
+    >>> from fluidem.cases import get_case
+    >>> get_case("dfg-2d1").__name__
+    'dfg_2d1'
+    >>> get_case("dfg-2d4")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    fluidem.errors.InputError: case = 'dfg-2d4': expected one of 'dfg-2d1', ..., 'square-cylinder' (benchmark case)
+    """
+    if isinstance(name, str) and name in CASES:  # also cases registered outside fluidem.names
         return CASES[name]
-    except KeyError:
-        raise ValueError(f"unknown case {name!r}; allowed: {', '.join(sorted(CASES))}") from None
+    canonical = names.lookup("case", name, where="case")
+    if canonical not in CASES:  # a registry name whose module was not imported
+        raise InputError(f"case = {name!r}: expected one of {', '.join(map(repr, CASES))} (benchmark case)")
+    return CASES[canonical]

@@ -8,6 +8,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .. import names
+from ..errors import InputError
+
 __all__ = ["SCENE_DIR", "example_names", "example_path", "example_scene", "example_descriptions"]
 
 SCENE_DIR = Path(__file__).with_name("scenes")
@@ -19,15 +22,31 @@ def example_names() -> list:
 
 
 def example_path(name: str) -> Path:
-    """Path of the built-in scene ``name``; ``ValueError`` lists the allowed names."""
-    p = SCENE_DIR / f"{name}.toml"
-    if not p.is_file():
-        raise ValueError(f"unknown example scene {name!r}; allowed: {', '.join(example_names())}")
-    return p
+    """Path of the built-in scene ``name`` (a name of ``names.choices("example")`` or an alias).
+
+    Raises
+    ------
+    fluidem.errors.InputError
+        (a ``ValueError``) naming the value and the allowed example scenes.
+    """
+    try:
+        canonical = names.lookup("example", name)
+    except InputError:
+        allowed = ", ".join(repr(n) for n in names.choices("example"))
+        raise InputError(f"unknown example scene {name!r}: expected one of {allowed} (see 'fluidem examples')") \
+            from None
+    return SCENE_DIR / f"{canonical}.toml"
 
 
 def example_scene(name: str):
-    """Load and validate the built-in scene ``name``."""
+    """Load and validate the built-in scene ``name`` (see :func:`example_path`).
+
+    Examples
+    --------
+    >>> from fluidem.cases.scenes import example_scene
+    >>> example_scene("dry-heap").fluid is None
+    True
+    """
     from ..scene import Scene
 
     return Scene.from_toml(example_path(name))

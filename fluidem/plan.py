@@ -1,0 +1,376 @@
+"""The plan: which effects a scene needs, and why.
+
+A :class:`fluidem.scene.Scene` says *what* to simulate; :func:`make_plan` (also
+:meth:`Scene.plan`) decides which parts a run needs — fluid, inertia, moving bodies, mesh,
+ALE, contacts, gravity, buoyancy, rotation, remeshing, solver — and gives the reason for
+each; :class:`fluidem.Simulation` builds only those.  Scene -> plan -> simulation.
+
+Contacts are off when no two bodies (one of them movable), or a movable body and a wall,
+can meet before ``t_end`` at the speeds the scene allows: prescribed speed plus |ω| r for
+prescribed bodies, |v₀| t + |g| t²/2 for free bodies in a dry scene (until the first
+contact only gravity acts), zero for fixed bodies (:func:`contact_candidates`).
+
+Examples
+--------
+>>> from fluidem.scene import Scene
+>>> from fluidem.plan import make_plan
+>>> s = Scene.from_dict({"gravity": [0.0, -9.81], "domain": {"box": [0, 1, 0, 1]},
+...                      "bodies": [{"shape": "disk", "radius": 0.05, "position": [0.5, 0.08]}],
+...                      "contact": {"E": 1e5}, "time": {"dt": 1e-3, "t_end": 0.1}})
+>>> p = make_plan(s)
+>>> p.mesh, p.on("contacts"), p.contact_pairs
+('none', True, 1)
+>>> print(p.effect("contacts"))  # doctest: +ELLIPSIS
+  contacts        on  [E=100000, mu=0.23, gamma=0.025]  — 0 body pair(s) and 1 body–wall pair(s) may meet ...
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import names
+from .errors import InputError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .scene import Scene
+
+__all__ = ["Plan", "Effect", "make_plan", "moving_mesh_available", "contact_candidates", "prescribed_collisions"]
+
+@dataclass
+class Effect:
+    """One effect of the plan: whether it is ``on``, a short ``value`` and the reason ``why``."""
+
+    name: str
+    on: bool
+    why: str
+    value: str = ""
+
+    def __str__(self):
+        state = "on " if self.on else "off"
+        val = f" [{self.value}]" if self.value else ""
+        return f"  {self.name:15s} {state}{val}  — {self.why}"
+
+
+@dataclass
+class Plan:
+    """Which effects a scene needs and why; :class:`fluidem.Simulation` builds only those.
+
+    Attributes
+    ----------
+    effects : list of Effect
+        In order: fluid, inertia, moving-bodies, mesh, ale, contacts, gravity, buoyancy,
+        rotation, remeshing, solver.
+    mesh : {"none", "once", "moving"}
+        No mesh (dry), a mesh built once, or a moving mesh.
+    contact_pairs : int
+        Pairs (body–body and body–wall) that can meet before ``t_end``.
+    unsupported : list of str
+        Reasons this version cannot run the scene (empty when it can).
+    n_steps : int
+    """
+
+    scene_name: str
+    effects: list
+    mesh: str
+    contact_pairs: int
+    n_steps: int
+    unsupported: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+
+    def effect(self, name) -> Effect:
+        for e in self.effects:
+            if e.name == name:
+                return e
+        raise InputError(f"effect = {name!r}: expected one of {', '.join(repr(e.name) for e in self.effects)}")
+
+    def on(self, name) -> bool:
+        return self.effect(name).on
+
+    def __str__(self):
+        lines = [f"plan for scene {self.scene_name!r}: {self.n_steps} steps"]
+        lines += [str(e) for e in self.effects]
+        lines += [f"  note: {n}" for n in self.notes]
+        if self.unsupported:
+            lines.append("  cannot run yet:")
+            lines += [f"    - {u}" for u in self.unsupported]
+        return "\n".join(lines)
+
+
+def moving_mesh_available() -> bool:
+    """True when the moving-mesh layer (:class:`fluidem.mesh.MovingMesh`) can be imported."""
+    try:
+        from .mesh import MovingMesh  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _sweep(scene: Scene):
+    """Motion of each body before any contact: (p0 (n, 2), v (n, 2), acc (n, 2), bounded (n,) bool).
+
+    Until its first contact a body in a dry scene moves exactly as ``p0 + v t + acc t²/2``
+    (``acc`` = gravity for free bodies, 0 otherwise); a free body in a fluid is unbounded.
+    """
+    B = scene.bodies
+    n = len(B)
+    p0 = np.array([b.position for b in B], float).reshape(n, 2)
+    motion = np.array([b.motion for b in B])
+    v = np.array([b.velocity for b in B], float).reshape(n, 2)
+    v[motion == "fixed"] = 0.0
+    acc = np.zeros((n, 2))
+    acc[motion == "free"] = scene.gravity
+    bounded = ~((motion == "free") & (scene.fluid is not None))
+    return p0, v, acc, bounded
+
+
+def _swept_boxes(p0, v, acc, T):
+    """Axis-aligned boxes (lo, hi), each (n, 2), of the centre paths p0 + v t + acc t²/2 for t in [0, T]."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tv = np.where(acc != 0, -v / np.where(acc != 0, acc, 1.0), 0.0)
+    ts = [np.zeros_like(v), np.full_like(v, T), np.clip(tv, 0.0, T)]  # ends and the parabola's vertex
+    pts = np.stack([p0 + v * t + 0.5 * acc * t * t for t in ts])
+    return pts.min(axis=0), pts.max(axis=0)
+
+
+def _min_distance_linear(dp, dv, T):
+    """Smallest |dp + dv t| over t in [0, T], rows of (m, 2) arrays."""
+    vv = (dv * dv).sum(axis=1)
+    t = np.where(vv > 0, -(dp * dv).sum(axis=1) / np.where(vv > 0, vv, 1.0), 0.0)
+    t = np.clip(t, 0.0, T)[:, None]
+    return np.linalg.norm(dp + dv * t, axis=1)
+
+
+def contact_candidates(scene: Scene) -> tuple[int, int]:
+    """(body–body, body–wall) pairs that may touch before ``t_end``.
+
+    Only free bodies feel contact forces, so every pair counted has a free body.  Walls: the
+    swept box of a body's centre path, grown by its bounding radius, reaches a solid side.
+    Bodies: their grown swept boxes overlap and, when
+    both have the same acceleration (two free bodies under gravity, or two prescribed or
+    fixed bodies), their relative motion is linear and its closest approach is exact.
+    """
+    n = len(scene.bodies)
+    if n == 0:
+        return 0, 0
+    T = scene.time.t_end
+    p0, v, acc, bounded = _sweep(scene)
+    r = np.array([b.bounding_radius for b in scene.bodies])
+    moving = np.array([b.motion == "free" for b in scene.bodies])
+    lo, hi = _swept_boxes(p0, v, acc, T)
+    lo, hi = lo - r[:, None], hi + r[:, None]
+    lo[~bounded], hi[~bounded] = -np.inf, np.inf
+    x0, x1, y0, y1 = scene.domain.box
+    solid = {k: scene.domain.side(k).type in ("wall", "moving-wall") or (scene.fluid is None and
+             scene.domain.side(k).type != "outflow") for k in names.choices("side")}
+    hit = {"left": lo[:, 0] <= x0, "right": hi[:, 0] >= x1, "bottom": lo[:, 1] <= y0, "top": hi[:, 1] >= y1}
+    n_wall = int(sum((hit[k] & moving).sum() for k in names.choices("side") if solid[k]))
+    if not bounded.all():  # free bodies in a fluid: every pair with a free body
+        nm = int(moving.sum())
+        return int(nm * (nm - 1) // 2 + nm * (n - nm)), n_wall
+    n_body = 0
+    step = max(1, 1_000_000 // n)
+    for a in range(0, n, step):  # brute force in row blocks of ~1e6 pairs
+        sl = slice(a, min(a + step, n))
+        ii = np.arange(a, min(a + step, n))[:, None]
+        jj = np.arange(n)[None, :]
+        ok = (jj > ii) & (moving[sl, None] | moving[None, :])
+        ok &= (lo[sl, None, 0] <= hi[None, :, 0]) & (lo[None, :, 0] <= hi[sl, None, 0])
+        ok &= (lo[sl, None, 1] <= hi[None, :, 1]) & (lo[None, :, 1] <= hi[sl, None, 1])
+        i, j = np.nonzero(ok)
+        i = i + a
+        same = np.all(acc[i] == acc[j], axis=1)
+        d = _min_distance_linear(p0[j] - p0[i], v[j] - v[i], T)
+        n_body += int((~same | (d < r[i] + r[j])).sum())
+    return n_body, n_wall
+
+
+def prescribed_collisions(scene: Scene) -> list:
+    """Descriptions of prescribed bodies that reach a side or another non-free body before ``t_end``."""
+    B = scene.bodies
+    idx = [k for k, b in enumerate(B) if b.motion == "prescribed" and any(b.velocity)]
+    if not idx:
+        return []
+    T = scene.time.t_end
+    p0, v, acc, _ = _sweep(scene)
+    r = np.array([b.bounding_radius for b in B])
+    lo, hi = _swept_boxes(p0, v, acc, T)
+    lo, hi = lo - r[:, None], hi + r[:, None]
+    x0, x1, y0, y1 = scene.domain.box
+    out = []
+    for k in idx:  # prescribed bodies: a handful
+        if lo[k, 0] <= x0 or hi[k, 0] >= x1 or lo[k, 1] <= y0 or hi[k, 1] >= y1:
+            out.append(f"{B[k].name} to a side of the box")
+        others = [j for j, b in enumerate(B) if j != k and b.motion != "free"]
+        if others:
+            o = np.array(others)
+            d = _min_distance_linear(p0[o] - p0[k], v[o] - v[k], T)
+            out += [f"{B[k].name} onto {B[j].name}" for j in o[d < r[o] + r[k]] if j > k or B[j].motion == "fixed"]
+    return out
+
+
+def _moving_mesh_available() -> bool:
+    """:func:`moving_mesh_available` as seen from :mod:`fluidem.scene` (which re-exports it).
+
+    Replacing the function in either module (``fluidem.scene.moving_mesh_available`` or
+    ``fluidem.plan.moving_mesh_available``, e.g. to try a scene as if the layer were missing)
+    reaches the plan.
+    """
+    from . import scene
+
+    f = scene.moving_mesh_available
+    return (f if f is not _MOVING_MESH_AVAILABLE else moving_mesh_available)()
+
+
+_MOVING_MESH_AVAILABLE = moving_mesh_available
+
+
+def make_plan(scene: Scene) -> Plan:
+    """The effects ``scene`` needs and why, see :class:`Plan` (:meth:`fluidem.scene.Scene.plan` calls this).
+
+    Parameters
+    ----------
+    scene : fluidem.scene.Scene
+        A validated scene.
+
+    Returns
+    -------
+    Plan
+    """
+    fl = scene.fluid
+    bodies = scene.bodies
+    n = len(bodies)
+    E = []
+    unsupported, notes = [], []
+    n_steps = scene.time.n_steps
+    free = [b for b in bodies if b.motion == "free"]
+    moving = [b for b in bodies if b.moves]
+    outline_moving = [b for b in bodies if b.outline_moves]
+    rotating = [b for b in bodies if (b.motion == "prescribed" and b.omega) or (b.motion == "free")]
+    g_on = any(scene.gravity)
+    periodic = [s for s in names.choices("side") if scene.domain.side(s).type == "periodic"]
+
+    # fluid
+    if fl is None:
+        E.append(Effect("fluid", False, "no [fluid] table: a dry scene (no mesh, no fluid solver)"))
+        E.append(Effect("inertia", bool(moving), "rigid-body inertia only (DEM)" if moving else "nothing moves",
+                        "bodies"))
+    else:
+        E.append(Effect("fluid", True, f"[fluid] model = {fl.model!r}", f"{fl.model}, element {fl.element}"))
+        if fl.model == "stokes":
+            E.append(Effect("inertia", False, "model = 'stokes': quasi-steady, no convection and no time derivative"))
+        else:
+            E.append(Effect("inertia", True, "model = 'navier-stokes': BDF2 in time, convection "
+                            f"{fl.convection}", "BDF2"))
+    # moving bodies
+    if not moving:
+        E.append(Effect("moving-bodies", False, "all bodies fixed (or none)" if n else "no bodies"))
+    else:
+        kinds = sorted({b.motion for b in moving})
+        E.append(Effect("moving-bodies", True, f"{len(moving)} of {n} bodies move ({', '.join(kinds)})",
+                        f"{len(moving)}"))
+    # mesh
+    quasi_static_once = fl is not None and fl.model == "stokes" and n_steps == 1
+    if fl is None:
+        mesh = "none"
+        E.append(Effect("mesh", False, "dry scene: no fluid, no mesh"))
+        E.append(Effect("ale", False, "no fluid"))
+    elif not outline_moving:
+        mesh = "once"
+        why = "no body outline moves" + (" (spinning disks keep their outline)" if moving else "")
+        E.append(Effect("mesh", True, why + ": the mesh is built once", "once"))
+        E.append(Effect("ale", False, "the mesh never moves"))
+    elif quasi_static_once:
+        mesh = "once"
+        E.append(Effect("mesh", True, "Stokes at one instant (a single step): the geometry at t = 0 is all a "
+                        "quasi-steady solve needs; the mesh is built once", "once"))
+        E.append(Effect("ale", False, "one quasi-steady step: the mesh never moves"))
+    else:
+        mesh = "moving"
+        E.append(Effect("mesh", True, f"{len(outline_moving)} body outline(s) move: the mesh follows them",
+                        f"moving, strategy {scene.mesh.strategy}"))
+        E.append(Effect("ale", fl.model == "navier-stokes",
+                        "mesh velocity enters convection (u − w)·∇u" if fl.model == "navier-stokes"
+                        else "Stokes has no convection: the mesh velocity does not enter"))
+    # contacts
+    nb, nw = contact_candidates(scene)
+    if scene.contact is None:
+        E.append(Effect("contacts", False, "no [contact] table"))
+        c_on = False
+    elif not scene.contact.enabled:
+        E.append(Effect("contacts", False, "contact.enabled = false"))
+        c_on = False
+    elif nb + nw == 0:
+        why = ("no two bodies, or body and wall, can meet before t_end = "
+               f"{scene.time.t_end:g} at the speeds the scene allows")
+        E.append(Effect("contacts", False, why))
+        c_on = False
+    else:
+        E.append(Effect("contacts", True, f"{nb} body pair(s) and {nw} body–wall pair(s) may meet before t_end",
+                        f"E={scene.contact.E:g}, mu={scene.contact.mu:g}, gamma={scene.contact.gamma:g}"))
+        c_on = True
+    # gravity and buoyancy
+    if not g_on:
+        E.append(Effect("gravity", False, "gravity = [0, 0]"))
+        E.append(Effect("buoyancy", False, "no gravity"))
+    elif not free:
+        E.append(Effect("gravity", False, "no free bodies: gravity moves nothing" +
+                        (" (in the fluid it only adds a hydrostatic pressure)" if fl else "")))
+        E.append(Effect("buoyancy", False, "no free bodies"))
+    else:
+        E.append(Effect("gravity", True, f"{len(free)} free bodies", f"{list(scene.gravity)}"))
+        E.append(Effect("buoyancy", fl is not None, "free bodies in a fluid" if fl else "dry scene: no fluid"))
+    # rotation
+    E.append(Effect("rotation", bool(rotating),
+                    f"{len(rotating)} bodies can rotate (free or prescribed omega)" if rotating
+                    else "no body rotates"))
+    # remeshing
+    if mesh == "moving":
+        st = scene.mesh.strategy
+        E.append(Effect("remeshing", st != "fixed", f"strategy {st!r}, re-triangulate every "
+                        f"{scene.mesh.retriangulate_every} steps or when quality drops", st))
+    else:
+        E.append(Effect("remeshing", False, "no moving mesh: never re-triangulated"))
+    # solver
+    if fl is None:
+        if not moving:
+            s = "nothing to integrate: bodies never move"
+        elif c_on:
+            s = "DEM, Gear predictor-corrector with contact sub-steps"
+        else:
+            s = "ballistic: closed-form rigid motion (no contacts, no search)"
+        E.append(Effect("solver", bool(moving), s))
+    elif fl.model == "stokes":
+        E.append(Effect("solver", True, "one Stokes saddle-point solve per step (direct LU)", "stokes"))
+    else:
+        E.append(Effect("solver", True, f"BDF2, {fl.convection} convection, solver {fl.solver}", "bdf2"))
+
+    hit = prescribed_collisions(scene)
+    if hit:
+        notes.append("prescribed motion brings " + "; ".join(hit[:3]) + (" ..." if len(hit) > 3 else "")
+                     + " before t_end (prescribed bodies feel no contact forces)")
+    # what this version cannot do (the plan still says what would be needed)
+    if periodic:
+        unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the "
+                           + ("fluid solver" if fl else "DEM") + "; use 'wall' or 'outflow'")
+    if fl is not None:
+        if free:
+            unsupported.append(f"free bodies in a fluid ({len(free)}: {', '.join(b.name for b in free[:5])}"
+                               f"{', ...' if len(free) > 5 else ''}) need the coupled fluid-body solver, which "
+                               "comes in a later version; use motion = 'fixed' or 'prescribed'")
+        elif mesh == "moving":
+            if not _moving_mesh_available():
+                unsupported.append("moving bodies in fluid need the moving-mesh layer (fluidem.mesh.MovingMesh), "
+                                   "which is not available in this installation")
+            else:
+                notes.append("prescribed translating bodies use fluidem.mesh.MovingMesh (ALE)")
+        if fl.model == "stokes" and n_steps == 1 and outline_moving:
+            notes.append("quasi-steady Stokes at t = 0 only: forces are those of the initial geometry")
+    else:
+        bad = [s for s in names.choices("side") if scene.domain.side(s).type in ("inflow", "moving-wall")]
+        if bad:
+            unsupported.append(f"domain sides {', '.join(bad)} are fluid conditions; a dry scene allows "
+                               "'wall' and 'outflow' (open)")
+    return Plan(scene.name, E, mesh, nb + nw, n_steps, unsupported, notes)

@@ -1,0 +1,636 @@
+"""The scene description: spec dataclasses for the domain, fluid, bodies, contacts, mesh,
+time and output, and :class:`Scene` that holds them, validates them and hands out its plan.
+
+Units: none built in; every value is in the one consistent system the user picks (see
+:mod:`fluidem.scene`).  Every user-typed name goes through :mod:`fluidem.names` and is
+stored canonically; every bad value raises :class:`fluidem.errors.SceneError` (a
+``ValueError``) in the one format of :mod:`fluidem.validate`.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .. import geometry as geo
+from .. import names
+from ..errors import SceneError
+from ..validate import boolean, check_keys, fail, integer, nonnegative, number, pair, positive
+from . import files
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..plan import Plan
+
+__all__ = ["Scene", "FluidSpec", "DomainSpec", "SideSpec", "BodySpec", "ContactSpec", "MeshSpec", "TimeSpec",
+           "OutputSpec"]
+
+
+@dataclass
+class FluidSpec:
+    """The fluid (2D, per unit depth; units: see :mod:`fluidem.scene`).
+
+    Every name is looked up in :mod:`fluidem.names` and stored canonically (an alias such as
+    ``solver = "lagged-lu"`` is stored as ``"lagged"``).
+
+    Parameters
+    ----------
+    density : float
+        ρ, mass/length² (a 3D density times the unit depth), > 0.  Forces on bodies are ρ
+        times the kinematic ones.
+    viscosity : float
+        *Kinematic* viscosity ν = μ/ρ, length²/time, > 0 (the dynamic viscosity is
+        ``density * viscosity``).
+    model : {"navier-stokes", "stokes"}
+        Unsteady incompressible Navier–Stokes (BDF2) or quasi-steady Stokes (no inertia).
+    body_force : (2,) float
+        Per unit mass, length/time².
+    element : {"p2b", "th", "p3", "mini"}
+        Velocity/pressure element pair (:mod:`fluidem.fluid.elements`).
+    convection : {"semi-implicit", "newton", "explicit"}
+        Treatment of the convection term by the unsteady solver.
+    solver : {"auto", "direct", "iterative", "lagged"}
+        Linear solver by name (alias ``"lagged-lu"`` = ``"lagged"``); what each name, and
+        ``"auto"`` in particular, means is the solver factory's
+        (:func:`fluidem.fluid.navier_stokes.make_flow_solver`), not the scene's.  ``"direct"``
+        (a fresh LU every step) makes restarts reproduce bit for bit; an LU reused as a GMRES
+        preconditioner reproduces them only to the GMRES tolerance.
+    """
+
+    density: float = 1.0
+    viscosity: float = 0.01
+    model: str = "navier-stokes"
+    body_force: tuple = (0.0, 0.0)
+    element: str = "p2b"
+    convection: str = "semi-implicit"
+    solver: str = "auto"
+
+    KEYS = ("density", "viscosity", "model", "body_force", "element", "convection", "solver")
+
+    def validate(self, where="fluid"):
+        """Check and convert every value (names made canonical); ``SceneError`` names the first bad one."""
+        self.density = positive(f"{where}.density", self.density, error=SceneError)
+        self.viscosity = positive(f"{where}.viscosity", self.viscosity, error=SceneError)
+        self.model = names.lookup("fluid model", self.model, f"{where}.model", SceneError)
+        self.body_force = pair(f"{where}.body_force", self.body_force, error=SceneError)
+        self.element = names.lookup("element", self.element, f"{where}.element", SceneError)
+        self.convection = names.lookup("convection", self.convection, f"{where}.convection", SceneError)
+        self.solver = names.lookup("solver", self.solver, f"{where}.solver", SceneError)
+
+
+@dataclass
+class SideSpec:
+    """One side of the box.
+
+    Parameters
+    ----------
+    type : {"wall", "inflow", "outflow", "periodic", "moving-wall"}
+        ``names.meaning("side type", type)`` says what each is.
+    velocity : (2,) float
+        Wall velocity of a ``"moving-wall"`` side, length/time (zero on every other type).
+    profile : dict or None
+        Inflow profile of this side; ``None``: the domain's ``inflow_profile``.
+    """
+
+    type: str = "wall"
+    velocity: tuple = (0.0, 0.0)
+    profile: dict | None = None
+
+    KEYS = ("type", "velocity", "profile")
+
+
+@dataclass
+class DomainSpec:
+    """The box ``(xmin, xmax, ymin, ymax)`` (length) and what each side is.
+
+    Sides are named and ordered as ``names.choices("side")``: bottom (y = ymin), right
+    (x = xmax), top (y = ymax), left (x = xmin).
+
+    ``inflow_profile`` is ``{type = "parabolic" | "uniform", umax = U, ramp = T}``: the
+    inflow speed normal to an inflow side (parabolic: ``4 U s (L − s) / L²`` along the
+    side, ``U`` in length/time), raised smoothly from 0 over ``ramp`` time units (``0``: at once).
+    """
+
+    box: tuple = (0.0, 1.0, 0.0, 1.0)
+    bottom: SideSpec = field(default_factory=SideSpec)
+    right: SideSpec = field(default_factory=SideSpec)
+    top: SideSpec = field(default_factory=SideSpec)
+    left: SideSpec = field(default_factory=SideSpec)
+    inflow_profile: dict | None = None
+
+    KEYS = ("box",) + names.choices("side") + ("inflow_profile",)
+
+    def side(self, name) -> SideSpec:
+        """The :class:`SideSpec` of side ``name`` (a name of ``names.choices("side")``)."""
+        return getattr(self, names.lookup("side", name, "side", SceneError))
+
+    def profile_of(self, name) -> dict:
+        """The inflow profile of side ``name``: its own, else the domain's ``inflow_profile``."""
+        s = self.side(name)
+        return s.profile if s.profile is not None else self.inflow_profile
+
+    def validate(self, where="domain"):
+        """Check the box, every side and the profiles; ``SceneError`` names the first bad value."""
+        b = self.box
+        if (not isinstance(b, (list, tuple, np.ndarray)) or len(b) != 4
+                or not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                           and math.isfinite(float(v)) for v in b)
+                or not (b[1] > b[0] and b[3] > b[2])):
+            raise fail(f"{where}.box", b, "[xmin, xmax, ymin, ymax], finite, with xmax > xmin and ymax > ymin",
+                       SceneError)
+        self.box = tuple(float(v) for v in b)
+        for s in names.choices("side"):
+            side = getattr(self, s)
+            if isinstance(side, str):
+                side = SideSpec(side)
+            elif isinstance(side, dict):
+                check_keys(side, SideSpec.KEYS, f"{where}.{s}", error=SceneError)
+                side = SideSpec(**side)
+            if not isinstance(side, SideSpec):
+                raise fail(f"{where}.{s}", side, "a side type string or a table {type = ..., velocity = ...}",
+                           SceneError)
+            side.type = names.lookup("side type", side.type,
+                                     f"{where}.{s}" if isinstance(getattr(self, s), str) else f"{where}.{s}.type",
+                                     SceneError)
+            side.velocity = pair(f"{where}.{s}.velocity", side.velocity, error=SceneError)
+            if side.type != "moving-wall" and any(side.velocity):
+                raise fail(f"{where}.{s}.velocity", list(side.velocity),
+                           f"no velocity on a {side.type!r} side (only a 'moving-wall' moves)", SceneError)
+            if side.profile is not None:
+                side.profile = self._check_profile(f"{where}.{s}.profile", side.profile)
+            setattr(self, s, side)
+        if self.inflow_profile is not None:
+            self.inflow_profile = self._check_profile(f"{where}.inflow_profile", self.inflow_profile)
+        for s in names.choices("side"):
+            if getattr(self, s).type == "inflow" and self.profile_of(s) is None:
+                raise SceneError(f"{where}.{s} = 'inflow' has no profile: add {where}.inflow_profile = "
+                                 f"{{ type = 'parabolic', umax = ... }} (allowed types: "
+                                 f"{', '.join(names.choices('profile'))})")
+        for a, b_ in (("left", "right"), ("bottom", "top")):
+            pa, pb = getattr(self, a).type == "periodic", getattr(self, b_).type == "periodic"
+            if pa != pb:
+                one, other = (a, b_) if pa else (b_, a)
+                raise SceneError(f"{where}.{one} = 'periodic' but {where}.{other} = {getattr(self, other).type!r}: "
+                                 f"periodic sides come in pairs; allowed: both {a} and {b_} 'periodic' or neither")
+
+    @staticmethod
+    def _check_profile(key, prof):
+        if not isinstance(prof, dict):
+            raise fail(key, prof, "a table { type = 'parabolic' | 'uniform', umax = ..., ramp = ... }", SceneError)
+        check_keys(prof, ("type", "umax", "ramp"), key, error=SceneError)
+        out = {"type": names.lookup("profile", prof.get("type", "parabolic"), f"{key}.type", SceneError)}
+        if "umax" not in prof:
+            raise SceneError(f"{key} has no umax: the inflow speed is required (a finite number, length/time)")
+        out["umax"] = number(f"{key}.umax", prof["umax"], error=SceneError)
+        out["ramp"] = nonnegative(f"{key}.ramp", prof.get("ramp", 0.0), error=SceneError)
+        return out
+
+
+@dataclass
+class BodySpec:
+    """One rigid body.
+
+    Parameters
+    ----------
+    shape : {"disk", "polygon", "rectangle", "ellipse"}
+        ``disk``: ``radius``, ``segments``; ``polygon``: ``vertices`` (n, 2) in body
+        coordinates (shifted so that their area centroid is the origin), counter-clockwise,
+        convex; ``rectangle``: ``width``, ``height``; ``ellipse``: semi-axes ``a``, ``b``,
+        ``segments``.  Every size is a length.
+    position : (2,) float
+        Centre of mass, length.
+    angle : float
+        Orientation, rad.
+    density : float
+        Areal density, mass/length² (as the fluid's ``density``).
+    motion : {"free", "fixed", "prescribed"}
+        ``prescribed`` bodies move with constant ``velocity`` (2,) and ``omega`` (rad/time).
+    velocity, omega
+        Initial (free) or prescribed (prescribed) velocity (2,), length/time, and angular
+        velocity, rad/time.
+    name : str
+        Boundary name of its outline on the mesh; default ``body<i>``.
+    """
+
+    shape: str = "disk"
+    radius: float | None = None
+    segments: int | None = None
+    vertices: list | None = None
+    width: float | None = None
+    height: float | None = None
+    a: float | None = None
+    b: float | None = None
+    position: tuple = (0.0, 0.0)
+    angle: float = 0.0
+    density: float = 1.0
+    motion: str = "free"
+    velocity: tuple = (0.0, 0.0)
+    omega: float = 0.0
+    name: str | None = None
+
+    KEYS = ("shape", "radius", "segments", "vertices", "width", "height", "a", "b", "position", "angle",
+            "density", "motion", "velocity", "omega", "name")
+    SHAPE_KEYS = {"disk": ("radius",), "polygon": ("vertices",), "rectangle": ("width", "height"),
+                  "ellipse": ("a", "b")}
+
+    def validate(self, where):
+        """Check and convert every value (``where``: ``"bodies[i]"``); ``SceneError`` names the first bad one."""
+        self.shape = names.lookup("shape", self.shape, f"{where}.shape", SceneError)
+        for k in self.SHAPE_KEYS[self.shape]:
+            if getattr(self, k) is None:
+                raise SceneError(f"{where}: shape = {self.shape!r} needs {k} "
+                                 f"(a {self.shape} takes {', '.join(self.SHAPE_KEYS[self.shape])})")
+        for k in ("radius", "width", "height", "a", "b"):
+            if getattr(self, k) is not None:
+                if k not in self.SHAPE_KEYS[self.shape]:
+                    raise fail(f"{where}.{k}", getattr(self, k),
+                               f"no {k} for shape {self.shape!r} (it takes {', '.join(self.SHAPE_KEYS[self.shape])})",
+                               SceneError)
+                setattr(self, k, positive(f"{where}.{k}", getattr(self, k), error=SceneError))
+        if self.segments is not None:
+            self.segments = integer(f"{where}.segments", self.segments, lo=3, error=SceneError)
+        if self.shape == "polygon":
+            try:
+                v = geo.validate_polygon(self.vertices, f"{where}.vertices", require_convex=True)
+            except ValueError as exc:
+                raise SceneError(f"{where}.vertices = {self.vertices!r}: {exc}; expected a counter-clockwise "
+                                 f"convex polygon [[x0, y0], [x1, y1], ...] with at least 3 vertices") from None
+            self.vertices = v - geo.polygon_centroid(v)
+        self.position = pair(f"{where}.position", self.position, error=SceneError)
+        self.angle = number(f"{where}.angle", self.angle, error=SceneError)
+        self.density = positive(f"{where}.density", self.density, error=SceneError)
+        self.motion = names.lookup("motion", self.motion, f"{where}.motion", SceneError)
+        self.velocity = pair(f"{where}.velocity", self.velocity, error=SceneError)
+        self.omega = number(f"{where}.omega", self.omega, error=SceneError)
+        if self.motion == "fixed" and (any(self.velocity) or self.omega):
+            raise fail(f"{where}.velocity/omega", (list(self.velocity), self.omega),
+                       "zero for a fixed body (use motion = 'prescribed' to move it)", SceneError)
+
+    def local_vertices(self, segments_default: int = 32) -> np.ndarray:
+        """Outline in body coordinates, (n, 2), centroid at the origin."""
+        n = self.segments or segments_default
+        if self.shape == "disk":
+            return geo.regular_polygon(self.radius, n)
+        if self.shape == "rectangle":
+            return geo.rectangle(self.width, self.height)
+        if self.shape == "ellipse":
+            return geo.ellipse_polygon(self.a, self.b, n)
+        return np.asarray(self.vertices, dtype=float)
+
+    def world_vertices(self, segments_default: int = 32, position=None, angle=None) -> np.ndarray:
+        return geo.transform(self.local_vertices(segments_default), self.position if position is None else position,
+                             self.angle if angle is None else angle)
+
+    @property
+    def bounding_radius(self) -> float:
+        if self.shape == "disk":
+            return self.radius
+        if self.shape == "rectangle":
+            return 0.5 * math.hypot(self.width, self.height)
+        if self.shape == "ellipse":
+            return max(self.a, self.b)
+        return float(np.sqrt((np.asarray(self.vertices) ** 2).sum(axis=1)).max())
+
+    @property
+    def moves(self) -> bool:
+        """Whether the body can move at all (free, or prescribed with a non-zero velocity)."""
+        return self.motion == "free" or (self.motion == "prescribed" and (any(self.velocity) or self.omega != 0))
+
+    @property
+    def outline_moves(self) -> bool:
+        """Whether the region it covers changes: a disk spinning about its centre does not."""
+        if self.motion == "fixed":
+            return False
+        if self.motion == "prescribed":
+            return any(self.velocity) or (self.omega != 0 and self.shape != "disk")
+        return True
+
+
+@dataclass
+class ContactSpec:
+    """Contact law of :class:`fluidem.dem.ContactModel`.
+
+    Parameters
+    ----------
+    E : float
+        2D stiffness of the overlap law ``F = E A / l`` (overlap area A, characteristic
+        length l), force/length (forces per unit depth), > 0.
+    mu : float
+        Coulomb friction coefficient, ≥ 0.
+    gamma : float
+        Normal damping coefficient (dimensionless), ≥ 0.
+    enabled : bool
+        ``false`` switches contacts off whatever the geometry.
+    """
+
+    E: float = 1e7
+    mu: float = 0.23
+    gamma: float = 0.025
+    enabled: bool = True
+
+    KEYS = ("E", "mu", "gamma", "enabled")
+
+    def validate(self, where="contact"):
+        self.E = positive(f"{where}.E", self.E, error=SceneError)
+        self.mu = nonnegative(f"{where}.mu", self.mu, error=SceneError)
+        self.gamma = nonnegative(f"{where}.gamma", self.gamma, error=SceneError)
+        self.enabled = boolean(f"{where}.enabled", self.enabled, error=SceneError)
+
+
+@dataclass
+class MeshSpec:
+    """Fluid mesh: target edge length ``h`` (length) and optional grading.
+
+    ``grading = {region = [xmin, xmax, ymin, ymax] | "bodies", growth = g, h_max = H}``: size
+    ``h`` in the region, growing by ``g`` per cell away from it up to ``H`` (default 8h).
+    ``strategy`` (``"drag"``, ``"regenerate"`` or ``"fixed"``, see ``names.meaning("strategy",
+    ...)``) and ``retriangulate_every`` (steps) apply to a moving mesh; ``curved`` meshes disks
+    as circles.
+    """
+
+    h: float = 0.05
+    grading: dict | None = None
+    strategy: str = "drag"
+    retriangulate_every: int = 30
+    curved: bool = True
+
+    KEYS = ("h", "grading", "strategy", "retriangulate_every", "curved")
+
+    def validate(self, where="mesh"):
+        self.h = positive(f"{where}.h", self.h, error=SceneError)
+        if self.grading is not None:
+            g = self.grading
+            check_keys(g, ("region", "growth", "h_max"), f"{where}.grading", error=SceneError)
+            region = g.get("region", "bodies")
+            if region != "bodies":
+                if (not isinstance(region, (list, tuple)) or len(region) != 4
+                        or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in region)
+                        or not (region[1] > region[0] and region[3] > region[2])):
+                    raise fail(f"{where}.grading.region", region,
+                               "'bodies' or [xmin, xmax, ymin, ymax] with xmax > xmin and ymax > ymin", SceneError)
+                region = tuple(float(v) for v in region)
+            growth = number(f"{where}.grading.growth", g.get("growth", 1.2), "a number >= 1", lo=1.0, error=SceneError)
+            h_max = number(f"{where}.grading.h_max", g.get("h_max", 8.0 * self.h), f"a number >= h = {self.h}",
+                            lo=self.h, error=SceneError)
+            self.grading = {"region": region, "growth": growth, "h_max": h_max}
+        self.strategy = names.lookup("strategy", self.strategy, f"{where}.strategy", SceneError)
+        self.retriangulate_every = integer(f"{where}.retriangulate_every", self.retriangulate_every, error=SceneError)
+        self.curved = boolean(f"{where}.curved", self.curved, error=SceneError)
+
+
+@dataclass
+class TimeSpec:
+    """Time step ``dt`` and end time ``t_end`` (time units); the run takes round(t_end/dt) steps."""
+
+    dt: float = 1e-3
+    t_end: float = 1.0
+
+    KEYS = ("dt", "t_end")
+
+    def validate(self, where="time"):
+        self.dt = positive(f"{where}.dt", self.dt, error=SceneError)
+        self.t_end = positive(f"{where}.t_end", self.t_end, error=SceneError)
+        if self.t_end < self.dt * (1 - 1e-9):
+            raise fail(f"{where}.t_end", self.t_end, f"a number >= dt = {self.dt}", SceneError)
+
+    @property
+    def n_steps(self) -> int:
+        return max(1, int(round(self.t_end / self.dt)))
+
+
+@dataclass
+class OutputSpec:
+    """Output: directory ``dir``; fields and body outlines every ``every`` steps; history every
+    ``history_every`` steps; a checkpoint every ``checkpoint_every`` steps (0: only at the end);
+    ``fields = false`` writes no fluid fields."""
+
+    dir: str = "out"
+    every: int = 10
+    history_every: int = 1
+    checkpoint_every: int = 0
+    fields: bool = True
+
+    KEYS = ("dir", "every", "history_every", "checkpoint_every", "fields")
+
+    def validate(self, where="output"):
+        if not isinstance(self.dir, str) or not self.dir:
+            raise fail(f"{where}.dir", self.dir, "a non-empty path string", SceneError)
+        self.every = integer(f"{where}.every", self.every, error=SceneError)
+        self.history_every = integer(f"{where}.history_every", self.history_every, error=SceneError)
+        self.checkpoint_every = integer(f"{where}.checkpoint_every", self.checkpoint_every, lo=0, error=SceneError)
+        self.fields = boolean(f"{where}.fields", self.fields, error=SceneError)
+
+
+_TABLES = {"fluid": FluidSpec, "domain": DomainSpec, "contact": ContactSpec, "mesh": MeshSpec, "time": TimeSpec,
+           "output": OutputSpec}
+_TOP_KEYS = ("name", "description", "gravity", "fluid", "domain", "bodies", "bodies_table", "contact", "mesh", "time",
+             "output")
+
+
+@dataclass
+class Scene:
+    """A complete scene: domain, optional fluid, bodies, contacts, mesh, time and output.
+
+    Build it from a TOML file with :meth:`from_toml`, from a dict with :meth:`from_dict`, or
+    directly from the spec dataclasses, then call :meth:`validate` (done by the loaders) and
+    :meth:`plan`; :meth:`to_toml` writes it back.  Every quantity is in the one consistent
+    unit system the user picks (see :mod:`fluidem.scene`).
+
+    Parameters
+    ----------
+    domain : DomainSpec
+    bodies : list of BodySpec
+    fluid : FluidSpec or None
+        ``None`` for a dry scene (DEM only: no mesh, no fluid solver).
+    gravity : (2,) float
+        Acceleration of gravity, length/time² (e.g. ``[0, -9.81]`` in SI, ``[0, -981]`` in CGS).
+    contact : ContactSpec or None
+        ``None``: contacts off.
+    mesh, time, output : MeshSpec, TimeSpec, OutputSpec
+    name, description : str
+
+    Examples
+    --------
+    >>> from fluidem.scene import Scene
+    >>> s = Scene.from_dict({"domain": {"box": [0, 1, 0, 1]},
+    ...                      "bodies": [{"shape": "disk", "radius": 0.1, "position": [0.5, 0.5]}],
+    ...                      "time": {"dt": 0.01, "t_end": 0.1}})
+    >>> s.plan().effect("fluid").on
+    False
+    """
+
+    domain: DomainSpec = field(default_factory=DomainSpec)
+    bodies: list = field(default_factory=list)
+    fluid: FluidSpec | None = None
+    gravity: tuple = (0.0, 0.0)
+    contact: ContactSpec | None = None
+    mesh: MeshSpec = field(default_factory=MeshSpec)
+    time: TimeSpec = field(default_factory=TimeSpec)
+    output: OutputSpec = field(default_factory=OutputSpec)
+    name: str = "scene"
+    description: str = ""
+    source: str | None = None
+
+    # -- loading ------------------------------------------------------------------------
+    @classmethod
+    def from_toml(cls, path) -> Scene:
+        """Read and validate a scene file (relative ``bodies_table.file`` is relative to it)."""
+        path = Path(path)
+        data = files.read_toml(path)
+        data.setdefault("name", path.stem)
+        scene = cls.from_dict(data, base_dir=path.parent)
+        scene.source = str(path)
+        return scene
+
+    @classmethod
+    def from_dict(cls, data: dict, base_dir=".") -> Scene:
+        """Build and validate a scene from the nested dict of a TOML file."""
+        check_keys(data, _TOP_KEYS, "", error=SceneError)
+        kw = {}
+        for key, spec in _TABLES.items():
+            if key in data:
+                tab = data[key]
+                check_keys(tab, spec.KEYS, key, error=SceneError)
+                kw[key] = spec(**tab)
+        if "domain" not in kw:
+            raise SceneError("the scene has no [domain] table; it needs at least box = [xmin, xmax, ymin, ymax]")
+        if "gravity" in data:
+            kw["gravity"] = data["gravity"]
+        for k in ("name", "description"):
+            if k in data:
+                if not isinstance(data[k], str):
+                    raise fail(k, data[k], "a string", SceneError)
+                kw[k] = data[k]
+        bodies = []
+        raw = data.get("bodies", [])
+        if not isinstance(raw, list):
+            raise fail("bodies", raw, "an array of tables [[bodies]]", SceneError)
+        for i, b in enumerate(raw):
+            check_keys(b, BodySpec.KEYS, f"bodies[{i}]", error=SceneError)
+            bodies.append(BodySpec(**b))
+        if "bodies_table" in data:
+            bodies.extend(BodySpec(**rec) for rec in files.read_bodies_table(data["bodies_table"], base_dir))
+        kw["bodies"] = bodies
+        scene = cls(**kw)
+        scene.validate()
+        return scene
+
+    # -- validation ---------------------------------------------------------------------
+    def validate(self) -> Scene:
+        """Check every value and the geometry; returns ``self``.
+
+        Names are made canonical (aliases resolved), numbers converted to ``float``, pairs to
+        tuples, and polygon vertices shifted so that their area centroid is the origin.
+
+        Raises
+        ------
+        fluidem.errors.SceneError
+            (a ``ValueError``) naming the first bad key, its value and what is allowed.
+        """
+        self.gravity = pair("gravity", self.gravity, error=SceneError)
+        if self.fluid is not None:
+            self.fluid.validate()
+        self.domain.validate()
+        for spec, key in ((self.contact, "contact"), (self.mesh, "mesh"), (self.time, "time"),
+                          (self.output, "output")):
+            if spec is not None:
+                spec.validate(key)
+        sides = names.choices("side")
+        taken = set()
+        for i, b in enumerate(self.bodies):
+            if not isinstance(b, BodySpec):
+                raise fail(f"bodies[{i}]", b, "a BodySpec", SceneError)
+            b.validate(f"bodies[{i}]")
+            b.name = b.name or f"body{i}"
+            if not isinstance(b.name, str) or b.name in taken or b.name in sides:
+                raise fail(f"bodies[{i}].name", b.name, f"a unique string other than {', '.join(sides)}", SceneError)
+            taken.add(b.name)
+        self._check_geometry()
+        return self
+
+    def _check_geometry(self):
+        """Bodies inside the box and not overlapping each other (shapely, vectorised)."""
+        import shapely
+
+        if not self.bodies:
+            return
+        x0, x1, y0, y1 = self.domain.box
+        polys = self.world_outlines()
+        lo = np.array([p.min(axis=0) for p in polys])
+        hi = np.array([p.max(axis=0) for p in polys])
+        out = np.flatnonzero((lo[:, 0] <= x0) | (hi[:, 0] >= x1) | (lo[:, 1] <= y0) | (hi[:, 1] >= y1))
+        if len(out):
+            i = int(out[0])
+            raise SceneError(f"bodies[{i}].position = {list(self.bodies[i].position)}: the body (extent "
+                             f"x {lo[i, 0]:.4g}..{hi[i, 0]:.4g}, y {lo[i, 1]:.4g}..{hi[i, 1]:.4g}) is not inside "
+                             f"domain.box = {list(self.domain.box)}; allowed: every vertex strictly inside the box")
+        idx = np.repeat(np.arange(len(polys)), [len(p) for p in polys])
+        geoms = shapely.polygons(shapely.linearrings(np.vstack(polys), indices=idx))
+        tree = shapely.STRtree(geoms)
+        pairs = tree.query(geoms, predicate="intersects")
+        i, j = pairs[:, pairs[0] < pairs[1]] if pairs.size else (np.zeros(0, int), np.zeros(0, int))
+        if len(i):
+            area = shapely.area(shapely.intersection(geoms[i], geoms[j]))
+            ref = np.minimum(shapely.area(geoms[i]), shapely.area(geoms[j]))
+            bad = np.flatnonzero(area > 1e-9 * ref)
+            if len(bad):
+                a, b = int(i[bad[0]]), int(j[bad[0]])
+                raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
+                                 f"{list(self.bodies[b].position)}) overlap at start by {area[bad[0]]:.3g} "
+                                 f"(length²); allowed: bodies that do not overlap (touching is fine)")
+
+    def world_outlines(self) -> list:
+        """Initial outlines in world coordinates, list of (n_i, 2) arrays."""
+        return [b.world_vertices(self.default_segments(b)) for b in self.bodies]
+
+    def default_segments(self, body: BodySpec) -> int:
+        """Outline vertex count of a disk or ellipse without ``segments``: 32 dry, ~2πr/h (even, ≥ 16) in a fluid."""
+        if body.segments:
+            return body.segments
+        if self.fluid is None or body.shape not in ("disk", "ellipse"):
+            return 32
+        r = body.radius if body.shape == "disk" else max(body.a, body.b)
+        return max(16, 2 * int(math.ceil(math.pi * r / self.mesh.h)))
+
+    # -- TOML out ----------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """Plain nested dict (the inverse of :meth:`from_dict`, tables and bodies inline)."""
+        d = {"name": self.name, "description": self.description, "gravity": list(self.gravity),
+             "domain": _plain(asdict(self.domain)), "mesh": _plain(asdict(self.mesh)),
+             "time": _plain(asdict(self.time)), "output": _plain(asdict(self.output)),
+             "bodies": [{k: v for k, v in _plain(asdict(b)).items() if v is not None} for b in self.bodies]}
+        if self.fluid is not None:
+            d["fluid"] = _plain(asdict(self.fluid))
+        if self.contact is not None:
+            d["contact"] = _plain(asdict(self.contact))
+        return d
+
+    def to_toml(self, path) -> None:
+        """Write the scene as a TOML scene file (:func:`fluidem.scene.files.write_scene_toml`)."""
+        files.write_scene_toml(self, path)
+
+    def copy(self) -> Scene:
+        """A deep copy."""
+        return copy.deepcopy(self)
+
+    # -- the plan -------------------------------------------------------------------------
+    def plan(self) -> Plan:
+        """The effects this scene needs and why, see :class:`fluidem.plan.Plan`."""
+        from ..plan import make_plan
+
+        return make_plan(self)
+
+
+def _plain(obj):
+    """``asdict`` output as plain TOML-ready values: ``None`` dropped, tuples and arrays as lists."""
+    if isinstance(obj, dict):
+        return {k: _plain(v) for k, v in obj.items() if v is not None}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return obj
