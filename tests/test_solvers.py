@@ -490,3 +490,13 @@ def test_make_solver_for_a_flow_problem(dfg_th):
     assert steps[0].solver.chosen == "lagged"
     np.testing.assert_array_equal(steps[0].state.x, steps[1].state.x)
     assert steps[0].solver_summary() == steps[1].solver_summary()
+
+
+def test_fluid_package_exports_its_entry_points():
+    import fluidem.fluid as fluid
+    from fluidem.fluid import elements, forces, navier_stokes, space
+
+    for name in fluid.__all__:
+        home = next(m for m in (space, elements, navier_stokes, solvers, forces) if hasattr(m, name))
+        assert getattr(fluid, name) is getattr(home, name), name
+    assert fluid.FlowProblem is navier_stokes.FlowProblem and fluid.make_solver is make_solver

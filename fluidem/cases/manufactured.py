@@ -217,11 +217,11 @@ def saddle_point_problem(m: int, pair: str = "p2b", nu: float = 1.0, dt: float |
     >>> saddle_point_problem(3, pair="th", dt=0.01, peclet=1.0)
     SaddlePointProblem(n=76, n_u=60, n_p=16, h=0.3333)
     """
-    ep_ = element_pair(pair)
+    el = element_pair(pair)
     mesh = MeshTri.init_tensor(np.linspace(0, 1, m + 1), np.linspace(0, 1, m + 1))
-    eu = ElementVector(ep_.velocity())
+    eu = ElementVector(el.velocity())
     ub = Basis(mesh, eu, intorder=intorder)
-    pb = ub.with_element(ep_.pressure())
+    pb = ub.with_element(el.pressure())
 
     @BilinearForm
     def viscous(u, v, w):
