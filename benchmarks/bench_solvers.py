@@ -3,7 +3,8 @@
 Direct LU vs block-preconditioned GMRES vs lagged LU, for Stokes, Oseen and
 unsteady (backward-Euler-type, mass-dominated) systems with the default
 element pair "p2b" (P2+bubble velocity, P1-discontinuous pressure) on the
-unit square, at about 10k, 50k and 200k DOFs.
+unit square, at about 10k, 50k and 200k DOFs; the systems are the manufactured ones of
+:mod:`fluidem.cases.manufactured`.
 
 Run (one BLAS thread, results are wall-clock and therefore noisy on a shared
 machine)::
@@ -59,154 +60,14 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")  # PARDISO (optional) on one thread too
 
-import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-import scipy.sparse as sp  # noqa: E402
-from skfem import (  # noqa: E402
-    Basis,
-    BilinearForm,
-    ElementTriP1,
-    ElementTriP1DG,
-    ElementTriP2,
-    ElementTriP2B,
-    ElementVector,
-    FacetBasis,
-    LinearForm,
-    MeshTri,
-)
-from skfem.helpers import ddot, div, dot, grad, mul  # noqa: E402
 
+from fluidem.cases.manufactured import saddle_point_problem  # noqa: E402
 from fluidem.fluid.solvers import (  # noqa: E402
     BlockKrylovSolver,
     DirectSolver,
     LaggedLUSolver,
 )
-
-
-# ---------------------------------------------------------------- problems
-def _g(s):
-    return s**2 * (1 - s) ** 2
-
-
-def _g1(s):
-    return 2 * s * (1 - s) * (1 - 2 * s)
-
-
-def _g2(s):
-    return 2 * (1 - 6 * s + 6 * s**2)
-
-
-def _g3(s):
-    return 12 * (2 * s - 1)
-
-
-def wind(x):
-    """Divergence-free convecting field (curl of sin^2(pi x) sin^2(pi y)), (2, ...)."""
-    sx, sy = np.sin(np.pi * x[0]), np.sin(np.pi * x[1])
-    cx, cy = np.cos(np.pi * x[0]), np.cos(np.pi * x[1])
-    return np.array([2 * np.pi * sx**2 * sy * cy, -2 * np.pi * sx * cx * sy**2])
-
-
-def wind_gradient(x):
-    """Gradient of :func:`wind`, G[i, j] = d wind_i / d x_j, (2, 2, ...)."""
-    s2x, s2y = np.sin(2 * np.pi * x[0]), np.sin(2 * np.pi * x[1])
-    sx, sy = np.sin(np.pi * x[0]), np.sin(np.pi * x[1])
-    p2 = np.pi**2
-    return np.array([
-        [p2 * s2x * s2y, 2 * p2 * sx**2 * np.cos(2 * np.pi * x[1])],
-        [-2 * p2 * np.cos(2 * np.pi * x[0]) * sy**2, -p2 * s2x * s2y],
-    ])
-
-
-def saddle_point_problem(m, pair="p2b", nu=1.0, dt=None, peclet=0.0, alpha=1.0,
-                         outflow=True, newton=False):
-    """Condensed saddle-point system on an m x m unit-square grid.
-
-    Stokes with the manufactured solution u = curl(x^2(1-x)^2 y^2(1-y)^2),
-    p = x^3 + y^3 - 1/2.  ``outflow=True``: u = 0 on three sides and the
-    exact traction nu du/dn - p n on x = 1 (natural boundary, K non-singular);
-    ``outflow=False``: u = 0 on the whole boundary and one pressure DOF
-    pinned.  ``peclet > 0`` adds Oseen convection by ``peclet * wind``
-    (the load is then not that of the manufactured solution), ``newton=True``
-    also the Newton reaction term ((u . grad) wind) (a Navier--Stokes Jacobian
-    at the state ``peclet * wind``); ``dt`` adds
-    ``(alpha/dt) M_u`` to the velocity block.
-
-    Returns a dict with K (CSR), b, n_u, Mp, Mu (condensed), and the bases.
-    """
-    mesh = MeshTri.init_tensor(np.linspace(0, 1, m + 1), np.linspace(0, 1, m + 1))
-    eu = ElementVector(ElementTriP2B() if pair == "p2b" else ElementTriP2())
-    ep = ElementTriP1DG() if pair == "p2b" else ElementTriP1()
-    ub = Basis(mesh, eu, intorder=4)
-    pb = ub.with_element(ep)
-
-    @BilinearForm
-    def viscous(u, v, w):
-        return nu * ddot(grad(u), grad(v))
-
-    @BilinearForm
-    def convection(u, v, w):
-        return peclet * dot(mul(grad(u), wind(w.x)), v)
-
-    @BilinearForm
-    def reaction(u, v, w):
-        return peclet * dot(mul(wind_gradient(w.x), u), v)
-
-    @BilinearForm
-    def mass(u, v, w):
-        return dot(u, v)
-
-    @BilinearForm
-    def divergence(u, q, w):
-        return -div(u) * q
-
-    @BilinearForm
-    def pmass(p, q, w):
-        return p * q
-
-    @LinearForm
-    def load(v, w):
-        x, y = w.x
-        f1 = -nu * (_g2(x) * _g1(y) + _g(x) * _g3(y)) + 3 * x**2
-        f2 = nu * (_g3(x) * _g(y) + _g1(x) * _g2(y)) + 3 * y**2
-        return f1 * v[0] + f2 * v[1]
-
-    @LinearForm
-    def traction(v, w):
-        y = w.x[1]
-        return -(0.5 + y**3) * v[0] - 2 * nu * _g(y) * v[1]
-
-    A = viscous.assemble(ub)
-    Mu = mass.assemble(ub)
-    if peclet:
-        A = A + convection.assemble(ub)
-    if newton:
-        A = A + reaction.assemble(ub)
-    if dt is not None:
-        A = A + (alpha / dt) * Mu
-    B = divergence.assemble(ub, pb)
-    Mp = pmass.assemble(pb)
-    K = sp.bmat([[A, B.T], [B, None]], format="csr")
-    b = np.concatenate([load.assemble(ub), np.zeros(pb.N)])
-    if outflow:
-        right = mesh.facets_satisfying(lambda x: np.isclose(x[0], 1.0), boundaries_only=True)
-        b[: ub.N] += traction.assemble(FacetBasis(mesh, eu, facets=right, intorder=6))
-        walls = mesh.facets_satisfying(lambda x: ~np.isclose(x[0], 1.0), boundaries_only=True)
-        D = ub.get_dofs(walls).all()
-    else:
-        D = np.concatenate([ub.get_dofs().all(), [ub.N]])  # walls + pinned pressure DOF
-    interior = np.setdiff1d(np.arange(K.shape[0]), D)
-    iu = interior[interior < ub.N]
-    ip = interior[interior >= ub.N] - ub.N
-    return dict(
-        K=K[interior][:, interior].tocsr(),
-        b=b[interior],
-        n_u=iu.size,
-        Mp=Mp[ip][:, ip].tocsr(),
-        Mu=Mu[iu][:, iu].tocsr(),
-        ub=ub, pb=pb, iu=iu, ip=ip,
-        h=1.0 / m,
-    )
 
 
 # ---------------------------------------------------------------- cases
@@ -232,13 +93,13 @@ def _problem(kind, size):
 
 def _iterative(kind, P):
     kw = KINDS[kind]
-    return BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], nu=kw.get("nu", 1.0),
-                             dt=kw.get("dt"), velocity_mass=P["Mu"], rtol=1e-8)
+    return BlockKrylovSolver(P.n_u, pressure_mass=P.Mp, nu=kw.get("nu", 1.0),
+                             dt=kw.get("dt"), velocity_mass=P.Mu, rtol=1e-8)
 
 
 def _record(benchmark, P, solver):
     info = solver.last_info
-    n = P["K"].shape[0]
+    n = P.K.shape[0]
     median = benchmark.stats.stats.median
     benchmark.extra_info.update(
         n_dofs=n, iterations=info.iterations, relative_residual=info.relative_residual,
@@ -265,7 +126,7 @@ def test_solver(benchmark, method, kind, size):
     if method == "pardiso" and not _pardiso():
         pytest.skip("pypardiso is not installed")
     P = _problem(kind, size)
-    K, b = P["K"], P["b"]
+    K, b = P.K, P.b
     if method in ("direct", "pardiso"):
         backend = "superlu" if method == "direct" else "pardiso"
 
@@ -287,7 +148,7 @@ def test_solver(benchmark, method, kind, size):
         old["peclet"] = 1.25 * old.get("peclet", 0.0)
         if "dt" in old:
             old["dt"] *= 1.05
-        K_old = saddle_point_problem(SIZES[size], **old)["K"]
+        K_old = saddle_point_problem(SIZES[size], **old).K
         lagged = LaggedLUSolver(max_iterations_before_refactor=10**6, rtol=1e-8)
         lagged.factorize(K_old)
 

@@ -1,28 +1,18 @@
 """Tests of fluidem.fluid.solvers on Stokes, Oseen and unsteady systems built with scikit-fem.
 
-Manufactured Stokes solution on the unit square (nu = 1 unless stated):
-u = curl psi, psi = x^2 (1-x)^2 y^2 (1-y)^2, p = x^3 + y^3 - 1/2.
+Manufactured Stokes solution on the unit square (nu = 1 unless stated), from
+:mod:`fluidem.cases.manufactured`: u = curl psi, psi = x^2 (1-x)^2 y^2 (1-y)^2,
+p = x^3 + y^3 - 1/2.
 """
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from skfem import (
-    Basis,
-    BilinearForm,
-    ElementTriP1,
-    ElementTriP1DG,
-    ElementTriP2,
-    ElementTriP2B,
-    ElementVector,
-    FacetBasis,
-    Functional,
-    LinearForm,
-    MeshTri,
-)
-from skfem.helpers import ddot, div, dot, grad, mul
+from skfem import Basis, ElementTriP1DG, ElementTriP2B, ElementVector, MeshTri
 
+from fluidem import names
+from fluidem.cases.manufactured import l2_errors, saddle_point_problem
 from fluidem.fluid import solvers
 from fluidem.fluid.solvers import (
     AutoSolver,
@@ -37,127 +27,9 @@ from fluidem.fluid.solvers import (
 
 
 # ---------------------------------------------------------------- problem
-def _g(s):
-    return s**2 * (1 - s) ** 2
-
-
-def _g1(s):
-    return 2 * s * (1 - s) * (1 - 2 * s)
-
-
-def _g2(s):
-    return 2 * (1 - 6 * s + 6 * s**2)
-
-
-def _g3(s):
-    return 12 * (2 * s - 1)
-
-
-def exact_u(x):
-    return np.array([_g(x[0]) * _g1(x[1]), -_g1(x[0]) * _g(x[1])])
-
-
-def exact_p(x):
-    return x[0] ** 3 + x[1] ** 3 - 0.5
-
-
-def wind(x):
-    sx, sy = np.sin(np.pi * x[0]), np.sin(np.pi * x[1])
-    cx, cy = np.cos(np.pi * x[0]), np.cos(np.pi * x[1])
-    return np.array([2 * np.pi * sx**2 * sy * cy, -2 * np.pi * sx * cx * sy**2])
-
-
 def problem(m, pair="p2b", nu=1.0, dt=None, peclet=0.0, outflow=True):
-    """Condensed saddle-point system; see benchmarks/bench_solvers.py for the same builder."""
-    mesh = MeshTri.init_tensor(np.linspace(0, 1, m + 1), np.linspace(0, 1, m + 1))
-    eu = ElementVector(ElementTriP2B() if pair == "p2b" else ElementTriP2())
-    ep = ElementTriP1DG() if pair == "p2b" else ElementTriP1()
-    ub = Basis(mesh, eu, intorder=4)
-    pb = ub.with_element(ep)
-
-    @BilinearForm
-    def viscous(u, v, w):
-        return nu * ddot(grad(u), grad(v))
-
-    @BilinearForm
-    def convection(u, v, w):
-        return peclet * dot(mul(grad(u), wind(w.x)), v)
-
-    @BilinearForm
-    def mass(u, v, w):
-        return dot(u, v)
-
-    @BilinearForm
-    def divergence(u, q, w):
-        return -div(u) * q
-
-    @BilinearForm
-    def pmass(p, q, w):
-        return p * q
-
-    @LinearForm
-    def load(v, w):
-        x, y = w.x
-        f1 = -nu * (_g2(x) * _g1(y) + _g(x) * _g3(y)) + 3 * x**2
-        f2 = nu * (_g3(x) * _g(y) + _g1(x) * _g2(y)) + 3 * y**2
-        return f1 * v[0] + f2 * v[1]
-
-    @LinearForm
-    def traction(v, w):
-        y = w.x[1]
-        return -(0.5 + y**3) * v[0] - 2 * nu * _g(y) * v[1]
-
-    A = viscous.assemble(ub)
-    Mu = mass.assemble(ub)
-    if peclet:
-        A = A + convection.assemble(ub)
-    if dt is not None:
-        A = A + Mu / dt
-    B = divergence.assemble(ub, pb)
-    Mp = pmass.assemble(pb)
-    K = sp.bmat([[A, B.T], [B, None]], format="csr")
-    b = np.concatenate([load.assemble(ub), np.zeros(pb.N)])
-    if outflow:
-        right = mesh.facets_satisfying(lambda x: np.isclose(x[0], 1.0), boundaries_only=True)
-        b[: ub.N] += traction.assemble(FacetBasis(mesh, eu, facets=right, intorder=6))
-        walls = mesh.facets_satisfying(lambda x: ~np.isclose(x[0], 1.0), boundaries_only=True)
-        D = ub.get_dofs(walls).all()
-    else:
-        D = np.concatenate([ub.get_dofs().all(), [ub.N]])  # walls + pinned pressure DOF
-    interior = np.setdiff1d(np.arange(K.shape[0]), D)
-    iu = interior[interior < ub.N]
-    ip = interior[interior >= ub.N] - ub.N
-    return dict(K=K[interior][:, interior].tocsr(), b=b[interior], n_u=iu.size,
-                Mp=Mp[ip][:, ip].tocsr(), Mu=Mu[iu][:, iu].tocsr(),
-                ub=ub, pb=pb, iu=iu, ip=ip, Mp_full=Mp)
-
-
-def l2_errors(P, x):
-    """L2 errors of velocity and of pressure (mean removed) against the exact solution."""
-    ub, pb = P["ub"], P["pb"]
-    u = np.zeros(ub.N)
-    u[P["iu"]] = x[: P["n_u"]]
-    p = np.zeros(pb.N)
-    p[P["ip"]] = x[P["n_u"]:]
-
-    @Functional
-    def eu(w):
-        e = w["uh"] - exact_u(w.x)
-        return dot(e, e)
-
-    @Functional
-    def mean_p(w):
-        return w["ph"]
-
-    @Functional
-    def ep(w):
-        e = w["ph"] - w["c"] - exact_p(w.x)
-        return e * e
-
-    ph = pb.interpolate(p)
-    c = mean_p.assemble(pb, ph=ph)  # unit square: mean = integral
-    return (np.sqrt(eu.assemble(ub, uh=ub.interpolate(u))),
-            np.sqrt(ep.assemble(pb, ph=ph, c=c)))
+    """Condensed saddle-point system of :mod:`fluidem.cases.manufactured`."""
+    return saddle_point_problem(m, pair=pair, nu=nu, dt=dt, peclet=peclet, outflow=outflow)
 
 
 def relres(K, x, b):
@@ -179,7 +51,7 @@ def test_direct_converges_to_manufactured_solution():
     errs = []
     for m in (4, 8):
         P = problem(m)
-        x = DirectSolver().factorize(P["K"]).solve(P["b"])
+        x = DirectSolver().factorize(P.K).solve(P.b)
         errs.append(l2_errors(P, x))
     (eu4, ep4), (eu8, ep8) = errs
     assert eu8 < 1e-4 and ep8 < 1e-2
@@ -193,29 +65,29 @@ BACKENDS = ["superlu"] + (["pardiso"] if solvers._pardiso_available() else [])
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_direct_info_and_refactorize(stokes_p2b, backend):
     P = stokes_p2b
-    s = DirectSolver(backend=backend).factorize(P["K"])
-    x = s.solve(P["b"])
+    s = DirectSolver(backend=backend).factorize(P.K)
+    x = s.solve(P.b)
     info = s.last_info
     assert isinstance(info, SolveInfo)
     assert info.method == backend and info.iterations == 0
     assert info.relative_residual < 1e-12
     assert backend in str(info) and "relative_residual" in str(info)
-    assert s.refactorize_if_changed(P["K"].copy()) is False
+    assert s.refactorize_if_changed(P.K.copy()) is False
     assert s.factorizations == 1
-    assert s.refactorize_if_changed(P["K"] * 2.0) is True
+    assert s.refactorize_if_changed(P.K * 2.0) is True
     assert s.factorizations == 2
-    np.testing.assert_allclose(s.solve(2.0 * P["b"]), x, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(s.solve(2.0 * P.b), x, rtol=1e-10, atol=1e-14)
     # multiple right-hand sides
-    X = s.solve(np.column_stack([P["b"], P["b"]]))
-    assert X.shape == (P["K"].shape[0], 2)
+    X = s.solve(np.column_stack([P.b, P.b]))
+    assert X.shape == (P.K.shape[0], 2)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_direct_as_preconditioner_one_iteration(stokes_p2b, backend):
     P = stokes_p2b
-    M = DirectSolver(backend=backend).factorize(P["K"]).as_preconditioner()
+    M = DirectSolver(backend=backend).factorize(P.K).as_preconditioner()
     count = []
-    x, info = spla.gmres(P["K"], P["b"], M=M, rtol=1e-10, callback=count.append,
+    x, info = spla.gmres(P.K, P.b, M=M, rtol=1e-10, callback=count.append,
                          callback_type="pr_norm")
     assert info == 0 and len(count) <= 2
 
@@ -223,7 +95,7 @@ def test_direct_as_preconditioner_one_iteration(stokes_p2b, backend):
 def test_singular_enclosed_flow_raises_and_pinning_fixes_it():
     """All-Dirichlet velocity: K is singular unless one pressure DOF is pinned."""
     P = problem(6, outflow=False)  # one pressure DOF condensed out (pinned)
-    x = DirectSolver().factorize(P["K"]).solve(P["b"])
+    x = DirectSolver().factorize(P.K).solve(P.b)
     eu, ep = l2_errors(P, x)
     assert eu < 1e-3 and ep < 5e-2
     K = _unpinned_enclosed(6)
@@ -262,9 +134,9 @@ CASES = {
 def test_iterative_agrees_with_direct(case):
     pkw, skw = CASES[case]
     P = problem(10, **pkw)
-    K, b = P["K"], P["b"]
+    K, b = P.K, P.b
     x_direct = DirectSolver(backend="superlu").factorize(K).solve(b)
-    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], velocity_mass=P["Mu"],
+    s = BlockKrylovSolver(P.n_u, pressure_mass=P.Mp, velocity_mass=P.Mu,
                           rtol=1e-10, **skw).factorize(K)
     x = s.solve(b)
     info = s.last_info
@@ -274,14 +146,14 @@ def test_iterative_agrees_with_direct(case):
     assert info.residuals[0] == pytest.approx(1.0)
     # agreement of the fields: residual 1e-10 times a moderate condition number
     assert reldiff(x, x_direct) < 1e-7
-    n_u = P["n_u"]
+    n_u = P.n_u
     assert reldiff(x[n_u:], x_direct[n_u:]) < 1e-7
 
 
 def test_iterative_matches_manufactured_solution():
     P = problem(8)
-    x = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], rtol=1e-10).factorize(P["K"]).solve(P["b"])
-    x_direct = DirectSolver().factorize(P["K"]).solve(P["b"])
+    x = BlockKrylovSolver(P.n_u, pressure_mass=P.Mp, rtol=1e-10).factorize(P.K).solve(P.b)
+    x_direct = DirectSolver().factorize(P.K).solve(P.b)
     e_it, e_dir = l2_errors(P, x), l2_errors(P, x_direct)
     np.testing.assert_allclose(e_it, e_dir, rtol=1e-5)
 
@@ -289,29 +161,29 @@ def test_iterative_matches_manufactured_solution():
 @pytest.mark.parametrize("mass_solve", ["exact", "diag"])
 def test_minres_block_diagonal_stokes(stokes_p2b, mass_solve):
     P = stokes_p2b
-    x_direct = DirectSolver().factorize(P["K"]).solve(P["b"])
-    s = BlockKrylovSolver(P["n_u"], schur="mass", pressure_mass=P["Mp"], krylov="minres",
-                          mass_solve=mass_solve, rtol=1e-10).factorize(P["K"])
-    x = s.solve(P["b"])
+    x_direct = DirectSolver().factorize(P.K).solve(P.b)
+    s = BlockKrylovSolver(P.n_u, schur="mass", pressure_mass=P.Mp, krylov="minres",
+                          mass_solve=mass_solve, rtol=1e-10).factorize(P.K)
+    x = s.solve(P.b)
     assert s.last_info.method.startswith("minres")
-    assert relres(P["K"], x, P["b"]) <= 1e-10
+    assert relres(P.K, x, P.b) <= 1e-10
     assert reldiff(x, x_direct) < 1e-7
 
 
 def test_minres_rejects_nonsymmetric():
     P = problem(4, peclet=5.0)
     with pytest.raises(ValueError, match="symmetric"):
-        BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], krylov="minres").factorize(P["K"])
+        BlockKrylovSolver(P.n_u, pressure_mass=P.Mp, krylov="minres").factorize(P.K)
 
 
 def test_cahouet_chabard_beats_mass_for_small_time_step():
     P = problem(10, nu=1e-3, dt=1e-2)
     its = {}
     for schur in ("cahouet-chabard", "mass"):
-        s = BlockKrylovSolver(P["n_u"], schur=schur, pressure_mass=P["Mp"], nu=1e-3, dt=1e-2,
-                              velocity_mass=P["Mu"], rtol=1e-8, maxiter=400)
+        s = BlockKrylovSolver(P.n_u, schur=schur, pressure_mass=P.Mp, nu=1e-3, dt=1e-2,
+                              velocity_mass=P.Mu, rtol=1e-8, maxiter=400)
         try:
-            s.factorize(P["K"]).solve(P["b"])
+            s.factorize(P.K).solve(P.b)
         except SolverError:
             pass
         its[schur] = s.last_info.iterations
@@ -322,19 +194,19 @@ def test_cahouet_chabard_beats_mass_for_small_time_step():
 def test_cahouet_chabard_without_velocity_mass():
     """D_u = diag(A) when no velocity mass matrix is given."""
     P = problem(8, nu=1e-3, dt=1e-2)
-    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], nu=1e-3, dt=1e-2, rtol=1e-10)
+    s = BlockKrylovSolver(P.n_u, pressure_mass=P.Mp, nu=1e-3, dt=1e-2, rtol=1e-10)
     assert s.schur == "cahouet-chabard"
-    x = s.factorize(P["K"]).solve(P["b"])
-    assert relres(P["K"], x, P["b"]) <= 1e-10 and s.last_info.iterations < 100
+    x = s.factorize(P.K).solve(P.b)
+    assert relres(P.K, x, P.b) <= 1e-10 and s.last_info.iterations < 100
 
 
 # ---------------------------------------------------------------- failures
 def test_maxiter_raises_solver_error(stokes_p2b):
     P = stokes_p2b
-    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], rtol=1e-10, maxiter=2)
-    s.factorize(P["K"])
+    s = BlockKrylovSolver(P.n_u, pressure_mass=P.Mp, rtol=1e-10, maxiter=2)
+    s.factorize(P.K)
     with pytest.raises(SolverError, match="maxiter=2") as err:
-        s.solve(P["b"])
+        s.solve(P.b)
     info = err.value.info
     assert info.iterations == 2 and info.relative_residual > 1e-10
     assert "relative residual history" in str(err.value)
@@ -344,19 +216,19 @@ def test_maxiter_raises_solver_error(stokes_p2b):
 def test_stagnation_raises_solver_error(stokes_p2b):
     """A useless preconditioner (Schur part off by 1e8) with short restarts stagnates."""
     P = stokes_p2b
-    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"] * 1e8, rtol=1e-10, restart=2,
+    s = BlockKrylovSolver(P.n_u, pressure_mass=P.Mp * 1e8, rtol=1e-10, restart=2,
                           maxiter=10_000, stagnation=0.9)
-    s.factorize(P["K"])
+    s.factorize(P.K)
     with pytest.raises(SolverError, match="stagnation"):
-        s.solve(P["b"])
+        s.solve(P.b)
     assert s.last_info.iterations < 10_000
 
 
 def test_minres_maxiter_raises(stokes_p2b):
     P = stokes_p2b
-    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], krylov="minres", maxiter=3)
+    s = BlockKrylovSolver(P.n_u, pressure_mass=P.Mp, krylov="minres", maxiter=3)
     with pytest.raises(SolverError):
-        s.factorize(P["K"]).solve(P["b"])
+        s.factorize(P.K).solve(P.b)
 
 
 def test_bad_options():
@@ -364,7 +236,7 @@ def test_bad_options():
         BlockKrylovSolver(10, schur="cahouet-chabard", pressure_mass=sp.eye(2))
     with pytest.raises(ValueError, match="pressure_mass"):
         BlockKrylovSolver(10, schur="mass")
-    with pytest.raises(ValueError, match="unknown schur"):
+    with pytest.raises(ValueError, match="schur = 'pcd': expected one of 'mass'"):
         BlockKrylovSolver(10, schur="pcd")
     with pytest.raises(ValueError, match="MMD_AT_PLUS_A"):
         DirectSolver(permc_spec="MMD_AT_PLUS_A")
@@ -373,19 +245,19 @@ def test_bad_options():
 # ---------------------------------------------------------------- reuse
 def test_amg_reuse(stokes_p2b):
     P = stokes_p2b
-    K = P["K"]
-    s = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], rtol=1e-10).factorize(K)
+    K = P.K
+    s = BlockKrylovSolver(P.n_u, pressure_mass=P.Mp, rtol=1e-10).factorize(K)
     ml = s._ml_A
     s.factorize(K.copy())
-    assert s._ml_A is ml and s.solve(P["b"]) is not None and s.last_info.reused_setup
+    assert s._ml_A is ml and s.solve(P.b) is not None and s.last_info.reused_setup
     s.factorize(K * 1.01)  # values changed: rebuilt with reuse="values"
     assert s._ml_A is not ml
-    lagged = BlockKrylovSolver(P["n_u"], pressure_mass=P["Mp"], rtol=1e-10,
+    lagged = BlockKrylovSolver(P.n_u, pressure_mass=P.Mp, rtol=1e-10,
                                reuse="always").factorize(K)
     ml = lagged._ml_A
-    x = lagged.factorize(K * 1.01).solve(P["b"])
+    x = lagged.factorize(K * 1.01).solve(P.b)
     assert lagged._ml_A is ml and lagged.last_info.reused_setup
-    assert relres(K * 1.01, x, P["b"]) <= 1e-10
+    assert relres(K * 1.01, x, P.b) <= 1e-10
     lagged.factorize(K * 1.01, rebuild=True)
     assert lagged._ml_A is not ml
 
@@ -395,44 +267,44 @@ def test_lagged_lu_solves_perturbed_matrix_in_few_iterations():
     P0 = problem(10, nu=1e-3, dt=1e-2, peclet=0.2)
     P1 = problem(10, nu=1e-3, dt=1.05e-2, peclet=0.25)
     s = LaggedLUSolver(max_iterations_before_refactor=8, rtol=1e-10)
-    x0 = s.factorize(P0["K"]).solve(P0["b"])
+    x0 = s.factorize(P0.K).solve(P0.b)
     assert s.last_info.iterations == 0 and s.factorizations == 1
-    x1 = s.factorize(P1["K"]).solve(P1["b"])
+    x1 = s.factorize(P1.K).solve(P1.b)
     info = s.last_info
     assert s.factorizations == 1
     assert 1 <= info.iterations <= 8
-    assert relres(P1["K"], x1, P1["b"]) <= 1e-10
-    assert reldiff(x1, DirectSolver().factorize(P1["K"]).solve(P1["b"])) < 1e-8
+    assert relres(P1.K, x1, P1.b) <= 1e-10
+    assert reldiff(x1, DirectSolver().factorize(P1.K).solve(P1.b)) < 1e-8
     assert not np.allclose(x0, x1)
     # a tight threshold makes the next factorize refactorise
     s.max_iterations_before_refactor = 0
-    s.factorize(P1["K"]).solve(P1["b"])
+    s.factorize(P1.K).solve(P1.b)
     assert "refactorization due" in s.last_info.note
-    s.factorize(P1["K"])
+    s.factorize(P1.K)
     assert s.factorizations == 2
-    s.solve(P1["b"])
+    s.solve(P1.b)
     assert s.last_info.iterations == 0
     assert s.solves == 4 and s.total_iterations >= 2
 
 
 def test_lagged_lu_falls_back_to_fresh_lu():
     P0 = problem(6)
-    K1 = P0["K"].copy()  # very different values, same pattern
+    K1 = P0.K.copy()  # very different values, same pattern
     K1.data *= np.random.default_rng(0).uniform(0.5, 1.5, K1.nnz)
     s = LaggedLUSolver(rtol=1e-10, maxiter=3)
-    s.factorize(P0["K"])
-    x = s.factorize(K1).solve(P0["b"])
+    s.factorize(P0.K)
+    x = s.factorize(K1).solve(P0.b)
     assert s.factorizations == 2 and "refactorized" in s.last_info.note
-    assert relres(K1, x, P0["b"]) <= 1e-10
+    assert relres(K1, x, P0.b) <= 1e-10
     # a different sparsity pattern of the same shape is no reason to refactorise
-    K2 = P0["K"].copy()
+    K2 = P0.K.copy()
     K2.data[np.abs(K2.data) < 1e-3 * np.abs(K2.data).max()] = 0.0
     K2.eliminate_zeros()
-    assert not solvers._same_structure(K2, P0["K"])
-    s.factorize(P0["K"], force=True)
-    x = s.factorize(K2).solve(P0["b"])
+    assert not solvers._same_structure(K2, P0.K)
+    s.factorize(P0.K, force=True)
+    x = s.factorize(K2).solve(P0.b)
     assert s.factorizations == 3 and s.last_info.iterations > 0
-    assert relres(K2, x, P0["b"]) <= 1e-10
+    assert relres(K2, x, P0.b) <= 1e-10
     with pytest.raises(ValueError, match="unknown reuse"):
         BlockKrylovSolver(10, pressure_mass=sp.eye(2), reuse="structure")
 
@@ -442,9 +314,9 @@ def test_make_solver_registry(stokes_p2b):
     P = stokes_p2b
     assert isinstance(make_solver("direct"), DirectSolver)
     assert isinstance(make_solver("lagged"), LaggedLUSolver)
-    assert isinstance(make_solver("iterative", n_u=P["n_u"], pressure_mass=P["Mp"]),
+    assert isinstance(make_solver("iterative", n_u=P.n_u, pressure_mass=P.Mp),
                       BlockKrylovSolver)
-    with pytest.raises(ValueError, match="unknown solver 'umfpack'"):
+    with pytest.raises(ValueError, match="solver = 'umfpack': expected one of 'auto'"):
         make_solver("umfpack")
     with pytest.raises(ValueError, match="n_u"):
         make_solver("iterative")
@@ -452,25 +324,25 @@ def test_make_solver_registry(stokes_p2b):
 
 def test_auto_choice_by_size(stokes_p2b, monkeypatch):
     P = stokes_p2b
-    s = make_solver("auto", n_u=P["n_u"], pressure_mass=P["Mp"], rtol=1e-10)
+    s = make_solver("auto", n_u=P.n_u, pressure_mass=P.Mp, rtol=1e-10)
     assert isinstance(s, AutoSolver)
-    x = s.factorize(P["K"]).solve(P["b"])
+    x = s.factorize(P.K).solve(P.b)
     assert s.chosen == "direct" and s.last_info.method == solvers.default_direct_backend()
     monkeypatch.setitem(solvers.DIRECT_MAX_DOFS, solvers.default_direct_backend(), 100)
-    y = s.factorize(P["K"]).solve(P["b"])
+    y = s.factorize(P.K).solve(P.b)
     assert s.chosen == "iterative" and s.last_info.iterations > 0
     assert reldiff(y, x) < 1e-7
     assert "DOFs" in s.reason
     # a failing iterative solve falls back to LU (or raises with fallback=False)
-    f = make_solver("auto", n_u=P["n_u"], pressure_mass=P["Mp"], maxiter=2)
-    z = f.factorize(P["K"]).solve(P["b"])
+    f = make_solver("auto", n_u=P.n_u, pressure_mass=P.Mp, maxiter=2)
+    z = f.factorize(P.K).solve(P.b)
     assert f.chosen == "direct" and "fallback" in f.last_info.note and "fell back" in f.reason
     assert reldiff(z, x) < 1e-10
-    g = make_solver("auto", n_u=P["n_u"], pressure_mass=P["Mp"], maxiter=2, fallback=False)
+    g = make_solver("auto", n_u=P.n_u, pressure_mass=P.Mp, maxiter=2, fallback=False)
     with pytest.raises(SolverError, match="maxiter=2"):
-        g.factorize(P["K"]).solve(P["b"])
+        g.factorize(P.K).solve(P.b)
     # without n_u the iterative path is impossible: stays direct
-    t = make_solver("auto").factorize(P["K"])
+    t = make_solver("auto").factorize(P.K)
     assert t.chosen == "direct"
 
 
@@ -495,6 +367,136 @@ def test_choose_method_thresholds(backend):
 @pytest.mark.skipif(not solvers._pardiso_available(), reason="pypardiso not installed")
 def test_pardiso_backend_agrees(stokes_p2b):
     P = stokes_p2b
-    x = DirectSolver(backend="pardiso").factorize(P["K"]).solve(P["b"])
-    y = DirectSolver().factorize(P["K"]).solve(P["b"])
+    x = DirectSolver(backend="pardiso").factorize(P.K).solve(P.b)
+    y = DirectSolver().factorize(P.K).solve(P.b)
     assert reldiff(x, y) < 1e-9
+
+
+# ---------------------------------------------------------------- names, errors, the rule of "auto"
+def test_registry_tables_are_the_names_registry():
+    from fluidem.errors import InputError
+    from fluidem.fluid.elements import ELEMENT_PAIRS, element_pair
+
+    assert tuple(solvers.SOLVERS) == names.choices("solver")
+    assert tuple(ELEMENT_PAIRS) == names.choices("element")
+    assert all(element_pair(n).name == n for n in names.choices("element"))
+    assert isinstance(make_solver("lagged-lu"), LaggedLUSolver)
+    with pytest.raises(InputError, match="element = 'q9': expected one of 'p2b', 'th'"):
+        element_pair("q9")
+    with pytest.raises(InputError, match=r"fluid.element = 'P2': expected one of .* \(element pair\)"):
+        element_pair("P2", where="fluid.element")
+    with pytest.raises(InputError, match=r"solver = 'lu': expected one of 'auto', 'direct', "
+                                         r"'iterative', 'lagged' \(solver\)"):
+        make_solver("lu")
+    with pytest.raises(InputError, match=r"schur = 'pcd': .*'lsc' \(Schur-complement"):
+        BlockKrylovSolver(10, schur="pcd")
+    for schur in names.choices("schur"):
+        assert BlockKrylovSolver(10, schur=schur, pressure_mass=sp.eye(2), dt=0.1).schur == schur
+
+
+def test_solver_error_is_a_fluidem_solver_error(stokes_p2b):
+    import fluidem.errors
+
+    P = stokes_p2b
+    s = BlockKrylovSolver(P.n_u, pressure_mass=P.Mp, rtol=1e-10, maxiter=2).factorize(P.K)
+    with pytest.raises(fluidem.errors.SolverError, match="maxiter=2") as err:
+        s.solve(P.b)
+    assert isinstance(err.value, SolverError) and isinstance(err.value, RuntimeError)
+    assert err.value.info is s.last_info and "relative residual history (3 entries)" in str(err.value)
+    assert SolverError is solvers.LinearSolverError
+
+
+def test_choose_solver_rule_by_kind_and_size():
+    from fluidem.errors import InputError
+
+    choose_solver = solvers.choose_solver
+    for backend in ("superlu", "pardiso"):
+        for kind, table, small in (("steady", solvers.DIRECT_MAX_DOFS_CONVECTIVE, "direct"),
+                                   ("stokes", solvers.DIRECT_MAX_DOFS, "direct"),
+                                   ("unsteady", solvers.LAGGED_MAX_DOFS, "lagged")):
+            limit = table[backend]
+            assert choose_solver(limit - 1, kind, backend=backend)[0] == small
+            name, reason = choose_solver(limit, kind, backend=backend)
+            assert name == "iterative" and str(limit) in reason and backend in reason
+    # the measured choices: steady Newton direct, Stokes iterative from 20k, time stepping lagged
+    assert choose_solver(50_000, "steady")[0] == "direct"
+    assert choose_solver(50_000, "stokes")[0] == "iterative"
+    assert choose_solver(50_000, "unsteady")[0] == "lagged"
+    with pytest.raises(InputError, match="kind = 'bdf2': expected one of 'steady'"):
+        choose_solver(10, "bdf2")
+
+
+def test_auto_solver_follows_the_rule(monkeypatch):
+    """The rule of "auto": lagged LU for time steps (iterative above LAGGED_MAX_DOFS), direct for steady
+    convective and small Stokes systems, with the kind read from dt and the velocity block."""
+    P = problem(8, nu=1e-3, dt=1e-2, peclet=0.2)
+    x_direct = DirectSolver().factorize(P.K).solve(P.b)
+    s = make_solver("auto", n_u=P.n_u, pressure_mass=P.Mp, velocity_mass=P.Mu, nu=1e-3, dt=1e-2,
+                    rtol=1e-10)
+    x = s.factorize(P.K).solve(P.b)
+    assert s.chosen == "lagged" and isinstance(s.solver, LaggedLUSolver) and "unsteady" in s.reason
+    assert s.factorizations == 1 and s.solves == 1 and s.total_iterations == 0
+    assert reldiff(x, x_direct) < 1e-10
+    monkeypatch.setitem(solvers.LAGGED_MAX_DOFS, solvers.default_direct_backend(), 100)
+    y = s.factorize(P.K).solve(P.b)
+    assert s.chosen == "iterative" and s.solver.schur == "cahouet-chabard"
+    assert s.last_info.iterations > 0 and reldiff(y, x_direct) < 1e-7
+    oseen = problem(6, peclet=10.0)
+    a = make_solver("auto", n_u=oseen.n_u, pressure_mass=oseen.Mp).factorize(oseen.K)
+    assert a.chosen == "direct" and a.reason.startswith("steady convective")
+    st = problem(6)
+    a = make_solver("auto", n_u=st.n_u, pressure_mass=st.Mp).factorize(st.K)
+    assert a.chosen == "direct" and a.reason.startswith("Stokes")
+    assert make_solver("auto", kind="unsteady").factorize(st.K).chosen == "lagged"
+
+
+@pytest.fixture(scope="module")
+def dfg_th():
+    from fluidem.cases.dfg import dfg_mesh, dfg_problem
+
+    return dfg_problem(dfg_mesh(0), "th", lambda t: 0.3)
+
+
+def test_make_solver_for_a_flow_problem(dfg_th):
+    """The factory reads the free DOFs, M_p, M_u, nu and the direct solver from the problem and
+    builds what make_flow_solver builds."""
+    from fluidem.fluid.navier_stokes import BDF2Stepper, make_flow_solver, solve_stokes
+
+    pr = dfg_th
+    fo = solvers.flow_solver_options(pr)
+    n_u_free = int(np.count_nonzero(pr.free < pr.space.n_u))
+    assert fo["n_u"] == n_u_free and fo["nu"] == pr.nu
+    assert fo["velocity_mass"].shape == (n_u_free, n_u_free)
+    assert fo["pressure_mass"].shape == (pr.free.size - n_u_free,) * 2
+    assert fo["direct"]["symmetric_mode"] is True  # continuous pressure: symmetric SuperLU
+    for m in ("direct", "iterative", "lagged", "lagged-lu"):
+        a, b = make_solver(m, problem=pr, dt=0.01), make_flow_solver(pr, names.lookup("solver", m), dt=0.01)
+        assert type(a) is type(b)
+    it, ref = make_solver("iterative", problem=pr, dt=0.01), make_flow_solver(pr, "iterative", dt=0.01)
+    assert it.n_u == ref.n_u and it.dt == 0.01 and it.schur == ref.schur == "cahouet-chabard"
+    assert abs(it.pressure_mass - ref.pressure_mass).max() == 0
+    assert abs(it.velocity_mass - ref.velocity_mass).max() == 0
+    # Stokes by "auto" (kind from the symmetric velocity block) and by "direct" agree
+    auto = make_solver("auto", problem=pr)
+    a = solve_stokes(pr, solver=auto)
+    b = solve_stokes(pr, solver=make_solver("direct", problem=pr))
+    assert auto.chosen == "direct" and auto.reason.startswith("Stokes")
+    np.testing.assert_array_equal(a.x, b.x)
+    # time steps by "auto" are the lagged LU's, step for step
+    steps = [BDF2Stepper(pr, 0.01, solver=make_solver(m, problem=pr, dt=0.01)) for m in ("auto", "lagged")]
+    for s in steps:
+        for _ in range(3):
+            s.step()
+    assert steps[0].solver.chosen == "lagged"
+    np.testing.assert_array_equal(steps[0].state.x, steps[1].state.x)
+    assert steps[0].solver_summary() == steps[1].solver_summary()
+
+
+def test_fluid_package_exports_its_entry_points():
+    import fluidem.fluid as fluid
+    from fluidem.fluid import elements, forces, navier_stokes, space
+
+    for name in fluid.__all__:
+        home = next(m for m in (space, elements, navier_stokes, solvers, forces) if hasattr(m, name))
+        assert getattr(fluid, name) is getattr(home, name), name
+    assert fluid.FlowProblem is navier_stokes.FlowProblem and fluid.make_solver is make_solver

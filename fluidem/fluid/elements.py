@@ -31,6 +31,8 @@ from skfem import (
     ElementTriP3,
 )
 
+from .. import names
+
 __all__ = ["ElementPair", "ELEMENT_PAIRS", "element_pair"]
 
 
@@ -51,6 +53,7 @@ class ElementPair:
         return k + (k - 1) + k
 
 
+#: Element pairs by the names of kind ``"element"`` in :mod:`fluidem.names` (same keys, same order).
 ELEMENT_PAIRS: dict[str, ElementPair] = {
     "p2b": ElementPair("p2b", ElementTriP2B, ElementTriP1DG, 3, True,
                        "P2+bubble velocity / discontinuous P1 pressure (Crouzeix-Raviart)"),
@@ -60,10 +63,32 @@ ELEMENT_PAIRS: dict[str, ElementPair] = {
 }
 
 
-def element_pair(name: str) -> ElementPair:
-    """Look up an element pair by name; ``ValueError`` lists the allowed names."""
-    try:
-        return ELEMENT_PAIRS[name]
-    except (KeyError, TypeError):
-        allowed = ", ".join(repr(k) for k in ELEMENT_PAIRS)
-        raise ValueError(f"unknown element pair {name!r}; allowed: {allowed}") from None
+def element_pair(name: str, where: str = "element") -> ElementPair:
+    """The element pair called ``name`` (a name or alias of kind ``"element"``).
+
+    Parameters
+    ----------
+    name : str
+        ``"p2b"``, ``"th"``, ``"p3"`` or ``"mini"``.
+    where : str
+        Where the name was typed, for the error message (a scene key, an option).
+
+    Returns
+    -------
+    ElementPair
+
+    Raises
+    ------
+    fluidem.errors.InputError
+        For an unknown name (a ``ValueError``), in the one format of :mod:`fluidem.names`.
+
+    Examples
+    --------
+    >>> element_pair("th").pressure.__name__, element_pair("p2b").quadrature_order
+    ('ElementTriP1', 8)
+    >>> element_pair("p1")
+    Traceback (most recent call last):
+    ...
+    fluidem.errors.InputError: element = 'p1': expected one of 'p2b', 'th', 'p3', 'mini' (element pair)
+    """
+    return ELEMENT_PAIRS[names.lookup("element", name, where=where)]
