@@ -1,6 +1,7 @@
 """Meshes: fixed-obstacle triangulation and the moving mesh that follows rigid bodies (paper Sec. 2–4)."""
 
 from .moving import STRATEGIES, MeshEvent, MovingMesh
+from .params import MeshParams
 from .quality import MeshQuality, OscillationDetector, mesh_quality, triangle_angles
 from .relax import RelaxParams, mesh_topology, relax
 from .transfer import interpolate, project_l2, supermesh
@@ -9,6 +10,7 @@ __all__ = [
     "MovingMesh",
     "MeshEvent",
     "STRATEGIES",
+    "MeshParams",
     "MeshQuality",
     "OscillationDetector",
     "mesh_quality",
