@@ -33,7 +33,6 @@ import shapely
 from ..errors import InputError
 from ..geometry import rectangle, regular_polygon
 
-
 __all__ = ["random_convex", "world_polygons", "packing", "RandomMotion", "sliding_pair", "crossing_body",
            "collapsing_step"]
 
@@ -200,7 +199,8 @@ class RandomMotion:
             bad[a[sel]] = True
             xmin, ymin, xmax, ymax = shapely.bounds(polys).T
             g = self.min_gap
-            bad |= (xmin < self.box[0] + g) | (ymin < self.box[2] + g) | (xmax > self.box[1] - g) | (ymax > self.box[3] - g)
+            bad |= ((xmin < self.box[0] + g) | (ymin < self.box[2] + g) | (xmax > self.box[1] - g)
+                    | (ymax > self.box[3] - g))
             moved = np.any(trial != self.poses, axis=1)
             bad &= moved
             if not bad.any():

@@ -116,27 +116,27 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
         ``on_outline_factor``, ``contact_merge``, ``contact_node_spacing``, ``mitre_limit``.
     """
     n_bodies = len(polys)
-    olw = outline_world
-    n_ol = len(olw)
-    ol_keep = np.ones(n_ol, dtype=bool)
+    outline_world = outline_world
+    n_outline = len(outline_world)
+    keep_outline = np.ones(n_outline, dtype=bool)
     solids = list(polys)
-    extra_pts, extra_body, seg_list, holes, pore_list = [], [], [], [], []
+    contact_points, contact_body, cluster_segments, holes, pores = [], [], [], [], []
     clustered = np.zeros(n_bodies, dtype=bool)
     contacts = contact_pairs(polys, tree, min_gap) if n_bodies > 1 else np.zeros((0, 2), dtype=np.int64)
     merge = params.contact_merge * h
     spacing = params.contact_node_spacing * h
     if len(contacts):
         g = coo_matrix((np.ones(len(contacts)), (contacts[:, 0], contacts[:, 1])), shape=(n_bodies, n_bodies))
-        _, lab = connected_components(g, directed=False)
+        _, cluster_of = connected_components(g, directed=False)
         members_of = {}
-        for k in np.unique(lab[np.concatenate([contacts[:, 0], contacts[:, 1]])]):
-            members_of[k] = np.flatnonzero(lab == k)
-        n_extra = 0
+        for k in np.unique(cluster_of[np.concatenate([contacts[:, 0], contacts[:, 1]])]):
+            members_of[k] = np.flatnonzero(cluster_of == k)
+        n_contacts = 0
         tol = 1e-7 * h
-        for k, mem in members_of.items():  # one per contact cluster (few)
-            clustered[mem] = True
+        for k, members in members_of.items():  # one per contact cluster (few)
+            clustered[members] = True
             r = 0.5 * min_gap
-            closed = shapely.union_all(shapely.buffer(polys[mem], r, join_style="mitre",
+            closed = shapely.union_all(shapely.buffer(polys[members], r, join_style="mitre",
                                                       mitre_limit=params.mitre_limit))
             closed = shapely.buffer(closed, -r, join_style="mitre", mitre_limit=params.mitre_limit)
             # features below the gap scale (bridge steps) are noise: drop them
@@ -149,65 +149,66 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
                 rings.append(comp.exterior)
                 for ring in comp.interiors:
                     rings.append(ring)
-                    pore_list.append(float(shapely.area(shapely.Polygon(ring))))
-            in_mem = np.flatnonzero(np.isin(outlines.body, mem))
-            pts_m = shapely.points(olw[in_mem])
-            dring = np.column_stack([shapely.distance(rg, pts_m) for rg in rings])
-            on = dring.min(axis=1) < max(tol, params.on_outline_factor * min_gap)
-            ol_keep[in_mem[~on]] = False
-            which = np.argmin(dring, axis=1)
+                    pores.append(float(shapely.area(shapely.Polygon(ring))))
+            member_rows = np.flatnonzero(np.isin(outlines.body, members))
+            member_points = shapely.points(outline_world[member_rows])
+            dist_to_rings = np.column_stack([shapely.distance(rg, member_points) for rg in rings])
+            on = dist_to_rings.min(axis=1) < max(tol, params.on_outline_factor * min_gap)
+            keep_outline[member_rows[~on]] = False
+            which = np.argmin(dist_to_rings, axis=1)
             for ri, ring in enumerate(rings):
-                rv = shapely.get_coordinates(ring)[:-1]
+                ring_vertices = shapely.get_coordinates(ring)[:-1]
                 # ring vertices closer than contact_merge · h to the previous kept one are dropped
-                if len(rv) > 3:
-                    step = np.linalg.norm(np.diff(rv, axis=0, append=rv[:1]), axis=1)
-                    rv = rv[np.concatenate([[True], step[:-1] >= merge])]
-                kept = in_mem[on & (which == ri)]
+                if len(ring_vertices) > 3:
+                    step = np.linalg.norm(np.diff(ring_vertices, axis=0, append=ring_vertices[:1]), axis=1)
+                    ring_vertices = ring_vertices[np.concatenate([[True], step[:-1] >= merge])]
+                kept = member_rows[on & (which == ri)]
                 if len(kept):
-                    dk, _ = cKDTree(olw[kept]).query(rv)
+                    dist_to_kept, _ = cKDTree(outline_world[kept]).query(ring_vertices)
                 else:
-                    dk = np.full(len(rv), np.inf)
+                    dist_to_kept = np.full(len(ring_vertices), np.inf)
                 # ring vertices off the body outline nodes (contact points, bridge corners)
                 # become contact nodes unless an outline node is within contact_node_spacing · h:
                 # then the ring cuts straight across the contact notch, which lies in the
                 # fluid (the union is concave there), so no element overlaps a body
-                newp = rv[dk > spacing]
+                new_contacts = ring_vertices[dist_to_kept > spacing]
                 # owner of a contact node: nearest member body
-                if len(newp):
-                    dmem = np.column_stack([shapely.distance(polys[m], shapely.points(newp)) for m in mem])
-                    owner = mem[np.argmin(dmem, axis=1)]
+                if len(new_contacts):
+                    new_pts = shapely.points(new_contacts)
+                    dist_to_members = np.column_stack([shapely.distance(polys[m], new_pts) for m in members])
+                    owner = members[np.argmin(dist_to_members, axis=1)]
                 else:
                     owner = np.zeros(0, dtype=np.int64)
                 # order the ring's nodes along it
-                allp = np.vstack([olw[kept], newp])
-                gid = np.concatenate([kept, n_ol + n_extra + np.arange(len(newp))])
-                pos = shapely.line_locate_point(ring, shapely.points(allp))
+                ring_points = np.vstack([outline_world[kept], new_contacts])
+                ring_ids = np.concatenate([kept, n_outline + n_contacts + np.arange(len(new_contacts))])
+                pos = shapely.line_locate_point(ring, shapely.points(ring_points))
                 o = np.argsort(pos)
-                ringn = gid[o]
+                ring_nodes = ring_ids[o]
                 # outline nodes closer than contact_merge · h to their predecessor on the ring
                 # (corners of two touching bodies) are merged into it
-                if len(ringn) > 3:
-                    rp = allp[o]
+                if len(ring_nodes) > 3:
+                    rp = ring_points[o]
                     step = np.linalg.norm(rp - np.roll(rp, 1, axis=0), axis=1)
-                    drop = (step < merge) & (ringn < n_ol)
+                    drop = (step < merge) & (ring_nodes < n_outline)
                     drop[0] = False
-                    ol_keep[ringn[drop]] = False
-                    ringn = ringn[~drop]
-                if len(ringn) >= 3:
-                    seg_list.append(np.column_stack([ringn, np.roll(ringn, -1)]))
-                extra_pts.append(newp)
-                extra_body.append(owner)
-                n_extra += len(newp)
+                    keep_outline[ring_nodes[drop]] = False
+                    ring_nodes = ring_nodes[~drop]
+                if len(ring_nodes) >= 3:
+                    cluster_segments.append(np.column_stack([ring_nodes, np.roll(ring_nodes, -1)]))
+                contact_points.append(new_contacts)
+                contact_body.append(owner)
+                n_contacts += len(new_contacts)
 
-    extra_pts = np.vstack(extra_pts) if extra_pts else np.zeros((0, 2))
-    extra_body = np.concatenate(extra_body).astype(np.int64) if len(extra_pts) else np.zeros(0, dtype=np.int64)
+    contact_points = np.vstack(contact_points) if contact_points else np.zeros((0, 2))
+    contact_body = np.concatenate(contact_body).astype(np.int64) if len(contact_points) else np.zeros(0, dtype=np.int64)
     # outline segments of unclustered bodies
-    free_ol = ~clustered[outlines.body]
-    seg_plain = np.column_stack([np.flatnonzero(free_ol), outlines.next[free_ol]])
-    hole_plain = (shapely.get_coordinates(shapely.point_on_surface(polys[~clustered]))
+    unclustered_rows = ~clustered[outlines.body]
+    plain_segments = np.column_stack([np.flatnonzero(unclustered_rows), outlines.next[unclustered_rows]])
+    plain_holes = (shapely.get_coordinates(shapely.point_on_surface(polys[~clustered]))
                   if n_bodies else np.zeros((0, 2)))
-    hole_pts = (np.vstack([hole_plain] + [p[None] for p in holes]) if (len(hole_plain) or holes)
+    hole_pts = (np.vstack([plain_holes] + [p[None] for p in holes]) if (len(plain_holes) or holes)
                 else np.zeros((0, 2)))
-    return ContactOutline(contacts=contacts, clustered=clustered, pore_areas=np.array(pore_list),
-                          keep_outline=ol_keep, contact_points=extra_pts, contact_body=extra_body,
-                          segments=np.vstack([seg_plain] + seg_list), holes=hole_pts, solids=solids)
+    return ContactOutline(contacts=contacts, clustered=clustered, pore_areas=np.array(pores),
+                          keep_outline=keep_outline, contact_points=contact_points, contact_body=contact_body,
+                          segments=np.vstack([plain_segments] + cluster_segments), holes=hole_pts, solids=solids)

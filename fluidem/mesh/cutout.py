@@ -171,102 +171,104 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         The outlines intersect (bodies overlap by more than the contact policy handles).
     """
     n_bodies = len(polys)
-    olw = outline_world
-    n_ol = len(olw)
-    extra_pts, extra_body = contact.contact_points, contact.contact_body
-    ol_keep = contact.keep_outline
+    outline_world = outline_world
+    n_outline = len(outline_world)
+    contact_points, contact_body = contact.contact_points, contact.contact_body
+    keep_outline = contact.keep_outline
     # assemble nodes: [candidates | outline | contact nodes | junctions]
-    ol_idx = np.flatnonzero(ol_keep)
-    allpts = np.vstack([points, olw[ol_keep], extra_pts])
-    n_c = len(points)
+    outline_rows = np.flatnonzero(keep_outline)
+    nodes = np.vstack([points, outline_world[keep_outline], contact_points])
+    n_cand = len(points)
     # map of outline table index -> node index
-    ol_map = np.full(n_ol + len(extra_pts), -1, dtype=np.int64)
-    ol_map[ol_idx] = n_c + np.arange(len(ol_idx))
-    ol_map[n_ol:] = n_c + len(ol_idx) + np.arange(len(extra_pts))
-    segs_b = ol_map[contact.segments]
-    if (segs_b < 0).any():
+    node_of_row = np.full(n_outline + len(contact_points), -1, dtype=np.int64)
+    node_of_row[outline_rows] = n_cand + np.arange(len(outline_rows))
+    node_of_row[n_outline:] = n_cand + len(outline_rows) + np.arange(len(contact_points))
+    outline_segments = node_of_row[contact.segments]
+    if (outline_segments < 0).any():
         raise MeshError("outline segment refers to a removed outline node")
-    kind = np.concatenate([kind, np.full(len(ol_idx), OUTLINE, np.int8), np.full(len(extra_pts), CONTACT, np.int8)])
-    body_of = np.concatenate([np.full(n_c, -1), outlines.body[ol_idx], extra_body])
-    ol_id = np.concatenate([np.full(n_c, -1), ol_idx, np.full(len(extra_pts), -1)])
-    uid = np.concatenate([uid, UID_OUTLINE + ol_idx, uids.take(len(extra_pts))])
+    kind = np.concatenate([kind, np.full(len(outline_rows), OUTLINE, np.int8),
+                           np.full(len(contact_points), CONTACT, np.int8)])
+    body_of = np.concatenate([np.full(n_cand, -1), outlines.body[outline_rows], contact_body])
+    outline_row = np.concatenate([np.full(n_cand, -1), outline_rows, np.full(len(contact_points), -1)])
+    uid = np.concatenate([uid, UID_OUTLINE + outline_rows, uids.take(len(contact_points))])
     # contact nodes: body coordinates for rigid motion
-    ex_local = to_body(extra_pts, poses[extra_body]) if len(extra_pts) else np.zeros((0, 2))
-    ring_seg, ring_mark = box_ring(allpts, kind, box)
-    mid = 0.5 * (allpts[segs_b[:, 0]] + allpts[segs_b[:, 1]])
-    if len(segs_b):
-        owner = body_of[segs_b[:, 0]]
-        same = owner == body_of[segs_b[:, 1]]
+    contact_local = to_body(contact_points, poses[contact_body]) if len(contact_points) else np.zeros((0, 2))
+    ring_seg, ring_mark = box_ring(nodes, kind, box)
+    mid = 0.5 * (nodes[outline_segments[:, 0]] + nodes[outline_segments[:, 1]])
+    if len(outline_segments):
+        owner = body_of[outline_segments[:, 0]]
+        same = owner == body_of[outline_segments[:, 1]]
         if not same.all():
             dd = shapely.distance(polys[None, :], shapely.points(mid[~same])[:, None])
             owner = owner.copy()
             owner[~same] = np.argmin(dd, axis=1)
-        bmark = FIRST_BODY_MARKER + owner
+        outline_markers = FIRST_BODY_MARKER + owner
     else:
-        bmark = np.zeros(0, dtype=np.int64)
+        outline_markers = np.zeros(0, dtype=np.int64)
     pslg = {
-        "vertices": allpts,
-        "segments": np.vstack([ring_seg, segs_b]).astype(np.int32),
-        "segment_markers": np.concatenate([ring_mark, bmark]).astype(np.int32)[:, None],
+        "vertices": nodes,
+        "segments": np.vstack([ring_seg, outline_segments]).astype(np.int32),
+        "segment_markers": np.concatenate([ring_mark, outline_markers]).astype(np.int32)[:, None],
     }
     if len(contact.holes):
         pslg["holes"] = contact.holes
     out = tr.triangulate(pslg, "pQn")
     t = out["triangles"].astype(np.int64)
-    nbr = out["neighbors"].astype(np.int64)
-    if len(out["vertices"]) != len(allpts):
+    neighbors = out["neighbors"].astype(np.int64)
+    if len(out["vertices"]) != len(nodes):
         raise MeshError(
-            f"Triangle added {len(out['vertices']) - len(allpts)} points: outlines intersect "
+            f"Triangle added {len(out['vertices']) - len(nodes)} points: outlines intersect "
             "(bodies overlap by more than the contact policy handles)"
         )
-    segs_out = out["segments"].astype(np.int64)
-    marks_out = out["segment_markers"].ravel().astype(np.int64)
+    boundary_segments = out["segments"].astype(np.int64)
+    boundary_markers = out["segment_markers"].ravel().astype(np.int64)
     # drop unused nodes (none expected; duplicates or points in holes)
-    used = np.zeros(len(allpts), dtype=bool)
+    used = np.zeros(len(nodes), dtype=bool)
     used[t.ravel()] = True
     if not used.all():
         remap = np.cumsum(used) - 1
         t = remap[t]
-        segs_out = remap[segs_out]
-        allpts, kind, body_of, ol_id, uid = allpts[used], kind[used], body_of[used], ol_id[used], uid[used]
-        ex_local = ex_local[used[n_c + len(ol_idx): n_c + len(ol_idx) + len(extra_pts)]]
+        boundary_segments = remap[boundary_segments]
+        nodes, kind, body_of, outline_row, uid = nodes[used], kind[used], body_of[used], outline_row[used], uid[used]
+        first_contact = n_cand + len(outline_rows)
+        contact_local = contact_local[used[first_contact: first_contact + len(contact_points)]]
     # Triangle returns counter-clockwise triangles; make sure (swap vertices 1, 2 and
     # the neighbours opposite them together)
-    cw = signed_areas(allpts, t) < 0
+    cw = signed_areas(nodes, t) < 0
     if cw.any():
         t[cw] = t[cw][:, [0, 2, 1]]
-        nbr[cw] = nbr[cw][:, [0, 2, 1]]
-    j_nodes = np.zeros(0, dtype=np.int64)
-    j_verts = np.zeros((0, 3), dtype=np.int64)
-    j_bary = np.zeros((0, 3))
+        neighbors[cw] = neighbors[cw][:, [0, 2, 1]]
+    junction_nodes = np.zeros(0, dtype=np.int64)
+    junction_verts = np.zeros((0, 3), dtype=np.int64)
+    junction_bary = np.zeros((0, 3))
     if junctions and n_bodies >= 3:
         # Voronoi junction points (Sec. 3.2): split junction triangles at a new node
         owner = np.where((kind == OUTLINE) | (kind == CONTACT), body_of, -1)
-        jt, jp = junction_points(allpts, t, owner, poses[:, :2], polys, target, clearance=junction_clearance,
-                                 tree=tree)
-        if len(jp):
-            n0 = len(allpts)
+        junction_tris, junction_pts = junction_points(nodes, t, owner, poses[:, :2], polys, target,
+                                                      clearance=junction_clearance, tree=tree)
+        if len(junction_pts):
+            n0 = len(nodes)
             # junction nodes follow their junction: fixed barycentric coordinates in
             # the triangle of outline nodes they split
-            jv = t[jt]
-            P = allpts[jv]
-            e1, e2, r = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0], jp - P[:, 0]
+            jv = t[junction_tris]
+            P = nodes[jv]
+            e1, e2, r = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0], junction_pts - P[:, 0]
             det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
             l1 = (r[:, 0] * e2[:, 1] - r[:, 1] * e2[:, 0]) / det
             l2 = (e1[:, 0] * r[:, 1] - e1[:, 1] * r[:, 0]) / det
-            j_bary = np.column_stack([1 - l1 - l2, l1, l2])
-            j_verts = jv
-            j_nodes = n0 + np.arange(len(jp))
-            t, nbr = split_with_neighbors(t, nbr, jt, j_nodes)
-            allpts = np.vstack([allpts, jp])
-            kind = np.concatenate([kind, np.full(len(jp), JUNCTION, np.int8)])
-            body_of = np.concatenate([body_of, np.full(len(jp), -1)])
-            ol_id = np.concatenate([ol_id, np.full(len(jp), -1)])
-            uid = np.concatenate([uid, uids.take(len(jp))])
-    edges, edge_tris = edges_from_neighbors(t, nbr)
+            junction_bary = np.column_stack([1 - l1 - l2, l1, l2])
+            junction_verts = jv
+            junction_nodes = n0 + np.arange(len(junction_pts))
+            t, neighbors = split_with_neighbors(t, neighbors, junction_tris, junction_nodes)
+            nodes = np.vstack([nodes, junction_pts])
+            kind = np.concatenate([kind, np.full(len(junction_pts), JUNCTION, np.int8)])
+            body_of = np.concatenate([body_of, np.full(len(junction_pts), -1)])
+            outline_row = np.concatenate([outline_row, np.full(len(junction_pts), -1)])
+            uid = np.concatenate([uid, uids.take(len(junction_pts))])
+    edges, edge_tris = edges_from_neighbors(t, neighbors)
     return Triangulation(
-        points=allpts, kind=kind, body_of=body_of.astype(np.int64), outline_row=ol_id.astype(np.int64),
+        points=nodes, kind=kind, body_of=body_of.astype(np.int64), outline_row=outline_row.astype(np.int64),
         uid=uid.astype(np.int64), triangles=t,
         topo=MeshTopology(t, edges, edge_tris, edge_tris[:, 0] != edge_tris[:, 1]),
-        boundary_segments=segs_out, boundary_markers=marks_out, contact_local=ex_local,
-        junction_nodes=j_nodes, junction_verts=j_verts, junction_bary=j_bary)
+        boundary_segments=boundary_segments, boundary_markers=boundary_markers, contact_local=contact_local,
+        junction_nodes=junction_nodes, junction_verts=junction_verts, junction_bary=junction_bary)

@@ -109,43 +109,44 @@ def dragged_positions(points, triangles, kind, outline_row, outline_local, outli
     max_halvings : int
         ``drag_halvings``.
     """
-    x = points.copy()
+    rigid = points.copy()
     # 1. outline and contact nodes move rigidly with their body (Sec. 4.2)
-    ol = np.flatnonzero(kind == OUTLINE)
-    x[ol] = world(outline_local[outline_row[ol]], outline_body[outline_row[ol]], poses_new)
+    outline_nodes = np.flatnonzero(kind == OUTLINE)
+    rows = outline_row[outline_nodes]
+    rigid[outline_nodes] = world(outline_local[rows], outline_body[rows], poses_new)
     ci = contact_nodes
     if len(ci):
-        x[ci] = world(contact_local, body_of[ci], poses_new)
+        rigid[ci] = world(contact_local, body_of[ci], poses_new)
     fixed = (drag_mobility == 0.0).all(axis=1)
-    n = len(x)
+    n = len(rigid)
     # 2. drag: free nodes near a body follow its rigid motion, weights of several bodies averaged
-    d = np.zeros_like(x)
+    drag_disp = np.zeros_like(rigid)
     if len(assoc.node):
-        rig = rigid_displacement(points[assoc.node], poses_old[assoc.body], poses_new[assoc.body])
+        rigid_disp = rigid_displacement(points[assoc.node], poses_old[assoc.body], poses_new[assoc.body])
         w = assoc.weight
         wsum = np.bincount(assoc.node, w, n)
-        dx = np.bincount(assoc.node, w * rig[:, 0], n)
-        dy = np.bincount(assoc.node, w * rig[:, 1], n)
+        dx = np.bincount(assoc.node, w * rigid_disp[:, 0], n)
+        dy = np.bincount(assoc.node, w * rigid_disp[:, 1], n)
         norm = np.maximum(wsum, 1.0)
-        d = np.column_stack([dx / norm, dy / norm]) * drag_mobility
-    xd = x + np.where(fixed[:, None], 0.0, d)
+        drag_disp = np.column_stack([dx / norm, dy / norm]) * drag_mobility
+    dragged = rigid + np.where(fixed[:, None], 0.0, drag_disp)
     if len(junction_nodes):
         # junction nodes keep their barycentric place between their three outline nodes
-        xd[junction_nodes] = np.einsum("kj,kjd->kd", junction_bary, x[junction_verts])
+        dragged[junction_nodes] = np.einsum("kj,kjd->kd", junction_bary, rigid[junction_verts])
     # 3. a dragged free node must not invert an element that rigid motion alone keeps valid
-    a_rigid = signed_areas(x, triangles)
-    bad = (signed_areas(xd, triangles) <= 0) & (a_rigid > 0)
+    a_rigid = signed_areas(rigid, triangles)
+    bad = (signed_areas(dragged, triangles) <= 0) & (a_rigid > 0)
     for _ in range(max_halvings):
         if not bad.any():
             break
         hit = np.zeros(n, dtype=bool)
         hit[triangles[bad].ravel()] = True
         hit &= ~fixed
-        d[hit] *= 0.5
-        xd = x + np.where(fixed[:, None], 0.0, d)
-        bad = (signed_areas(xd, triangles) <= 0) & (a_rigid > 0)
+        drag_disp[hit] *= 0.5
+        dragged = rigid + np.where(fixed[:, None], 0.0, drag_disp)
+        bad = (signed_areas(dragged, triangles) <= 0) & (a_rigid > 0)
     if bad.any():
         hit = np.zeros(n, dtype=bool)
         hit[triangles[bad].ravel()] = True
-        xd[hit & ~fixed] = x[hit & ~fixed]
-    return xd
+        dragged[hit & ~fixed] = rigid[hit & ~fixed]
+    return dragged

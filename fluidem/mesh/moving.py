@@ -43,9 +43,9 @@ Strategies (``strategy=``):
 
     At re-triangulation nodes swallowed by (or closer than ``purge_clearance · h`` to) a
     body are purged, an independent set of nodes is removed where the incident edges are on
-    average shorter than ``coarsen_ratio`` (0.7) of their target and nodes are added in triangles larger than ``refine_area`` (1.6) target
-    areas (so
-    vacated regions coarsen again, Fig. 6), and junction points are recomputed.
+    average shorter than ``coarsen_ratio`` (0.7) of their target and nodes are added in
+    triangles larger than ``refine_area`` (1.6) target areas (so vacated regions coarsen
+    again, Fig. 6), and junction points are recomputed.
 ``"fixed"``
     bodies do not move: the mesh is built once; :meth:`MovingMesh.update` checks that.
 
@@ -447,39 +447,40 @@ class MovingMesh:
         candidate nodes (Sec. 2.1); returns the counts of :class:`MeshEvent`."""
         p = self.params
         poses = self.poses
-        olw = self.outlines.world(poses)
+        outline_world = self.outlines.world(poses)
         polys = self._polygons(poses)
         tree = shapely.STRtree(polys) if self.n_bodies else None
         table = self._bodies_table(poses)
 
         def target(q):
-            return self._target(q, olw)
+            return self._target(q, outline_world)
 
-        contact = contact_outline(polys, tree, olw, self.outlines, self.h, self.min_gap, p)
+        contact = contact_outline(polys, tree, outline_world, self.outlines, self.h, self.min_gap, p)
         self.contacts = contact.contacts
         self.pore_areas = contact.pore_areas
 
         cand = np.asarray(cand, dtype=float)
-        hc = target(cand) if h_cand is None else h_cand
-        cut = cut_out(cand, cand_kind, hc, table, purge, p.gap_purge, self.box)
+        h_candidates = target(cand) if h_cand is None else h_cand
+        cut = cut_out(cand, cand_kind, h_candidates, table, purge, p.gap_purge, self.box)
         info = {"n_purged": cut.n_purged, "n_removed": 0, "n_inserted": 0}
         keep = cut.keep
-        cpts, ckind, cuid = cand[keep], cand_kind[keep], cand_uid[keep]
+        kept_points, kept_kind, kept_uid = cand[keep], cand_kind[keep], cand_uid[keep]
         if adapt:
             # adaptation works on the current mesh: the candidates are its nodes
             if len(cand) != len(self.points):
                 raise RuntimeError("adaptation needs the current nodes as candidates")
             solid_tree = shapely.STRtree(np.asarray(contact.solids, dtype=object)) if self.n_bodies else None
-            ad = adapt_nodes(cpts, ckind, cuid, self.points, self.topo, self.h_node, self.kind,
+            ad = adapt_nodes(kept_points, kept_kind, kept_uid, self.points, self.topo, self.h_node, self.kind,
                              np.where(keep, np.cumsum(keep) - 1, -1), solid_tree, target, self._uids,
                              self.step_count, p.refine_area, p.coarsen_ratio, p.clearance)
-            cpts, ckind, cuid = ad.points, ad.kind, ad.uid
+            kept_points, kept_kind, kept_uid = ad.points, ad.kind, ad.uid
             info["n_removed"], info["n_inserted"] = ad.n_removed, ad.n_inserted
 
         final_shape = None
         for attempt in range(p.cleanup_passes + 1):
-            self._install(triangulate(cpts, ckind, cuid, olw, self.outlines, contact, poses, polys, tree, self.box,
-                                      self._uids, p.junctions, p.junction_clearance, target), olw)
+            tri = triangulate(kept_points, kept_kind, kept_uid, outline_world, self.outlines, contact, poses, polys,
+                              tree, self.box, self._uids, p.junctions, p.junction_clearance, target)
+            self._install(tri, outline_world)
             if n_relax:
                 self.points, _ = relax(self.points, self.topo, self.h_node, self._mobility, n_relax,
                                        p.relax_params, bounds=self.box)
@@ -492,7 +493,7 @@ class MovingMesh:
             if cleanup.candidates is None:
                 final_shape = cleanup.shape  # of the mesh kept
                 break
-            cpts, ckind, cuid = cleanup.candidates
+            kept_points, kept_kind, kept_uid = cleanup.candidates
         self._steps_since = 0
         self._near_pairs = contact_pairs(polys, tree, self.h)
         self.drag: DragAssociation = drag_association(self.points, self.h_node, self._drag_mobility, table,
