@@ -122,6 +122,7 @@ from .nodes import (
     CONTACT,
     FIRST_BODY_MARKER,
     JUNCTION,
+    BackgroundNodes,
     BodyOutlines,
     UidSource,
     background_nodes,
@@ -367,6 +368,12 @@ class MovingMesh:
     _drag_body = property(lambda self: self.drag.body)
     _drag_weight = property(lambda self: self.drag.weight)
     _relax_damping = property(lambda self: self.drag.relax_damping)
+
+    def __setstate__(self, state):
+        """Unpickle; a mesh pickled before the split by stage (checkpoints) is converted."""
+        if "params" not in state:
+            state = _state_before_split(state)
+        self.__dict__.update(state)
 
     # ------------------------------------------------------------------ set-up
     def _make_size(self, grading):
@@ -741,3 +748,33 @@ class MovingMesh:
         bnd = key[~self.topo.interior]
         kb = bnd[:, 0] * n + bnd[:, 1]
         return bool(np.isin(kb, k_seg).all())
+
+
+#: keyword parameters stored as attributes by MovingMesh before the split by stage
+_FORMER_PARAM_ATTRS = ("strategy", "retriangulate_every", "relax_iterations", "initial_iterations",
+                       "retriangulate_iterations", "min_angle_trigger", "clearance", "purge_clearance", "gap_purge",
+                       "cleanup_passes", "relax_params", "drag_reach", "drag_full", "drag_stiffness", "tow_width",
+                       "refine_area", "coarsen_ratio")
+
+
+def _state_before_split(old: dict) -> dict:
+    """The pickled state of a MovingMesh from before the split by stage, in today's attributes."""
+    s = dict(old)
+    kw = {k: s.pop(k) for k in _FORMER_PARAM_ATTRS}
+    s["params"] = MeshParams(min_gap=s["min_gap"], junctions=s.pop("use_junctions"), background=s["background_kind"],
+                             **kw)
+    s["outlines"] = BodyOutlines(s.pop("_ol_local"), s.pop("_ol_body"), s.pop("_ol_next"))
+    s["background"] = BackgroundNodes(s.pop("_bg_points"), s.pop("_bg_kind"), s.pop("_bg_uid"))
+    s["_uids"] = UidSource(s.pop("_next_uid"))
+    s["outline_row"] = s.pop("ol_id")
+    s["junction_nodes"] = s.pop("_junction_nodes")
+    s["junction_verts"] = s.pop("_junction_verts", np.zeros((0, 3), dtype=np.int64))
+    s["junction_bary"] = s.pop("_junction_bary", np.zeros((0, 3)))
+    s["drag"] = DragAssociation(s.pop("_drag_node"), s.pop("_drag_body"), s.pop("_drag_weight"),
+                                s.pop("_relax_damping"))
+    cos_max, cos_min = s.pop("_base_cos")
+    bound_lo, bound_hi = s.pop("_cos_bound")
+    s["baseline"] = QualityBaseline(cos_lo=s.pop("_cos_lo"), cos_hi=s.pop("_cos_hi"), area=s.pop("_base_area"),
+                                    narrow=s.pop("_base_narrow"), cos_max=cos_max, cos_min=cos_min,
+                                    cos_bound_lo=bound_lo, cos_bound_hi=bound_hi)
+    return s

@@ -99,3 +99,47 @@ def test_triangle_failure_is_a_mesh_error(monkeypatch):
     with pytest.raises(MeshError, match="outlines intersect") as err:
         MovingMesh(dom, bodies, poses, h=0.1)
     assert isinstance(err.value, RuntimeError)
+
+
+def _former_state(mm):
+    """The pickled state MovingMesh had before the split by stage (attribute names of then)."""
+    s = dict(mm.__dict__)
+    p = s.pop("params")
+    for k in ("strategy", "retriangulate_every", "initial_iterations", "retriangulate_iterations",
+              "min_angle_trigger", "clearance", "purge_clearance", "gap_purge", "cleanup_passes", "relax_params",
+              "drag_reach", "drag_full", "drag_stiffness", "tow_width", "refine_area", "coarsen_ratio"):
+        s[k] = getattr(p, k)
+    s["relax_iterations"] = p.step_iterations
+    s["use_junctions"] = p.junctions
+    ol, bg, dr, base = s.pop("outlines"), s.pop("background"), s.pop("drag"), s.pop("baseline")
+    s["_ol_local"], s["_ol_body"], s["_ol_next"] = ol.local, ol.body, ol.next
+    s["_bg_points"], s["_bg_kind"], s["_bg_uid"] = bg.points, bg.kind, bg.uid
+    s["_next_uid"] = s.pop("_uids").next
+    s["ol_id"] = s.pop("outline_row")
+    s["_junction_nodes"], s["_junction_verts"], s["_junction_bary"] = (
+        s.pop("junction_nodes"), s.pop("junction_verts"), s.pop("junction_bary"))
+    s["_drag_node"], s["_drag_body"], s["_drag_weight"], s["_relax_damping"] = dr.node, dr.body, dr.weight, \
+        dr.relax_damping
+    s["_cos_lo"], s["_cos_hi"], s["_base_area"], s["_base_narrow"] = base.cos_lo, base.cos_hi, base.area, base.narrow
+    s["_base_cos"], s["_cos_bound"] = (base.cos_max, base.cos_min), (base.cos_bound_lo, base.cos_bound_hi)
+    return s
+
+
+def test_a_mesh_pickled_before_the_split_restarts_unchanged():
+    """Checkpoints hold the pickled MovingMesh: one of the former layout carries on bit for bit."""
+    import copy
+    from dataclasses import replace
+
+    dom, bodies, poses = _scene()
+    a = MovingMesh(dom, bodies, poses, h=0.1, retriangulate_every=4)
+    a.update(poses + [0.002, 0.0, 0.01])
+    b = MovingMesh.__new__(MovingMesh)
+    b.__setstate__(copy.deepcopy(_former_state(a)))
+    # the former layout kept resolved values: the same parameters, spelled out
+    assert b.params == replace(a.params, min_gap=a.min_gap, background=a.background_kind,
+                               relax_iterations=a.relax_iterations)
+    for k in range(8):
+        p = poses + [0.002 * (k + 2), 0.0, 0.01 * (k + 2)]
+        assert a.update(p).reason == b.update(p).reason
+    assert np.array_equal(a.points, b.points) and np.array_equal(a.uid, b.uid)
+    assert np.array_equal(a.node_velocity(0.1), b.node_velocity(0.1))
