@@ -258,14 +258,14 @@ class MovingMesh:
         Node ids that survive re-triangulations.
     h_node : (n_nodes,) float
         Target edge length carried by every node.
-    min_gap : float
-        Contact distance in use, length units.
     contacts : (k, 2) int
         Body pairs meshed as one outline (closer than ``min_gap``).
     pore_areas : (k,) float
         Areas of fluid pores enclosed by touching bodies.
     outlines : BodyOutlines
         The outline nodes of every body in body coordinates.
+    background_candidates : BackgroundNodes
+        The background nodes (candidates of every ``"regenerate"`` triangulation).
     drag : DragAssociation
         Nodes dragged by each body and their weights (:mod:`fluidem.mesh.drag`).
     baseline : QualityBaseline
@@ -301,7 +301,6 @@ class MovingMesh:
         self.domain = BoxDomain.from_any(domain)
         self.box = (self.domain.xmin, self.domain.xmax, self.domain.ymin, self.domain.ymax)
         self.h = validate.positive("mesh size h", h)
-        self.min_gap = p.min_gap_for(self.h)
 
         # size field
         self._size, self._growth, self._graded = self._make_size(grading)
@@ -324,7 +323,7 @@ class MovingMesh:
         self.poses = self._check_poses(poses)
 
         self.outlines: BodyOutlines = outline_nodes(verts, self.poses, self._size, self.h)
-        self.background = background_nodes(self.box, self.h, self._size, self.background_kind)
+        self.background_candidates = background_nodes(self.box, self.h, self._size, self.background_kind)
         self.step_count = 0
         self._steps_since = 0
         self._osc = OscillationDetector()
@@ -334,7 +333,7 @@ class MovingMesh:
         self.contacts = np.zeros((0, 2), dtype=np.int64)
         self._prev_points = None
         self._prev_uid = None
-        bg = self.background
+        bg = self.background_candidates
         self._triangulate_from(bg.points, bg.kind, bg.uid, purge=p.clearance, adapt=False,
                                n_relax=p.initial_iterations)
         self._prev_points = self.points.copy()
@@ -347,6 +346,16 @@ class MovingMesh:
         if params is not None and name in PARAM_NAMES:
             return getattr(params, name)
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def __setattr__(self, name, value):
+        if name in PARAM_NAMES:  # a parameter set here would be ignored: the stages read self.params
+            raise AttributeError(f"MovingMesh.{name} is a parameter: give it as MovingMesh({name}=...) or in params=")
+        object.__setattr__(self, name, value)
+
+    @property
+    def min_gap(self) -> float:
+        """Contact distance in use, length units (``params.min_gap`` or ``default_min_gap · h``)."""
+        return self.params.min_gap_for(self.h)
 
     @property
     def relax_iterations(self) -> int:
@@ -570,7 +579,7 @@ class MovingMesh:
         elif self.strategy == "regenerate":
             old_p, old_t = self.points, self.triangles
             self.poses = new
-            bg = self.background
+            bg = self.background_candidates
             info = self._triangulate_from(bg.points, bg.kind, bg.uid, purge=self.params.clearance, adapt=False,
                                           n_relax=self.relax_iterations)
             ev.retriangulated, ev.reason = True, "regenerate"
@@ -761,10 +770,10 @@ def _state_before_split(old: dict) -> dict:
     """The pickled state of a MovingMesh from before the split by stage, in today's attributes."""
     s = dict(old)
     kw = {k: s.pop(k) for k in _FORMER_PARAM_ATTRS}
-    s["params"] = MeshParams(min_gap=s["min_gap"], junctions=s.pop("use_junctions"), background=s["background_kind"],
-                             **kw)
+    s["params"] = MeshParams(min_gap=s.pop("min_gap"), junctions=s.pop("use_junctions"),
+                             background=s["background_kind"], **kw)
     s["outlines"] = BodyOutlines(s.pop("_ol_local"), s.pop("_ol_body"), s.pop("_ol_next"))
-    s["background"] = BackgroundNodes(s.pop("_bg_points"), s.pop("_bg_kind"), s.pop("_bg_uid"))
+    s["background_candidates"] = BackgroundNodes(s.pop("_bg_points"), s.pop("_bg_kind"), s.pop("_bg_uid"))
     s["_uids"] = UidSource(s.pop("_next_uid"))
     s["outline_row"] = s.pop("ol_id")
     s["junction_nodes"] = s.pop("_junction_nodes")

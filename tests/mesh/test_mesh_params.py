@@ -82,6 +82,10 @@ def test_params_are_frozen():
     p = MeshParams()
     with pytest.raises(AttributeError):
         p.retriangulate_every = 3
+    dom, bodies, poses = _scene()
+    mm = MovingMesh(dom, bodies, poses, h=0.1)
+    with pytest.raises(AttributeError, match="MovingMesh.retriangulate_every is a parameter"):
+        mm.retriangulate_every = 3
 
 
 def test_triangle_failure_is_a_mesh_error(monkeypatch):
@@ -111,7 +115,8 @@ def _former_state(mm):
         s[k] = getattr(p, k)
     s["relax_iterations"] = p.step_iterations
     s["use_junctions"] = p.junctions
-    ol, bg, dr, base = s.pop("outlines"), s.pop("background"), s.pop("drag"), s.pop("baseline")
+    s["min_gap"] = mm.min_gap
+    ol, bg, dr, base = s.pop("outlines"), s.pop("background_candidates"), s.pop("drag"), s.pop("baseline")
     s["_ol_local"], s["_ol_body"], s["_ol_next"] = ol.local, ol.body, ol.next
     s["_bg_points"], s["_bg_kind"], s["_bg_uid"] = bg.points, bg.kind, bg.uid
     s["_next_uid"] = s.pop("_uids").next
