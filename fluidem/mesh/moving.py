@@ -742,14 +742,12 @@ class MovingMesh:
         """
         e = self.topo.edges
         n = len(self.points)
-        keys = set()
         key = np.sort(e, axis=1)
         k_mesh = key[:, 0] * n + key[:, 1]
         s = np.sort(self.boundary_segments, axis=1)
         k_seg = s[:, 0] * n + s[:, 1]
         if not np.isin(k_seg, k_mesh).all():
             return False
-        del keys
         for b in range(self.n_bodies):
             if not (self.boundary_markers == FIRST_BODY_MARKER + b).any():
                 return False
