@@ -22,16 +22,10 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import sys  # noqa: E402
-from pathlib import Path  # noqa: E402
-
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "mesh"))
-
-from hard_cases import RandomMotion, packing  # noqa: E402
-
+from fluidem.cases.packings import RandomMotion, packing  # noqa: E402
 from fluidem.mesh import MovingMesh  # noqa: E402
 from fluidem.mesh.relax import relax  # noqa: E402
 

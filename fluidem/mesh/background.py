@@ -15,6 +15,8 @@ from typing import Callable, Sequence
 import numpy as np
 import shapely
 
+from ..errors import InputError
+
 __all__ = ["SizeField", "UniformSize", "GradedSize", "as_size_field", "friedrichs_keller_grid",
            "graded_background"]
 
@@ -36,7 +38,7 @@ class UniformSize(SizeField):
 
     def __post_init__(self):
         if not (np.isfinite(self.h) and self.h > 0):
-            raise ValueError(f"mesh size h must be a positive number, got {self.h!r}")
+            raise InputError(f"mesh size h must be a positive number, got {self.h!r}")
 
     @property
     def h_min(self) -> float:
@@ -69,11 +71,11 @@ class GradedSize(SizeField):
 
     def __post_init__(self):
         if not (np.isfinite(self.h_min) and self.h_min > 0):
-            raise ValueError(f"h_min must be a positive number, got {self.h_min!r}")
+            raise InputError(f"h_min must be a positive number, got {self.h_min!r}")
         if not (np.isfinite(self.growth) and self.growth >= 1.0):
-            raise ValueError(f"growth must be a number >= 1, got {self.growth!r}")
+            raise InputError(f"growth must be a number >= 1, got {self.growth!r}")
         if not (np.isfinite(self.h_max) and self.h_max >= self.h_min):
-            raise ValueError(f"h_max must be >= h_min = {self.h_min}, got {self.h_max!r}")
+            raise InputError(f"h_max must be >= h_min = {self.h_min}, got {self.h_max!r}")
         object.__setattr__(self, "_geom", _region_geometry(self.region))
 
     def __call__(self, points):
@@ -138,9 +140,9 @@ def friedrichs_keller_grid(domain, h: float) -> tuple[np.ndarray, np.ndarray]:
     """
     xmin, xmax, ymin, ymax = (float(v) for v in domain)
     if not (np.isfinite(h) and h > 0):
-        raise ValueError(f"mesh size h must be a positive number, got {h!r}")
+        raise InputError(f"mesh size h must be a positive number, got {h!r}")
     if not (xmax > xmin and ymax > ymin):
-        raise ValueError(f"domain must have xmax > xmin and ymax > ymin, got {tuple(domain)!r}")
+        raise InputError(f"domain must have xmax > xmin and ymax > ymin, got {tuple(domain)!r}")
     nx = max(1, int(round((xmax - xmin) / h)))
     ny = max(1, int(round((ymax - ymin) / h)))
     x = np.linspace(xmin, xmax, nx + 1)

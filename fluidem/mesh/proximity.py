@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = ["PolygonTable"]
 
 
@@ -49,7 +51,7 @@ class PolygonTable:
         v = np.asarray(vertices, dtype=float)
         n = np.asarray(counts, dtype=np.int64)
         if v.ndim != 2 or v.shape[1] != 2 or n.ndim != 1 or int(n.sum()) != len(v) or (n < 3).any():
-            raise ValueError(
+            raise InputError(
                 f"vertices must be (sum counts, 2) with counts >= 3, got vertices {v.shape}, counts {n.tolist()}"
             )
         self.n_polygons = len(n)

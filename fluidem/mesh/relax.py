@@ -38,6 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = ["RelaxParams", "MeshTopology", "mesh_topology", "signed_areas", "relax"]
 
 _SQRT3 = np.sqrt(3.0)
@@ -71,13 +73,13 @@ class RelaxParams:
 
     def __post_init__(self):
         if not (np.isfinite(self.step) and 0 < self.step <= 0.3):
-            raise ValueError(f"relaxation step τ² must be in (0, 0.3], got {self.step!r}")
+            raise InputError(f"relaxation step τ² must be in (0, 0.3], got {self.step!r}")
         if not (0.0 <= self.target_weight <= 1.0):
-            raise ValueError(f"target_weight must be in [0, 1], got {self.target_weight!r}")
+            raise InputError(f"target_weight must be in [0, 1], got {self.target_weight!r}")
         if not (np.isfinite(self.area_weight) and self.area_weight >= 0):
-            raise ValueError(f"area_weight must be a number >= 0, got {self.area_weight!r}")
+            raise InputError(f"area_weight must be a number >= 0, got {self.area_weight!r}")
         if int(self.max_halvings) != self.max_halvings or self.max_halvings < 0:
-            raise ValueError(f"max_halvings must be an integer >= 0, got {self.max_halvings!r}")
+            raise InputError(f"max_halvings must be an integer >= 0, got {self.max_halvings!r}")
 
 
 @dataclass(frozen=True)

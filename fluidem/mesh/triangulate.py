@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import triangle as tr
 
+from ..errors import InputError, MeshError
 from ..geometry import point_in_polygon, polygon_area, validate_polygon
 from .background import as_size_field, subdivide_segment
 
@@ -41,9 +42,9 @@ class BoxDomain:
     def __post_init__(self):
         vals = (self.xmin, self.xmax, self.ymin, self.ymax)
         if not all(np.isfinite(vals)):
-            raise ValueError(f"domain box must be finite numbers, got {vals}")
+            raise InputError(f"domain box must be finite numbers, got {vals}")
         if not (self.xmax > self.xmin and self.ymax > self.ymin):
-            raise ValueError(
+            raise InputError(
                 f"domain box must have xmax > xmin and ymax > ymin, got "
                 f"(xmin, xmax, ymin, ymax) = {vals}"
             )
@@ -55,9 +56,9 @@ class BoxDomain:
         try:
             vals = [float(v) for v in domain]
         except (TypeError, ValueError) as exc:
-            raise ValueError(f"domain must be (xmin, xmax, ymin, ymax), got {domain!r}") from exc
+            raise InputError(f"domain must be (xmin, xmax, ymin, ymax), got {domain!r}") from exc
         if len(vals) != 4:
-            raise ValueError(f"domain must be (xmin, xmax, ymin, ymax), got {domain!r}")
+            raise InputError(f"domain must be (xmin, xmax, ymin, ymax), got {domain!r}")
         return cls(*vals)
 
     @property
@@ -145,18 +146,18 @@ def triangulate_box(domain, obstacles=(), size=0.1, min_angle: float = 30.0, max
     obstacles = list(obstacles)
     names = [o.name for o in obstacles]
     if len(set(names)) != len(names) or set(names) & set(SIDE_NAMES):
-        raise ValueError(f"obstacle names must be unique and differ from {SIDE_NAMES}, got {names}")
+        raise InputError(f"obstacle names must be unique and differ from {SIDE_NAMES}, got {names}")
     for o in obstacles:
         outside = ~box.contains(o.vertices)
         if outside.any():
-            raise ValueError(
+            raise InputError(
                 f"obstacle {o.name!r} is not inside the domain {tuple(box.__dict__.values())}: "
                 f"vertex {o.vertices[outside][0].tolist()} lies outside"
             )
     for i, a in enumerate(obstacles):
         for b in obstacles[i + 1:]:
             if point_in_polygon(a.vertices, b.vertices).any() or point_in_polygon(b.vertices, a.vertices).any():
-                raise ValueError(f"obstacles {a.name!r} and {b.name!r} overlap")
+                raise InputError(f"obstacles {a.name!r} and {b.name!r} overlap")
 
     pts, segs, marks = [], [], []
     offset = 0
@@ -233,7 +234,7 @@ def _interior_point(v: np.ndarray) -> np.ndarray:
             c = tri.mean(axis=0)
             if point_in_polygon(c[None], v)[0]:
                 return c
-    raise ValueError("could not find an interior point of the obstacle")
+    raise InputError("could not find an interior point of the obstacle")
 
 
 def _triangle_areas(p: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -295,7 +296,7 @@ def _facet_lookup(m):
         k = e[:, 0] * nv + e[:, 1]
         pos = np.searchsorted(sorted_keys, k)
         if len(k) and (np.any(pos >= len(sorted_keys)) or np.any(sorted_keys[np.minimum(pos, len(sorted_keys) - 1)] != k)):
-            raise RuntimeError("boundary edge not found among mesh facets")
+            raise MeshError("boundary edge not found among mesh facets")
         return order[pos].astype(np.int32)
 
     return lookup

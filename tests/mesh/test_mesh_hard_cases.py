@@ -5,18 +5,13 @@ boundary facets.  Angle statistics exclude narrow-gap triangles (gaps < h/2, cou
 separately, see :mod:`fluidem.mesh.quality`).  Run with ``-s`` to see the figures.
 """
 
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parent))
-
-from hard_cases import RandomMotion, collapsing_step, crossing_body, packing, sliding_pair  # noqa: E402
-
-from fluidem.mesh import MovingMesh  # noqa: E402
+from fluidem.cases.packings import RandomMotion, collapsing_step, crossing_body, packing, sliding_pair
+from fluidem.mesh import MovingMesh
 
 pytestmark = pytest.mark.slow
 

@@ -215,7 +215,7 @@ def test_body_objects_are_accepted():
 
 
 def _packed_mesh():
-    from hard_cases import packing
+    from fluidem.cases.packings import packing
 
     bodies, poses, box = packing(n=30, phi=0.45, sizes=(0.5, 1.5), n_vertices=(3, 8), min_gap=0.01, seed=4)
     return MovingMesh(box, bodies, poses, h=0.12), bodies, poses
@@ -225,7 +225,7 @@ def test_drag_association_finds_every_body_within_reach():
     """Each free node is tied to every body whose outline is closer than drag_reach · h
     (brute force over all bodies with GEOS), with the linear weight of the docstring."""
     import shapely
-    from hard_cases import world_polygons
+    from fluidem.cases.packings import world_polygons
 
     mm, bodies, poses = _packed_mesh()
     polys = world_polygons(bodies, poses)
@@ -246,7 +246,7 @@ def test_drag_association_finds_every_body_within_reach():
 def test_gap_width_is_the_two_nearest_boundaries():
     """Gap width = sum of the two smallest distances to bodies within the radius and the box."""
     import shapely
-    from hard_cases import world_polygons
+    from fluidem.cases.packings import world_polygons
 
     mm, bodies, poses = _packed_mesh()
     polys = world_polygons(bodies, poses)

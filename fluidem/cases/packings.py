@@ -1,6 +1,28 @@
-"""Scenes for the moving-mesh hard cases: a random packing of convex polygons and motions.
+"""Scenes of the moving-mesh hard cases: random packings of convex polygons and their motions.
 
-Shared by ``tests/mesh`` and ``benchmarks/bench_mesh.py``.
+The hard cases that the moving mesh (:class:`fluidem.mesh.MovingMesh`) must keep valid
+(``tests/mesh/test_mesh_hard_cases.py``, ``benchmarks/bench_mesh.py``):
+
+1. :func:`packing` + :class:`RandomMotion`: 200 convex polygons at area fraction 0.5 with
+   gaps down to 1 % of the mean size, moving randomly;
+2. :func:`sliding_pair`: two bars sliding past each other with a gap of ``h/10``;
+3. :func:`crossing_body`: a hexagon crossing from the fine into the coarse region of a
+   graded mesh and back;
+4. :func:`collapsing_step`: a block of 200 squares shearing and settling (paper Fig. 6).
+
+Case 5 is case 1 with the ``"regenerate"`` strategy.
+
+Examples
+--------
+>>> from fluidem.cases.packings import RandomMotion, packing
+>>> bodies, poses, box = packing(n=12, phi=0.3, seed=0)
+>>> len(bodies), poses.shape
+(12, (12, 3))
+>>> motion = RandomMotion(bodies, poses, box, seed=1)
+>>> motion.step().shape
+(12, 3)
+>>> motion.min_gap_now() >= 0.01
+True
 """
 
 from __future__ import annotations
@@ -8,9 +30,19 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
+from ..errors import InputError
+from ..geometry import rectangle, regular_polygon
+
+__all__ = ["random_convex", "world_polygons", "packing", "RandomMotion", "sliding_pair", "crossing_body",
+           "collapsing_step"]
+
 
 def random_convex(size: float, n_vertices: int, rng) -> np.ndarray:
-    """Convex polygon of diameter ≈ ``size`` (vertices on an ellipse), CCW, centroid at the origin."""
+    """Convex polygon ``(n_vertices, 2)`` of diameter ≈ ``size`` (vertices near an ellipse of
+    axis ratio 1–1.6, randomly rotated), counter-clockwise, centroid at the origin.
+
+    ``rng``: a :class:`numpy.random.Generator`.
+    """
     t = np.sort(rng.uniform(0, 2 * np.pi, n_vertices))
     # keep angular gaps below π so the centroid is inside and no edge is degenerate
     t = 2 * np.pi * (np.arange(n_vertices) + 0.6 * (rng.random(n_vertices) - 0.5)) / n_vertices
@@ -24,7 +56,9 @@ def random_convex(size: float, n_vertices: int, rng) -> np.ndarray:
     return v - cen
 
 
-def world_polygons(bodies, poses):
+def world_polygons(bodies, poses) -> np.ndarray:
+    """Shapely polygons ``(n,)`` of ``bodies`` (outlines ``(n_i, 2)`` in body coordinates) at
+    ``poses (n, 3)`` (x, y, angle)."""
     out = []
     for v, p in zip(bodies, poses):  # test set-up helper
         c, s = np.cos(p[2]), np.sin(p[2])
@@ -38,7 +72,35 @@ def packing(n=200, phi=0.5, sizes=(0.5, 1.5), n_vertices=(3, 8), min_gap=0.01, s
     Bodies are placed biggest first at random positions/angles (batches of candidates tested
     with an STR tree), then compacted: each body is moved towards its nearest neighbour until
     the gap is ``min_gap`` (times a random factor 1–3) when that is free of other bodies.
-    Returns ``bodies`` (list of (n_i, 2)), ``poses`` (n, 3) and the box.
+
+    Parameters
+    ----------
+    n : int
+        Number of bodies.
+    phi : float
+        Area fraction of the bodies in the box.
+    sizes : (float, float)
+        Range of the body diameters, length units (uniform).
+    n_vertices : (int, int)
+        Range of the vertex counts (inclusive).
+    min_gap : float
+        Smallest gap between bodies and to the walls, length units.
+    seed : int
+        Seed of :func:`numpy.random.default_rng`.
+
+    Returns
+    -------
+    bodies : list of (n_i, 2) float
+        Outlines in body coordinates (centroid at the origin).
+    poses : (n, 3) float
+        x, y, angle.
+    box : (0, L, 0, L)
+        The square box, ``L = sqrt(total body area / phi)``.
+
+    Raises
+    ------
+    InputError
+        No free place was found for a body (``phi`` too high).
     """
     rng = np.random.default_rng(seed)
     sz = np.sort(rng.uniform(*sizes, n))[::-1]
@@ -70,7 +132,7 @@ def packing(n=200, phi=0.5, sizes=(0.5, 1.5), n_vertices=(3, 8), min_gap=0.01, s
                 poses.append([xy[j, 0], xy[j, 1], ang[j]])
                 break
         else:
-            raise RuntimeError("packing failed; use a lower area fraction")
+            raise InputError(f"phi = {phi!r}: expected a lower area fraction (no free place found for a body)")
     poses = np.array(poses)
     # compaction towards nearest neighbours creates narrow gaps
     placed = np.array(placed, dtype=object)
@@ -116,13 +178,15 @@ class RandomMotion:
         self._vc = np.vstack(bodies)
         self._vb = np.repeat(np.arange(len(bodies)), self._nv)
 
-    def polygons(self, poses):
+    def polygons(self, poses) -> np.ndarray:
+        """Shapely polygons ``(n,)`` of the bodies at ``poses (n, 3)``."""
         c, s = np.cos(poses[self._vb, 2]), np.sin(poses[self._vb, 2])
         x = c * self._vc[:, 0] - s * self._vc[:, 1] + poses[self._vb, 0]
         y = s * self._vc[:, 0] + c * self._vc[:, 1] + poses[self._vb, 1]
         return shapely.polygons(shapely.linearrings(np.column_stack([x, y]), indices=self._vb))
 
-    def step(self):
+    def step(self) -> np.ndarray:
+        """Advance one step; returns a copy of the new poses ``(n, 3)``."""
         n = len(self.poses)
         trial = self.poses.copy()
         trial[:, :2] += self.rng.normal(0, self.sigma_x, (n, 2))
@@ -135,7 +199,8 @@ class RandomMotion:
             bad[a[sel]] = True
             xmin, ymin, xmax, ymax = shapely.bounds(polys).T
             g = self.min_gap
-            bad |= (xmin < self.box[0] + g) | (ymin < self.box[2] + g) | (xmax > self.box[1] - g) | (ymax > self.box[3] - g)
+            bad |= ((xmin < self.box[0] + g) | (ymin < self.box[2] + g) | (xmax > self.box[1] - g)
+                    | (ymax > self.box[3] - g))
             moved = np.any(trial != self.poses, axis=1)
             bad &= moved
             if not bad.any():
@@ -144,7 +209,8 @@ class RandomMotion:
         self.poses = trial
         return trial.copy()
 
-    def min_gap_now(self):
+    def min_gap_now(self) -> float:
+        """Smallest gap between two bodies now (pairs closer than 1 length unit), length units."""
         polys = self.polygons(self.poses)
         a, b = shapely.STRtree(polys).query(polys, predicate="dwithin", distance=1.0)
         sel = a < b
@@ -153,9 +219,11 @@ class RandomMotion:
 
 # ---------------------------------------------------------------- the other hard cases
 def sliding_pair(h):
-    """Case 2: two 1 × 0.3 bars, gap h/10, that slide past each other in opposite directions."""
-    from fluidem.geometry import rectangle
+    """Case 2: two 1 × 0.3 bars, gap ``h/10``, that slide past each other in opposite directions.
 
+    Returns ``bodies``, ``poses (2, 3)``, ``box`` and ``poses_at(k, n)``: the poses after
+    step ``k`` of ``n`` (each bar moves by 2 length units in ``n`` steps).
+    """
     bodies = [rectangle(1.0, 0.3), rectangle(1.0, 0.3)]
     poses = np.array([[1.0, 1.0, 0.0], [3.0, 1.3 + h / 10, 0.0]])
     box = (0.0, 4.0, 0.0, 2.3)
@@ -170,9 +238,11 @@ def sliding_pair(h):
 
 
 def crossing_body():
-    """Case 3: a hexagon that crosses from the fine region (x < 5) of a graded mesh to x = 7 and back."""
-    from fluidem.geometry import regular_polygon
+    """Case 3: a hexagon that crosses from the fine region (x < 5) of a graded mesh to x = 7 and back.
 
+    Returns ``bodies``, ``poses (1, 3)``, ``box``, the ``grading`` dict of
+    :class:`fluidem.mesh.MovingMesh` and ``poses_at(k, n)``: the pose after step ``k`` of ``n``.
+    """
     bodies = [regular_polygon(0.5, 6)]
     box = (0.0, 14.0, 0.0, 8.0)
     grading = {"region": (0.0, 5.0, 0.0, 8.0), "growth": 1.25, "h_max": 1.0}
@@ -189,10 +259,9 @@ def collapsing_step():
     """Case 4: a 10 × 20 block of squares (side 0.5, gaps 0.05) sliding down and to the side (paper Fig. 6).
 
     Rows shear to the right and the block spreads and settles by 8 % in height, so that no two
-    squares overlap: a prescribed stand-in for the granular collapse.
+    squares overlap: a prescribed stand-in for the granular collapse.  Returns ``bodies``,
+    ``poses (200, 3)``, ``box``, the ``grading`` dict and ``poses_at(k, n)``.
     """
-    from fluidem.geometry import rectangle
-
     X, Y = np.meshgrid(1.0 + 0.55 * np.arange(10), 0.5 + 0.55 * np.arange(20))
     base = np.column_stack([X.ravel(), Y.ravel()])
     bodies = [rectangle(0.5, 0.5)] * len(base)

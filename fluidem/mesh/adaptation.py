@@ -1,0 +1,183 @@
+"""Adaptation and clean-up of the moving mesh at re-triangulation (paper Sec. 4.2, Fig. 6).
+
+* :func:`adapt`: an independent set of free nodes is removed where the incident edges are
+  on average shorter than ``coarsen_ratio`` of their target, and a node is added at the
+  centroid of triangles larger than ``refine_area`` target areas (``√3/4 h²``): vacated
+  regions coarsen again, regions a body moved into refine.
+* :func:`cleanup_candidates`: after a triangulation, free vertices of elements still
+  outside the angle bounds (outside narrow gaps) are removed and a node is added in such
+  elements without free vertices; the caller triangulates the new candidates once more.
+
+Examples
+--------
+>>> import numpy as np
+>>> from fluidem.mesh.adaptation import Adapted
+>>> Adapted(np.zeros((0, 2)), np.zeros(0, np.int8), np.zeros(0, np.int64), np.zeros(0), 0, 0).n_inserted
+0
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from .gaps import gap_width
+from .nodes import CORNER, FREE, SIDE, UidSource
+from .relax import MeshTopology, signed_areas
+from .triggers import ElementShape, element_shape
+
+__all__ = ["Adapted", "Cleanup", "adapt", "cleanup_candidates"]
+
+
+@dataclass(frozen=True)
+class Adapted:
+    """Candidate nodes after the adaptation.
+
+    Attributes
+    ----------
+    points : (n, 2) float
+    kind : (n,) int8
+    uid : (n,) int
+    h : (n,) float
+        Target size at the new candidates.
+    n_removed, n_inserted : int
+        Nodes removed by coarsening and inserted by refinement.
+    """
+
+    points: np.ndarray
+    kind: np.ndarray
+    uid: np.ndarray
+    h: np.ndarray
+    n_removed: int
+    n_inserted: int
+
+
+@dataclass(frozen=True)
+class Cleanup:
+    """Result of :func:`cleanup_candidates`.
+
+    Attributes
+    ----------
+    candidates : (points (n, 2), kind (n,), uid (n,)) or None
+        The nodes to triangulate again, ``None`` when nothing needs fixing.
+    shape : ElementShape
+        Angle cosines and areas of the mesh that was checked.
+    """
+
+    candidates: tuple | None
+    shape: ElementShape
+
+
+def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind, candidate_row, solid_tree, target,
+          uids: UidSource, seed: int, refine_area: float, coarsen_ratio: float, clearance: float) -> Adapted:
+    """Coarsen where edges are much shorter than the target, refine where triangles are too big.
+
+    Parameters
+    ----------
+    points, kind, uid : (n,) arrays
+        The candidate nodes (the current nodes kept by the cut-out).
+    mesh_points : (n_nodes, 2) float
+        The current mesh: node positions, with ``topo`` its topology, ``mesh_h`` its
+        per-node targets and ``mesh_kind`` its node kinds.
+    candidate_row : (n_nodes,) int
+        Row in ``points`` of every current node, -1 where the cut-out dropped it.
+    solid_tree : shapely.STRtree or None
+        The bodies and closed contact outlines; new nodes closer than ``clearance · h`` to
+        them are not inserted.
+    target : callable
+        Target size ``points (k, 2) -> (k,)``.
+    uids : UidSource
+    seed : int
+        Seed of the random priorities of the independent set (the step count: reproducible).
+    refine_area, coarsen_ratio, clearance : float
+        :class:`fluidem.mesh.params.MeshParams` fields.
+    """
+    # coarsening: an independent set of free nodes whose incident edges are all short
+    t = topo.triangles
+    e0, e1 = topo.e0, topo.e1
+    old = mesh_points
+    z = old[:, 0] + 1j * old[:, 1]
+    L = np.abs(z[e1] - z[e0])
+    L0 = 0.5 * (mesh_h[e0] + mesh_h[e1])
+    n_old = len(old)
+    # mean ratio of incident edge lengths to their targets
+    ratio = L / L0
+    deg = np.bincount(e0, minlength=n_old) + np.bincount(e1, minlength=n_old)
+    mean_ratio = (np.bincount(e0, ratio, n_old) + np.bincount(e1, ratio, n_old)) / np.maximum(deg, 1)
+    has_long = mean_ratio >= coarsen_ratio
+    row = candidate_row
+    present = row >= 0
+    cand = present & (mesh_kind == FREE) & ~has_long
+    rng = np.random.default_rng(seed)
+    prio = np.where(cand, rng.random(n_old), -1.0)
+    nb_max = np.full(n_old, -1.0)
+    np.maximum.at(nb_max, e0, prio[e1])
+    np.maximum.at(nb_max, e1, prio[e0])
+    remove_old = cand & (prio > nb_max)
+    keep = np.ones(len(points), dtype=bool)
+    keep[row[remove_old]] = False
+    # refinement: centroids of triangles much larger than the target
+    area = signed_areas(old, t)
+    ht = (mesh_h[topo.t0] + mesh_h[topo.t1] + mesh_h[topo.t2]) / 3.0
+    big = area > refine_area * (np.sqrt(3) / 4) * ht**2
+    newp = old[t[big]].mean(axis=1)
+    if solid_tree is not None and len(newp):
+        hn = target(newp)
+        ii, _ = solid_tree.query(shapely.points(newp), predicate="dwithin", distance=clearance * hn)
+        ok = np.ones(len(newp), dtype=bool)
+        ok[ii] = False
+        newp = newp[ok]
+    n_ins = len(newp)
+    pts = np.vstack([points[keep], newp])
+    kind = np.concatenate([kind[keep], np.full(n_ins, FREE, np.int8)])
+    uid = np.concatenate([uid[keep], uids.take(n_ins)])
+    return Adapted(points=pts, kind=kind, uid=uid, h=target(pts), n_removed=int((~keep).sum()), n_inserted=n_ins)
+
+
+def cleanup_candidates(points, topo: MeshTopology, kind, uid, h_node, table, body_tree, box, target, uids: UidSource,
+                       min_angle: float, max_angle: float, clearance: float) -> Cleanup:
+    """New candidate nodes after removing free vertices of bad elements / adding nodes in them.
+
+    Bad: an angle below ``min_angle`` or above ``max_angle`` (degrees) outside narrow gaps.
+    ``table``, ``body_tree``: the bodies' PolygonTable and STR tree (``None`` without
+    bodies); a node added in a bad element without free vertices must keep
+    ``clearance · h`` from the bodies.
+    """
+    shape = element_shape(points, topo)
+    bad = np.flatnonzero((shape.cos_max > np.cos(np.radians(min_angle)))
+                         | (shape.cos_min < np.cos(np.radians(max_angle))))
+    if not len(bad):
+        return Cleanup(None, shape)
+    triangles = topo.triangles
+    t = triangles[bad]
+    c = points[t].mean(axis=1)
+    hh = 0.5 * h_node[t].mean(axis=1)  # narrow gap: narrower than h/2
+    bad = bad[~(gap_width(c, hh, table, box) < hh)]
+    if not len(bad):
+        return Cleanup(None, shape)
+    t = triangles[bad]
+    free_v = kind[t] == FREE
+    remove = np.zeros(len(points), dtype=bool)
+    remove[t[free_v]] = True
+    no_free = ~free_v.any(axis=1)
+    newp = np.zeros((0, 2))
+    if no_free.any():
+        P = points[t[no_free]]
+        cen = P.mean(axis=1)
+        hq = target(cen)
+        if body_tree is not None:
+            ix, dist = body_tree.query_nearest(shapely.points(cen), return_distance=True, all_matches=False)
+            dn = np.zeros(len(cen))
+            dn[ix[0]] = dist
+        else:
+            dn = np.full(len(cen), np.inf)
+        newp = cen[dn >= clearance * hq]
+    keep = ((kind == FREE) | (kind == SIDE) | (kind == CORNER)) & ~remove
+    cpts = np.vstack([points[keep], newp])
+    ckind = np.concatenate([kind[keep], np.full(len(newp), FREE, np.int8)])
+    cuid = np.concatenate([uid[keep], uids.take(len(newp))])
+    if not remove.any() and not len(newp):
+        return Cleanup(None, shape)
+    return Cleanup((cpts, ckind, cuid), shape)

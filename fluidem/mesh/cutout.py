@@ -1,0 +1,274 @@
+"""Cut-out and triangulation of the moving mesh (paper Sec. 2.1, 3.2).
+
+1. :func:`cut_out`: free candidate nodes inside a body or closer than ``purge · h`` to its
+   outline are removed, and so are free nodes in gaps narrower than ``gap_purge · h`` (such
+   a gap is spanned by one layer of elements);
+2. :func:`triangulate`: Triangle's constrained Delaunay triangulation of the kept nodes,
+   the outline and contact nodes (:mod:`fluidem.mesh.contact_outline`), with the outlines
+   and the box sides as segments and a hole point in every body; then Voronoi junction
+   points (:mod:`fluidem.mesh.junctions`) split the triangles spanning three bodies.
+
+Examples
+--------
+>>> import numpy as np
+>>> from fluidem.mesh.cutout import cut_out
+>>> from fluidem.mesh.nodes import FREE, CORNER
+>>> cand = np.array([[0.0, 0.0], [0.5, 0.5]])
+>>> cut = cut_out(cand, np.array([CORNER, FREE], np.int8), np.full(2, 0.1), None, 0.5, 1.1, (0, 1, 0, 1))
+>>> cut.keep.tolist(), cut.n_purged
+([True, True], 0)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+import triangle as tr
+
+from ..errors import MeshError
+from .adjacency import edges_from_neighbors, split_with_neighbors
+from .contact_outline import ContactOutline
+from .gaps import gap_from_pairs
+from .junctions import junction_points
+from .nodes import (
+    CONTACT,
+    CORNER,
+    FIRST_BODY_MARKER,
+    FREE,
+    JUNCTION,
+    OUTLINE,
+    SIDE,
+    UID_OUTLINE,
+    BodyOutlines,
+    UidSource,
+    box_ring,
+    to_body,
+)
+from .relax import MeshTopology, signed_areas
+
+__all__ = ["CutOut", "Triangulation", "cut_out", "triangulate"]
+
+
+@dataclass(frozen=True)
+class CutOut:
+    """Which candidate nodes survive the cut-out.
+
+    Attributes
+    ----------
+    keep : (n_candidates,) bool
+        Free and box nodes kept (outline, contact and junction candidates are always
+        dropped: they are rebuilt).
+    n_purged : int
+        Free candidates removed inside or near a body or in a narrow gap.
+    """
+
+    keep: np.ndarray
+    n_purged: int
+
+
+@dataclass(frozen=True)
+class Triangulation:
+    """A new triangulation and the node data that goes with it.
+
+    Attributes
+    ----------
+    points : (n_nodes, 2) float
+    kind : (n_nodes,) int8
+        :mod:`fluidem.mesh.nodes` kinds.
+    body_of : (n_nodes,) int
+        Body of outline and contact nodes, -1 otherwise.
+    outline_row : (n_nodes,) int
+        Row of an outline node in the outline table, -1 otherwise.
+    uid : (n_nodes,) int
+    triangles : (n_triangles, 3) int
+        Counter-clockwise.
+    topo : MeshTopology
+    boundary_segments : (s, 2) int
+    boundary_markers : (s,) int
+        1..4 for the box sides, ``FIRST_BODY_MARKER + b`` for body ``b``.
+    contact_local : (n_contact, 2) float
+        Body-frame positions of the contact nodes (in node order).
+    junction_nodes : (k,) int
+    junction_verts : (k, 3) int
+        The triangle of outline nodes each junction node split.
+    junction_bary : (k, 3) float
+        Barycentric coordinates of each junction node in that triangle.
+    """
+
+    points: np.ndarray
+    kind: np.ndarray
+    body_of: np.ndarray
+    outline_row: np.ndarray
+    uid: np.ndarray
+    triangles: np.ndarray
+    topo: MeshTopology
+    boundary_segments: np.ndarray
+    boundary_markers: np.ndarray
+    contact_local: np.ndarray
+    junction_nodes: np.ndarray
+    junction_verts: np.ndarray
+    junction_bary: np.ndarray
+
+
+def cut_out(cand, cand_kind, h_cand, table, purge: float, gap_purge: float, box) -> CutOut:
+    """The cut-out of candidate nodes ``cand (n, 2)`` of kinds ``cand_kind (n,)`` with target
+    sizes ``h_cand (n,)`` (module docstring).
+
+    ``table``: the bodies' :class:`~fluidem.mesh.proximity.PolygonTable` (``None`` without
+    bodies); ``purge``, ``gap_purge``: multiples of ``h``.
+    """
+    cand = np.asarray(cand, dtype=float)
+    box_nodes = (cand_kind == SIDE) | (cand_kind == CORNER)
+    keep = np.ones(len(cand), dtype=bool)
+    if table is not None:
+        # one query serves both tests (the closed contact outlines lie within min_gap
+        # of the bodies, well inside the purge distance)
+        qi = np.flatnonzero(cand_kind == FREE)
+        ii, _, dd = table.pairs_within(cand[qi], max(purge, gap_purge) * h_cand[qi], solid=True)
+        close = dd < purge * h_cand[qi[ii]]
+        keep[qi[ii[close]]] = False
+        # no room in gaps narrower than gap_purge · h: the gap is spanned by one layer
+        gap = gap_from_pairs(cand[qi], ii, dd, box)
+        keep[qi[gap < gap_purge * h_cand[qi]]] = False
+    # junction nodes from before are recomputed
+    movable = (cand_kind == FREE) | box_nodes
+    n_purged = int((~keep & (cand_kind == FREE)).sum())
+    return CutOut(keep=keep & movable, n_purged=n_purged)
+
+
+def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contact: ContactOutline, poses, polys,
+                tree, box, uids: UidSource, junctions: bool, junction_clearance: float, target) -> Triangulation:
+    """Constrained Delaunay triangulation of the kept candidate nodes and the outlines, then
+    junction points.
+
+    Parameters
+    ----------
+    points, kind, uid : (n,) arrays
+        The candidate nodes kept by :func:`cut_out` (and the adaptation).
+    outline_world : (n_outline, 2) float
+        The outline table at ``poses``.
+    outlines : BodyOutlines
+    contact : ContactOutline
+        The outlines to mesh (:func:`fluidem.mesh.contact_outline.contact_outline`).
+    poses : (n_bodies, 3) float
+    polys : (n_bodies,) shapely Polygons
+        The bodies at ``poses``; ``tree`` their STR tree (``None`` without bodies).
+    box : (xmin, xmax, ymin, ymax)
+    uids : UidSource
+        Draws the uids of the contact and junction nodes.
+    junctions : bool
+        Insert junction points (with three bodies or more).
+    junction_clearance : float
+        Multiple of ``h`` a junction node keeps from the bodies.
+    target : callable
+        Target size ``points (k, 2) -> (k,)``.
+
+    Raises
+    ------
+    MeshError
+        The outlines intersect (bodies overlap by more than the contact policy handles).
+    """
+    n_bodies = len(polys)
+    outline_world = outline_world
+    n_outline = len(outline_world)
+    contact_points, contact_body = contact.contact_points, contact.contact_body
+    keep_outline = contact.keep_outline
+    # assemble nodes: [candidates | outline | contact nodes | junctions]
+    outline_rows = np.flatnonzero(keep_outline)
+    nodes = np.vstack([points, outline_world[keep_outline], contact_points])
+    n_cand = len(points)
+    # map of outline table index -> node index
+    node_of_row = np.full(n_outline + len(contact_points), -1, dtype=np.int64)
+    node_of_row[outline_rows] = n_cand + np.arange(len(outline_rows))
+    node_of_row[n_outline:] = n_cand + len(outline_rows) + np.arange(len(contact_points))
+    outline_segments = node_of_row[contact.segments]
+    if (outline_segments < 0).any():
+        raise MeshError("outline segment refers to a removed outline node")
+    kind = np.concatenate([kind, np.full(len(outline_rows), OUTLINE, np.int8),
+                           np.full(len(contact_points), CONTACT, np.int8)])
+    body_of = np.concatenate([np.full(n_cand, -1), outlines.body[outline_rows], contact_body])
+    outline_row = np.concatenate([np.full(n_cand, -1), outline_rows, np.full(len(contact_points), -1)])
+    uid = np.concatenate([uid, UID_OUTLINE + outline_rows, uids.take(len(contact_points))])
+    # contact nodes: body coordinates for rigid motion
+    contact_local = to_body(contact_points, poses[contact_body]) if len(contact_points) else np.zeros((0, 2))
+    ring_seg, ring_mark = box_ring(nodes, kind, box)
+    mid = 0.5 * (nodes[outline_segments[:, 0]] + nodes[outline_segments[:, 1]])
+    if len(outline_segments):
+        owner = body_of[outline_segments[:, 0]]
+        same = owner == body_of[outline_segments[:, 1]]
+        if not same.all():
+            dd = shapely.distance(polys[None, :], shapely.points(mid[~same])[:, None])
+            owner = owner.copy()
+            owner[~same] = np.argmin(dd, axis=1)
+        outline_markers = FIRST_BODY_MARKER + owner
+    else:
+        outline_markers = np.zeros(0, dtype=np.int64)
+    pslg = {
+        "vertices": nodes,
+        "segments": np.vstack([ring_seg, outline_segments]).astype(np.int32),
+        "segment_markers": np.concatenate([ring_mark, outline_markers]).astype(np.int32)[:, None],
+    }
+    if len(contact.holes):
+        pslg["holes"] = contact.holes
+    out = tr.triangulate(pslg, "pQn")
+    t = out["triangles"].astype(np.int64)
+    neighbors = out["neighbors"].astype(np.int64)
+    if len(out["vertices"]) != len(nodes):
+        raise MeshError(
+            f"Triangle added {len(out['vertices']) - len(nodes)} points: outlines intersect "
+            "(bodies overlap by more than the contact policy handles)"
+        )
+    boundary_segments = out["segments"].astype(np.int64)
+    boundary_markers = out["segment_markers"].ravel().astype(np.int64)
+    # drop unused nodes (none expected; duplicates or points in holes)
+    used = np.zeros(len(nodes), dtype=bool)
+    used[t.ravel()] = True
+    if not used.all():
+        remap = np.cumsum(used) - 1
+        t = remap[t]
+        boundary_segments = remap[boundary_segments]
+        nodes, kind, body_of, outline_row, uid = nodes[used], kind[used], body_of[used], outline_row[used], uid[used]
+        first_contact = n_cand + len(outline_rows)
+        contact_local = contact_local[used[first_contact: first_contact + len(contact_points)]]
+    # Triangle returns counter-clockwise triangles; make sure (swap vertices 1, 2 and
+    # the neighbours opposite them together)
+    cw = signed_areas(nodes, t) < 0
+    if cw.any():
+        t[cw] = t[cw][:, [0, 2, 1]]
+        neighbors[cw] = neighbors[cw][:, [0, 2, 1]]
+    junction_nodes = np.zeros(0, dtype=np.int64)
+    junction_verts = np.zeros((0, 3), dtype=np.int64)
+    junction_bary = np.zeros((0, 3))
+    if junctions and n_bodies >= 3:
+        # Voronoi junction points (Sec. 3.2): split junction triangles at a new node
+        owner = np.where((kind == OUTLINE) | (kind == CONTACT), body_of, -1)
+        junction_tris, junction_pts = junction_points(nodes, t, owner, poses[:, :2], polys, target,
+                                                      clearance=junction_clearance, tree=tree)
+        if len(junction_pts):
+            n0 = len(nodes)
+            # junction nodes follow their junction: fixed barycentric coordinates in
+            # the triangle of outline nodes they split
+            jv = t[junction_tris]
+            P = nodes[jv]
+            e1, e2, r = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0], junction_pts - P[:, 0]
+            det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+            l1 = (r[:, 0] * e2[:, 1] - r[:, 1] * e2[:, 0]) / det
+            l2 = (e1[:, 0] * r[:, 1] - e1[:, 1] * r[:, 0]) / det
+            junction_bary = np.column_stack([1 - l1 - l2, l1, l2])
+            junction_verts = jv
+            junction_nodes = n0 + np.arange(len(junction_pts))
+            t, neighbors = split_with_neighbors(t, neighbors, junction_tris, junction_nodes)
+            nodes = np.vstack([nodes, junction_pts])
+            kind = np.concatenate([kind, np.full(len(junction_pts), JUNCTION, np.int8)])
+            body_of = np.concatenate([body_of, np.full(len(junction_pts), -1)])
+            outline_row = np.concatenate([outline_row, np.full(len(junction_pts), -1)])
+            uid = np.concatenate([uid, uids.take(len(junction_pts))])
+    edges, edge_tris = edges_from_neighbors(t, neighbors)
+    return Triangulation(
+        points=nodes, kind=kind, body_of=body_of.astype(np.int64), outline_row=outline_row.astype(np.int64),
+        uid=uid.astype(np.int64), triangles=t,
+        topo=MeshTopology(t, edges, edge_tris, edge_tris[:, 0] != edge_tris[:, 1]),
+        boundary_segments=boundary_segments, boundary_markers=boundary_markers, contact_local=contact_local,
+        junction_nodes=junction_nodes, junction_verts=junction_verts, junction_bary=junction_bary)

@@ -1,0 +1,245 @@
+"""Parameters of the moving mesh (:class:`fluidem.mesh.MovingMesh`), validated once.
+
+Every length is a multiple of the local target edge length ``h`` unless said otherwise;
+every angle is in degrees.  The defaults are the values the hard cases were tuned with
+(``tests/mesh/test_mesh_hard_cases.py``).
+
+Examples
+--------
+>>> from fluidem.mesh.params import MeshParams
+>>> p = MeshParams(strategy="regenerate")
+>>> p.step_iterations           # relax_iterations=None: the default of the strategy
+20
+>>> p.min_gap_for(0.1)          # default contact distance: 1e-3 h
+0.0001
+>>> MeshParams(coarsen_ratio=1.5)
+Traceback (most recent call last):
+...
+fluidem.errors.InputError: MovingMesh(coarsen_ratio=...) = 1.5: expected a number in (0, 1)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+from .. import names
+from .. import validate as v
+from ..errors import InputError
+from .relax import RelaxParams
+
+__all__ = ["MeshParams", "STRATEGIES", "PARAM_NAMES", "check_strategy", "mesh_params"]
+
+#: mesh strategies by name (:data:`fluidem.names.REGISTRY` ``"strategy"``)
+STRATEGIES = names.choices("strategy")
+
+
+def _key(name: str) -> str:
+    return f"MovingMesh({name}=...)"
+
+
+def check_strategy(value) -> str:
+    """The canonical strategy name for ``value`` (aliases of :mod:`fluidem.names` accepted)."""
+    try:
+        return names.lookup("strategy", value, where=_key("strategy"))
+    except InputError:
+        allowed = ", ".join(repr(s) for s in STRATEGIES)
+        raise InputError(f"unknown mesh strategy {value!r}: expected one of {allowed}") from None
+
+
+def _count(name, value, lo):
+    """An integer >= ``lo``; integral floats (``30.0``) are accepted as before."""
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    return v.integer(_key(name), value, lo=lo)
+
+
+@dataclass(frozen=True)
+class MeshParams:
+    """Parameters of :class:`fluidem.mesh.MovingMesh` (module docstring of
+    :mod:`fluidem.mesh.moving` for the pipeline they steer).
+
+    Parameters
+    ----------
+    strategy : {"drag", "regenerate", "fixed"}
+        How the mesh follows the bodies.
+    retriangulate_every : int
+        K, steps between re-triangulations when dragging (paper Sec. 4.2: 20–50), >= 1.
+    relax_iterations : int or None
+        Relaxation sweeps per physical step (Sec. 3.3 iteration limit), >= 0; ``None``:
+        3 for ``drag``, 20 for ``regenerate`` (:attr:`step_iterations`).
+    initial_iterations : int
+        Relaxation sweeps after the first triangulation.
+    retriangulate_iterations : int
+        Relaxation sweeps after a re-triangulation.
+    min_angle_trigger, max_angle_trigger : float
+        Angle bounds (degrees) outside narrow gaps: crossing them triggers a
+        re-triangulation (``"quality"``) and elements outside them are fixed by the
+        clean-up pass.
+    angle_margin : float
+        Degrees an element that started outside the bounds may lose before it triggers.
+    degenerate_area : float
+        An element that shrank below this fraction of its area at the last triangulation
+        triggers a re-triangulation (``"degenerate"``).
+    clearance : float
+        Background nodes closer than ``clearance · h`` to a body are cut out; in [0, 2).
+    purge_clearance : float
+        When dragging, nodes closer than ``purge_clearance · h`` to a body are purged at
+        re-triangulation; in [0, 2).
+    gap_purge : float
+        Free nodes in gaps narrower than ``gap_purge · h`` are removed (the gap is spanned
+        by one layer of elements); >= 0.
+    min_gap : float or None
+        Bodies closer than this (length units) are meshed as one outline; ``None``:
+        ``default_min_gap · h`` (:meth:`min_gap_for`).
+    default_min_gap : float
+        ``min_gap`` as a multiple of ``h`` when ``min_gap`` is ``None``.
+    on_outline_factor : float
+        A body outline node belongs to the closed contact outline when it lies within
+        ``on_outline_factor · min_gap`` of it.
+    contact_merge : float
+        Vertices of a closed contact outline, and outline nodes along it, closer than
+        ``contact_merge · h`` to their predecessor are merged into it.
+    contact_node_spacing : float
+        A vertex of a closed contact outline farther than ``contact_node_spacing · h``
+        from every kept outline node becomes a contact node.
+    mitre_limit : float
+        Mitre limit of the closing buffer of a contact cluster (shapely ``buffer``).
+    junctions : bool
+        Insert Voronoi junction points (Sec. 3.2).
+    junction_clearance : float
+        A junction point must stay ``junction_clearance · h`` away from the bodies
+        (:func:`fluidem.mesh.junctions.junction_points`).
+    cleanup_passes : int
+        Clean-up passes after a triangulation (remove free nodes of bad elements, add a
+        node in bad elements without any), >= 0.
+    cleanup_clearance : float
+        A node added by the clean-up must be ``cleanup_clearance · h`` away from the bodies.
+    background : {"fk", "delaunay"} or None
+        Background nodes for a uniform size: Friedrichs–Keller grid or a quality Delaunay
+        point set; ``None``: ``"fk"`` for a uniform size, ``"delaunay"`` for a graded one.
+    relax_params : RelaxParams
+        Spring relaxation (:mod:`fluidem.mesh.relax`).
+    drag_reach, drag_full : float
+        Free nodes within ``drag_full · h`` of a body follow its rigid motion fully, with a
+        weight falling linearly to zero at ``drag_reach · h``; ``0 <= drag_full < drag_reach``.
+    drag_stiffness : float
+        Dragged nodes relax with the step reduced by ``1 − drag_stiffness · weight``; in [0, 1].
+    drag_halvings : int
+        How often the drag displacement of nodes of an element it would invert is halved
+        before those nodes only move rigidly.
+    tow_width : float
+        With grading: width of the zone of size ``h`` a body carries; >= 0.
+    refine_area : float
+        Re-triangulation adds a node in triangles larger than ``refine_area`` target areas; > 1.
+    coarsen_ratio : float
+        Re-triangulation removes free nodes whose incident edges average below
+        ``coarsen_ratio`` of their target; in (0, 1).
+    """
+
+    strategy: str = "drag"
+    retriangulate_every: int = 30
+    relax_iterations: int | None = None
+    initial_iterations: int = 60
+    retriangulate_iterations: int = 20
+    min_angle_trigger: float = 15.0
+    max_angle_trigger: float = 135.0
+    angle_margin: float = 3.0
+    degenerate_area: float = 0.1
+    clearance: float = 0.5
+    purge_clearance: float = 0.3
+    gap_purge: float = 1.1
+    min_gap: float | None = None
+    default_min_gap: float = 1e-3
+    on_outline_factor: float = 1.01
+    contact_merge: float = 0.1
+    contact_node_spacing: float = 0.3
+    mitre_limit: float = 20.0
+    junctions: bool = True
+    junction_clearance: float = 0.3
+    cleanup_passes: int = 1
+    cleanup_clearance: float = 0.3
+    background: str | None = None
+    relax_params: RelaxParams = RelaxParams()
+    drag_reach: float = 3.0
+    drag_full: float = 1.0
+    drag_stiffness: float = 0.8
+    drag_halvings: int = 6
+    tow_width: float = 2.0
+    refine_area: float = 1.6
+    coarsen_ratio: float = 0.7
+
+    def __post_init__(self):
+        s = object.__setattr__
+        s(self, "strategy", check_strategy(self.strategy))
+        s(self, "retriangulate_every", _count("retriangulate_every", self.retriangulate_every, 1))
+        if self.relax_iterations is not None:
+            s(self, "relax_iterations", _count("relax_iterations", self.relax_iterations, 0))
+        for name in ("initial_iterations", "retriangulate_iterations", "cleanup_passes", "drag_halvings"):
+            s(self, name, _count(name, getattr(self, name), 0))
+        s(self, "min_angle_trigger", v.number(_key("min_angle_trigger"), self.min_angle_trigger,
+                                              "a number in [0, 60)", lo=0.0, hi=60.0, hi_open=True))
+        s(self, "max_angle_trigger", v.number(_key("max_angle_trigger"), self.max_angle_trigger,
+                                              "a number in (60, 180]", lo=60.0, lo_open=True, hi=180.0))
+        s(self, "angle_margin", v.nonnegative(_key("angle_margin"), self.angle_margin))
+        s(self, "degenerate_area", v.fraction(_key("degenerate_area"), self.degenerate_area))
+        for name in ("clearance", "purge_clearance"):
+            s(self, name, v.number(_key(name), getattr(self, name), "a number in [0, 2) (multiple of h)",
+                                   lo=0.0, hi=2.0, hi_open=True))
+        for name in ("gap_purge", "tow_width", "drag_reach", "contact_merge", "contact_node_spacing",
+                     "junction_clearance", "cleanup_clearance"):
+            s(self, name, v.number(_key(name), getattr(self, name), "a number >= 0 (multiple of h)", lo=0.0))
+        if self.min_gap is not None:
+            s(self, "min_gap", v.positive(_key("min_gap"), self.min_gap))
+        s(self, "default_min_gap", v.positive(_key("default_min_gap"), self.default_min_gap))
+        s(self, "on_outline_factor", v.number(_key("on_outline_factor"), self.on_outline_factor,
+                                              "a number >= 1", lo=1.0))
+        s(self, "mitre_limit", v.number(_key("mitre_limit"), self.mitre_limit, "a number >= 1", lo=1.0))
+        s(self, "junctions", bool(self.junctions))
+        if self.background is not None:
+            v.choice(_key("background"), self.background, ("fk", "delaunay"))
+        if not isinstance(self.relax_params, RelaxParams):
+            raise v.fail(_key("relax_params"), self.relax_params, "a RelaxParams")
+        s(self, "drag_full", v.number(_key("drag_full"), self.drag_full,
+                                      f"a number in [0, drag_reach = {self.drag_reach!r}) (multiple of h)",
+                                      lo=0.0, hi=max(self.drag_reach, 1e-300), hi_open=True))
+        s(self, "drag_stiffness", v.fraction(_key("drag_stiffness"), self.drag_stiffness))
+        s(self, "refine_area", v.number(_key("refine_area"), self.refine_area, "a number > 1", lo=1.0,
+                                        lo_open=True))
+        s(self, "coarsen_ratio", v.fraction(_key("coarsen_ratio"), self.coarsen_ratio, lo_open=True,
+                                            hi_open=True))
+
+    @property
+    def step_iterations(self) -> int:
+        """Relaxation sweeps per physical step: ``relax_iterations`` or the strategy's default."""
+        if self.relax_iterations is not None:
+            return self.relax_iterations
+        return 20 if self.strategy == "regenerate" else 3
+
+    def min_gap_for(self, h: float) -> float:
+        """The contact distance (length units) for target size ``h``."""
+        return self.default_min_gap * h if self.min_gap is None else self.min_gap
+
+    def background_for(self, graded: bool) -> str:
+        """The background kind: ``background`` if set, else ``"delaunay"`` if ``graded`` else ``"fk"``."""
+        if self.background is not None:
+            return self.background
+        return "delaunay" if graded else "fk"
+
+
+#: names of the :class:`MeshParams` fields (the keyword arguments of ``MovingMesh``)
+PARAM_NAMES = tuple(f.name for f in fields(MeshParams))
+
+
+def mesh_params(params: MeshParams | None = None, **overrides) -> MeshParams:
+    """``params`` (default :class:`MeshParams`) with the keyword ``overrides`` replaced.
+
+    Unknown keywords raise ``TypeError`` as for any Python function.
+    """
+    unknown = [k for k in overrides if k not in PARAM_NAMES]
+    if unknown:
+        raise TypeError(f"MovingMesh() got an unexpected keyword argument {unknown[0]!r}")
+    if params is None:
+        return MeshParams(**overrides)
+    if not isinstance(params, MeshParams):
+        raise v.fail(_key("params"), params, "a MeshParams")
+    return replace(params, **overrides) if overrides else params

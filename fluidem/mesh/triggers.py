@@ -1,0 +1,195 @@
+"""When the dragged mesh is re-triangulated (paper Sec. 4.2), checked in this order after each step:
+
+``"inverted"``
+    an element has area <= 0 (the old mesh at the new positions is invalid);
+``"degenerate"``
+    an element shrank below ``degenerate_area`` of its area at the last triangulation
+    (typically a narrow-gap element whose anchor passes a corner);
+``"contact"``
+    bodies came within ``min_gap`` of each other, or a contact changed
+    (:func:`contacts_changed`);
+``"periodic"``
+    ``retriangulate_every`` steps since the last triangulation;
+``"quality"``
+    an element outside narrow gaps crossed the angle bounds that it kept after the last
+    triangulation, or one that was already outside lost ``angle_margin`` degrees more
+    (:func:`quality_dropped`, thresholds from :func:`quality_baseline`).
+
+Everything per step works on angle cosines (:func:`element_shape`): no ``arccos``.
+
+Examples
+--------
+>>> import numpy as np
+>>> from fluidem.mesh.relax import mesh_topology
+>>> from fluidem.mesh.triggers import element_shape
+>>> pts = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+>>> s = element_shape(pts, mesh_topology(np.array([[0, 1, 2]])))
+>>> (np.round([s.cos_max[0], s.cos_min[0], s.area[0]], 6) + 0.0).tolist()   # 45°, 90°, ½
+[0.707107, 0.0, 0.5]
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+__all__ = ["ElementShape", "QualityBaseline", "element_shape", "quality_baseline", "quality_dropped",
+           "contacts_changed", "retriangulation_reason"]
+
+
+@dataclass(frozen=True)
+class ElementShape:
+    """Per element: the largest and smallest cosine of its angles and its signed area.
+
+    Attributes
+    ----------
+    cos_max, cos_min : (n_triangles,) float
+        Cosine of the smallest and of the largest angle.
+    area : (n_triangles,) float
+        Signed area (positive for counter-clockwise), length units².
+    """
+
+    cos_max: np.ndarray
+    cos_min: np.ndarray
+    area: np.ndarray
+
+
+@dataclass(frozen=True)
+class QualityBaseline:
+    """Per-element thresholds of the quality trigger, set after each triangulation.
+
+    Attributes
+    ----------
+    cos_lo, cos_hi : (n_triangles,) float
+        An element triggers when ``cos_max > cos_lo`` or ``cos_min < cos_hi``
+        (narrow-gap elements: 2 and −2, never).
+    area : (n_triangles,) float
+        Signed areas after the triangulation (for ``"degenerate"``).
+    narrow : (n_triangles,) bool
+        Narrow-gap elements at the triangulation.
+    cos_max, cos_min : (n_triangles,) float
+        Their angle cosines then.
+    cos_bound_lo, cos_bound_hi : float
+        Cosines of the angle bounds.
+    """
+
+    cos_lo: np.ndarray
+    cos_hi: np.ndarray
+    area: np.ndarray
+    narrow: np.ndarray
+    cos_max: np.ndarray
+    cos_min: np.ndarray
+    cos_bound_lo: float
+    cos_bound_hi: float
+
+
+def element_shape(points, topo) -> ElementShape:
+    """Angle cosines and signed areas of the elements of ``topo`` at ``points (n, 2)``, one pass."""
+    x, y = points[:, 0], points[:, 1]
+    t = topo
+    ax, ay = x[t.t0], y[t.t0]
+    ux, uy = x[t.t1] - ax, y[t.t1] - ay  # u = b − a
+    wx, wy = ax - x[t.t2], ay - y[t.t2]  # w = a − c
+    vx, vy = -(ux + wx), -(uy + wy)  # v = c − b
+    lu2, lv2, lw2 = ux * ux + uy * uy, vx * vx + vy * vy, wx * wx + wy * wy
+    # cos at a: (b − a)·(c − a)/(|b − a||c − a|) = −u·w/(|u||w|), and likewise at b, c
+    ca = -(ux * wx + uy * wy) / np.sqrt(np.maximum(lu2 * lw2, 1e-300))
+    cb = -(ux * vx + uy * vy) / np.sqrt(np.maximum(lu2 * lv2, 1e-300))
+    cc = -(vx * wx + vy * wy) / np.sqrt(np.maximum(lv2 * lw2, 1e-300))
+    cmax = np.maximum(np.maximum(ca, cb), cc)
+    cmin = np.minimum(np.minimum(ca, cb), cc)
+    return ElementShape(cmax, cmin, 0.5 * (uy * wx - ux * wy))  # ½ (b − a) × (c − a)
+
+
+def quality_baseline(shape: ElementShape, narrow, min_angle: float, max_angle: float,
+                     margin: float) -> QualityBaseline:
+    """Thresholds of the quality trigger for the mesh just triangulated.
+
+    An element may lose ``margin`` degrees from where it starts if it starts outside the
+    bounds: thresholds ``min(min_angle, angle − margin)`` and ``max(max_angle, angle + margin)``;
+    ``arccos`` only where the angle is within ``margin`` of a bound (the other elements get
+    the bound itself).  Narrow-gap elements ``narrow (n_triangles,)`` are left out here and
+    watched by :func:`quality_dropped` instead.
+    """
+    cmax, cmin = shape.cos_max, shape.cos_min
+    trig = float(min_angle)
+    cos_lo = np.full(len(cmax), np.cos(np.radians(trig)))
+    near = np.flatnonzero(cmax > np.cos(np.radians(trig + margin)))
+    lo = np.minimum(trig, np.degrees(np.arccos(np.clip(cmax[near], -1, 1))) - margin)
+    cos_lo[near] = np.cos(np.radians(np.clip(lo, 0, 180)))
+    cos_hi = np.full(len(cmin), np.cos(np.radians(max_angle)))
+    near = np.flatnonzero(cmin < np.cos(np.radians(max_angle - margin)))
+    hi = np.maximum(max_angle, np.degrees(np.arccos(np.clip(cmin[near], -1, 1))) + margin)
+    cos_hi[near] = np.cos(np.radians(np.clip(hi, 0, 180)))
+    cos_lo[narrow] = 2.0
+    cos_hi[narrow] = -2.0
+    return QualityBaseline(cos_lo=cos_lo, cos_hi=cos_hi, area=shape.area, narrow=narrow, cos_max=cmax,
+                           cos_min=cmin, cos_bound_lo=np.cos(np.radians(min_angle)),
+                           cos_bound_hi=np.cos(np.radians(max_angle)))
+
+
+def quality_dropped(shape: ElementShape, base: QualityBaseline, anchored_across_gap) -> bool:
+    """True when an element outside narrow gaps got an angle outside the bounds that it did
+    not have after the last triangulation, or one that had lost the margin more.
+
+    Narrow-gap elements are watched too: once the gap has opened (the element is no longer
+    anchored across a narrow gap, ``anchored_across_gap(tri_idx) -> (k,) bool``) and it got
+    worse since the triangulation, it must meet the bounds.
+    """
+    cmax, cmin = shape.cos_max, shape.cos_min
+    if ((cmax > base.cos_lo) | (cmin < base.cos_hi)).any():
+        return True
+    looks_bad = base.narrow & ((cmax > base.cos_bound_lo) | (cmin < base.cos_bound_hi))
+    # ... and got worse since the triangulation (the gap of an unchanged element did not open)
+    looks_bad &= (cmax > base.cos_max + 1e-3) | (cmin < base.cos_min - 1e-3)
+    idx = np.flatnonzero(looks_bad)
+    if not len(idx):
+        return False
+    return bool((~anchored_across_gap(idx)).any())
+
+
+def contacts_changed(polys, near_pairs, contacts, min_gap: float, points, body_of) -> bool:
+    """True when bodies came closer than ``min_gap`` or an outline node of a body in contact
+    entered another body (the contact outlines must be rebuilt).
+
+    Only ``near_pairs (k, 2)``, the pairs closer than ``h`` at the last triangulation, are
+    checked: bodies farther apart cannot touch before the elements between them invert.
+    ``contacts (c, 2)``: the pairs meshed as one outline; ``points``, ``body_of``: the nodes.
+    """
+    pairs = near_pairs
+    if not len(pairs):
+        return False
+    d = shapely.distance(polys[pairs[:, 0]], polys[pairs[:, 1]])
+    close = pairs[d <= min_gap]
+    n = len(polys)
+    now = close[:, 0] * n + close[:, 1]
+    before = contacts[:, 0] * n + contacts[:, 1] if len(contacts) else now[:0]
+    if len(np.setdiff1d(now, before)):
+        return True
+    if not len(now):
+        return False
+    inv = np.flatnonzero(np.isin(body_of, np.unique(close)))
+    pi, bi = shapely.STRtree(polys).query(shapely.points(points[inv]), predicate="within")
+    return bool((body_of[inv[pi]] != bi).any())
+
+
+def retriangulation_reason(shape: ElementShape, base: QualityBaseline, degenerate_area: float,
+                           steps_since: int, every: int, contact_changed, quality_dropped_now) -> str:
+    """The first reason that holds (module docstring), ``""`` for none.
+
+    ``contact_changed()`` and ``quality_dropped_now()`` are called only when needed.
+    """
+    area = shape.area
+    if (area <= 0).any():
+        return "inverted"
+    if (area < degenerate_area * base.area).any():
+        return "degenerate"  # an element (typically in a narrow gap) is collapsing
+    if contact_changed():
+        return "contact"
+    if steps_since >= every:
+        return "periodic"
+    if quality_dropped_now():
+        return "quality"
+    return ""
