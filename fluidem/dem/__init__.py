@@ -10,13 +10,13 @@ Entry points::
 Modules: :mod:`~fluidem.dem.bodies` (shapes and mass properties),
 :mod:`~fluidem.dem.contact` (broad phase, overlap geometry, force law),
 :mod:`~fluidem.dem.integrate` (Gear predictor–corrector),
-:mod:`~fluidem.dem.simulation` (the driver).
+:mod:`~fluidem.dem.system` (the DEM system: arrays of bodies, stepping, energies).
 """
 
 from .bodies import Body, random_convex_vertices
 from .contact import WALL_IDS, ContactModel, Contacts
 from .integrate import Gear
-from .simulation import DEM, StepCost
+from .system import DEM, StepCost
 
 __all__ = ["Body", "ContactModel", "Contacts", "DEM", "Gear", "StepCost", "WALL_IDS",
            "random_convex_vertices"]

@@ -9,7 +9,7 @@ import shapely
 
 from fluidem.dem import Body, ContactModel, DEM
 from fluidem.dem.contact import grid_pairs, polygon_overlaps, wall_overlaps
-from fluidem.dem.simulation import _pad_vertices
+from fluidem.dem.system import _pad_vertices
 
 
 def test_mass_and_inertia_of_rectangle_and_disk():

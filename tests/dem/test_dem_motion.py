@@ -95,5 +95,5 @@ def test_add_bodies_and_contact_output_shapes():
 def test_docstring_examples_run():
     import doctest
 
-    import fluidem.dem.simulation as mod
+    import fluidem.dem.system as mod
     assert doctest.testmod(mod).failed == 0
