@@ -13,50 +13,30 @@ body above it, :meth:`DEM.advance` sub-steps below it.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
+
+from ..cost import CostSplit
 
 from .bodies import Body
 from .contact import (Contacts, ContactModel, contact_forces, grid_pairs, polygon_overlaps,
                       wall_overlaps)
 from .integrate import Gear
 
-__all__ = ["DEM", "StepCost"]
+__all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS"]
 
 
-@dataclass
-class StepCost:
-    """Wall-clock seconds spent in each part of the steps taken so far."""
+#: Deprecated alias of :class:`fluidem.cost.CostSplit`, the one cost-split type (kept for one version).
+StepCost = CostSplit
 
-    broad: float = 0.0
-    narrow: float = 0.0
-    forces: float = 0.0
-    integrate: float = 0.0
-    steps: int = 0
-    contacts: int = 0
-    rebuilds: int = 0
-    extra: dict = field(default_factory=dict)
+#: The parts of a DEM step, in the order :attr:`DEM.cost` lists them.
+COST_PARTS = ("broad", "narrow", "forces", "integrate")
+#: The counters of :attr:`DEM.cost`.
+COST_COUNTS = ("steps", "contacts", "rebuilds")
 
-    @property
-    def total(self) -> float:
-        return self.broad + self.narrow + self.forces + self.integrate
 
-    def per_step(self) -> dict:
-        """Seconds per step of each part and in total, and seconds per contact per step."""
-        s = max(self.steps, 1)
-        out = {k: getattr(self, k) / s for k in ("broad", "narrow", "forces", "integrate")}
-        out["total"] = self.total / s
-        out["per_contact"] = self.total / max(self.contacts, 1)
-        out["contacts_per_step"] = self.contacts / s
-        return out
-
-    def __str__(self) -> str:
-        p = self.per_step()
-        return (f"StepCost({self.steps} steps: {1e3 * p['total']:.3f} ms/step = broad {1e3 * p['broad']:.3f}"
-                f" + narrow {1e3 * p['narrow']:.3f} + forces {1e3 * p['forces']:.3f} + integrate "
-                f"{1e3 * p['integrate']:.3f}; {p['contacts_per_step']:.0f} contacts, "
-                f"{1e6 * p['per_contact']:.2f} µs/contact)")
+def _new_cost() -> CostSplit:
+    return CostSplit(dict.fromkeys(COST_PARTS, 0.0), dict.fromkeys(COST_COUNTS, 0))
 
 
 def _pad_vertices(bodies) -> tuple[np.ndarray, np.ndarray]:
@@ -115,8 +95,11 @@ class DEM:
         User torques, N·m.
     time : float
         s.
-    cost : StepCost
-        Time spent per part.
+    cost : fluidem.cost.CostSplit
+        Wall seconds per part of the steps so far (``broad``, ``narrow``, ``forces``,
+        ``integrate``; read as ``sim.cost.broad``) and counters ``steps``, ``contacts``
+        (contacts evaluated, summed over steps) and ``rebuilds`` (Verlet-list rebuilds);
+        :meth:`cost_per_step` divides them, :meth:`reset_cost` starts afresh.
 
     Raises
     ------
@@ -155,7 +138,7 @@ class DEM:
         self.overlap_tolerance = float(overlap_tolerance)
         self.time = float(t0)
         self._skin_arg = skin
-        self.cost = StepCost()
+        self.cost = _new_cost()
         self.bodies: list[Body] = []
         self._setup(bodies)
         self._check_overlaps(np.arange(len(self.bodies)))
@@ -233,6 +216,26 @@ class DEM:
         """Largest stable step ``0.1 π √(m_min/E)``, s (Matuttis & Chen 2014, ch. 7)."""
         return self._dt_max
 
+    # ---- cost ----------------------------------------------------------------------------
+    def reset_cost(self) -> None:
+        """Start a fresh :attr:`cost` (all parts and counters zero)."""
+        self.cost = _new_cost()
+
+    def cost_per_step(self) -> dict:
+        """Seconds per step of each part and in total, seconds per contact, contacts per step.
+
+        :meth:`fluidem.cost.CostSplit.per_step` of :attr:`cost` plus ``"per_contact"``
+        (total seconds over the contacts evaluated) and ``"contacts_per_step"``.
+        """
+        c = self.cost
+        steps = max(int(c.counts.get("steps", 0)), 1)
+        contacts = int(c.counts.get("contacts", 0))
+        out = dict.fromkeys(COST_PARTS, 0.0)
+        out.update(c.per_step(steps))
+        out["per_contact"] = c.total / max(contacts, 1)
+        out["contacts_per_step"] = contacts / steps
+        return out
+
     # ---- state views ---------------------------------------------------------------------
     @property
     def positions(self) -> np.ndarray:
@@ -277,12 +280,12 @@ class DEM:
         if rebuild:
             self._nbr = grid_pairs(pos, self.radii, self._cell, self.movable, self.skin)
             self._nbr_ref = pos.copy()
-            self.cost.rebuilds += 1
+            self.cost.count("rebuilds")
         i, j = self._nbr
         d = pos[j] - pos[i]
         reach = self.radii[i] + self.radii[j]
         keep = (d * d).sum(axis=1) < reach * reach
-        self.cost.broad += time.perf_counter() - t0
+        self.cost.add("broad", time.perf_counter() - t0)
         return i[keep], j[keep]
 
     def _overlaps(self, x):
@@ -299,7 +302,7 @@ class DEM:
             ow = wall_overlaps(W, self._nv, pos, lo, hi, self.walls, mv)
             if ow is not None:
                 ovs.append(ow)
-        self.cost.narrow += time.perf_counter() - t0
+        self.cost.add("narrow", time.perf_counter() - t0)
         return ovs
 
     def _check_overlaps(self, which):
@@ -347,8 +350,8 @@ class DEM:
         self.contacts = C
         self.forces = forces
         self.torques = torques
-        self.cost.forces += time.perf_counter() - t0
-        self.cost.contacts += len(C)
+        self.cost.add("forces", time.perf_counter() - t0)
+        self.cost.count("contacts", len(C))
         return forces, torques
 
     def _initial_forces(self):
@@ -357,7 +360,7 @@ class DEM:
         if len(self._prescribed):
             self._apply_prescribed(self.time, x, self.gear.X[1])
         F, T = self._evaluate(x, self.gear.X[1], 0.0)
-        self.cost.contacts -= len(self.contacts)
+        self.cost.count("contacts", -len(self.contacts))
         a = np.where(self._mask, self._acc(F, T), 0.0)
         self.gear.set(a=a)
 
@@ -402,7 +405,7 @@ class DEM:
         x, v = x.copy(), v.copy()
         if len(self._prescribed):
             self._apply_prescribed(self.time + dt, x, v)
-        self.cost.integrate += time.perf_counter() - t0
+        self.cost.add("integrate", time.perf_counter() - t0)
         F, T = self._evaluate(x, v, dt)
         t0 = time.perf_counter()
         self.gear.correct(self._acc(F, T))
@@ -411,8 +414,8 @@ class DEM:
             m[self._prescribed] = True
             self.gear.set(x=x, v=v, a=np.zeros_like(x), mask=m)
         self.time += dt
-        self.cost.integrate += time.perf_counter() - t0
-        self.cost.steps += 1
+        self.cost.add("integrate", time.perf_counter() - t0)
+        self.cost.count("steps")
 
     def run(self, t_end: float, dt: float, callback=None, every: int = 1) -> None:
         """Step with ``dt`` until ``time ≥ t_end − dt/2``; ``callback(sim)`` after every ``every`` steps."""
