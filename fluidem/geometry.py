@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import validate
+from .errors import InputError
+
 __all__ = [
     "as_polygon",
     "polygon_area",
@@ -30,17 +33,18 @@ __all__ = [
 
 
 def as_polygon(vertices, name: str = "polygon") -> np.ndarray:
-    """Return ``vertices`` as a float ``(n, 2)`` array, or raise ``ValueError`` naming ``name``."""
+    """Return ``vertices`` as a float ``(n, 2)`` array, or raise :class:`~fluidem.errors.InputError`
+    (a ``ValueError``) naming ``name``."""
     try:
         v = np.asarray(vertices, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: vertices must be numbers, got {vertices!r}") from exc
+        raise InputError(f"{name}: vertices must be numbers, got {vertices!r}") from exc
     if v.ndim != 2 or v.shape[1] != 2:
-        raise ValueError(f"{name}: vertices must have shape (n, 2), got shape {v.shape}")
+        raise InputError(f"{name}: vertices must have shape (n, 2), got shape {v.shape}")
     if v.shape[0] < 3:
-        raise ValueError(f"{name}: a polygon needs at least 3 vertices, got {v.shape[0]}")
+        raise InputError(f"{name}: a polygon needs at least 3 vertices, got {v.shape[0]}")
     if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name}: vertices must be finite, got {v.tolist()}")
+        raise InputError(f"{name}: vertices must be finite, got {v.tolist()}")
     return v
 
 
@@ -109,7 +113,8 @@ def _segments_intersect_properly(v: np.ndarray) -> bool:
 def validate_polygon(vertices, name: str = "polygon", require_convex: bool = False) -> np.ndarray:
     """Check a body outline and return it as a float array.
 
-    Raises ``ValueError`` (naming ``name`` and the offending values) for fewer than three
+    Raises :class:`~fluidem.errors.InputError` (a ``ValueError``; naming ``name`` and the
+    offending values) for fewer than three
     vertices, non-finite values, zero area, clockwise order, self-intersection, or — with
     ``require_convex`` — a non-convex outline.
     """
@@ -117,16 +122,16 @@ def validate_polygon(vertices, name: str = "polygon", require_convex: bool = Fal
     area = polygon_area(v)
     scale = np.ptp(v, axis=0).max() ** 2
     if abs(area) <= 1e-14 * max(scale, 1e-300):
-        raise ValueError(f"{name}: polygon has zero area (vertices {v.tolist()})")
+        raise InputError(f"{name}: polygon has zero area (vertices {v.tolist()})")
     if area < 0:
-        raise ValueError(
+        raise InputError(
             f"{name}: vertices are clockwise (signed area {area:.6g}); "
             "give them counter-clockwise"
         )
     if _segments_intersect_properly(v):
-        raise ValueError(f"{name}: polygon outline intersects itself")
+        raise InputError(f"{name}: polygon outline intersects itself")
     if require_convex and not is_convex(v):
-        raise ValueError(f"{name}: polygon is not convex; only convex polygons are allowed here")
+        raise InputError(f"{name}: polygon is not convex; only convex polygons are allowed here")
     return v
 
 
@@ -135,31 +140,25 @@ def regular_polygon(radius: float, segments: int, phase: float = 0.0) -> np.ndar
 
     This is how fluidem represents a disk: ``segments`` straight edges.
     """
-    if not (np.isfinite(radius) and radius > 0):
-        raise ValueError(f"radius must be a positive number, got {radius!r}")
-    if int(segments) != segments or segments < 3:
-        raise ValueError(f"segments must be an integer >= 3, got {segments!r}")
-    t = phase + 2.0 * np.pi * np.arange(int(segments)) / int(segments)
+    radius = validate.positive("regular_polygon(radius=...)", radius)
+    segments = validate.integer("regular_polygon(segments=...)", segments, lo=3)
+    t = phase + 2.0 * np.pi * np.arange(segments) / segments
     return radius * np.column_stack([np.cos(t), np.sin(t)])
 
 
 def rectangle(width: float, height: float) -> np.ndarray:
     """Axis-aligned rectangle centred at the origin, CCW, shape ``(4, 2)``."""
-    for name, val in (("width", width), ("height", height)):
-        if not (np.isfinite(val) and val > 0):
-            raise ValueError(f"{name} must be a positive number, got {val!r}")
-    w, h = 0.5 * width, 0.5 * height
+    w = 0.5 * validate.positive("rectangle(width=...)", width)
+    h = 0.5 * validate.positive("rectangle(height=...)", height)
     return np.array([[-w, -h], [w, -h], [w, h], [-w, h]], dtype=float)
 
 
 def ellipse_polygon(a: float, b: float, segments: int) -> np.ndarray:
     """Polygon with ``segments`` vertices on the ellipse with semi-axes ``a`` (x) and ``b`` (y)."""
-    if not (np.isfinite(b) and b > 0):
-        raise ValueError(f"b must be a positive number, got {b!r}")
-    v = regular_polygon(1.0, segments)
-    if not (np.isfinite(a) and a > 0):
-        raise ValueError(f"a must be a positive number, got {a!r}")
-    return v * np.array([a, b])
+    a = validate.positive("ellipse_polygon(a=...)", a)
+    b = validate.positive("ellipse_polygon(b=...)", b)
+    segments = validate.integer("ellipse_polygon(segments=...)", segments, lo=3)
+    return regular_polygon(1.0, segments) * np.array([a, b])
 
 
 def rotation_matrix(angle: float) -> np.ndarray:

@@ -21,31 +21,42 @@ from typing import Callable
 import numpy as np
 
 from fluidem import geometry as geo
+from fluidem import names, validate
 
 __all__ = ["Body", "MOTIONS", "random_convex_vertices"]
 
 #: The kinds of motion a body may have.
-MOTIONS = ("free", "fixed", "prescribed")
+MOTIONS = names.choices("motion")  # ("free", "fixed", "prescribed")
 
 
-def _vec2(value, what: str) -> np.ndarray:
+def _key(name: str, param: str, call: str = "Body") -> str:
+    """Where a value was given: ``Body(density=...)``, or ``Body(name='grain', density=...)``."""
+    return f"{call}({param}=...)" if name == "body" else f"{call}(name={name!r}, {param}=...)"
+
+
+def _pair(key: str, value) -> np.ndarray:
+    """A pair of finite numbers as a float (2,) array (numpy arrays of any shape with 2 entries pass)."""
+    if isinstance(value, np.ndarray):
+        value = value.reshape(-1)
+    return np.array(validate.pair(key, value))
+
+
+def _real(key: str, value) -> float:
+    """A finite number (numpy 0-d arrays pass)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    return validate.number(key, value)
+
+
+def _box(key: str, box) -> tuple[float, float, float, float]:
+    """``(xmin, xmax, ymin, ymax)`` with ``xmin < xmax`` and ``ymin < ymax`` (sides may be ±inf)."""
     try:
-        v = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{what} must be a pair of numbers, got {value!r}") from exc
-    if v.shape != (2,) or not np.all(np.isfinite(v)):
-        raise ValueError(f"{what} must be a pair of finite numbers, got {value!r}")
-    return v
-
-
-def _finite(value, what: str) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{what} must be a number, got {value!r}") from exc
-    if not np.isfinite(x):
-        raise ValueError(f"{what} must be finite, got {value!r}")
-    return x
+        w = np.asarray(box, float).reshape(-1)
+    except (TypeError, ValueError):
+        raise validate.fail(key, box, "(xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax") from None
+    if w.shape != (4,) or np.any(np.isnan(w)) or not (w[0] < w[1] and w[2] < w[3]):
+        raise validate.fail(key, box, "(xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax")
+    return tuple(float(x) for x in w)
 
 
 def random_convex_vertices(size: float, n_vertices: int = 6, elongation: float = 1.0,
@@ -70,16 +81,12 @@ def random_convex_vertices(size: float, n_vertices: int = 6, elongation: float =
     rng : numpy.random.Generator or int or None
         Random source.
     """
+    size = validate.positive("random_convex_vertices(size=...)", size)
+    n = validate.integer("random_convex_vertices(n_vertices=...)", n_vertices, lo=3)
+    elongation = validate.number("random_convex_vertices(elongation=...)", elongation, "a finite number >= 1",
+                                 lo=1.0)
+    jitter = validate.fraction("random_convex_vertices(jitter=...)", jitter, hi_open=True)
     rng = np.random.default_rng(rng)
-    if not (np.isfinite(size) and size > 0):
-        raise ValueError(f"size must be a positive number, got {size!r}")
-    if int(n_vertices) != n_vertices or n_vertices < 3:
-        raise ValueError(f"n_vertices must be an integer >= 3, got {n_vertices!r}")
-    if not (elongation >= 1.0):
-        raise ValueError(f"elongation must be >= 1, got {elongation!r}")
-    if not (0.0 <= jitter < 1.0):
-        raise ValueError(f"jitter must be in [0, 1), got {jitter!r}")
-    n = int(n_vertices)
     t = 2.0 * np.pi * (np.arange(n) + jitter * (rng.random(n) - 0.5)) / n
     v = 0.5 * size * np.column_stack([np.cos(t), np.sin(t) / elongation])
     return v @ geo.rotation_matrix(rng.uniform(0, 2 * np.pi)).T
@@ -124,18 +131,13 @@ class Body:
                  velocity=(0.0, 0.0), omega: float = 0.0, motion="free",
                  path: Callable | None = None, name: str = "body"):
         v = geo.validate_polygon(vertices, name=name, require_convex=True)
-        try:
-            rho = float(density)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{name}: density must be a number, got {density!r}") from exc
-        if not (np.isfinite(rho) and rho > 0):
-            raise ValueError(f"{name}: density must be positive and finite (kg/m²), got {density!r}")
+        rho = validate.positive(_key(name, "density"), density)
         if callable(motion):
             path, motion = motion, "prescribed"
-        if motion not in MOTIONS:
-            raise ValueError(f"{name}: motion must be one of {MOTIONS} or a callable, got {motion!r}")
+        motion = names.lookup("motion", motion, where=_key(name, "motion"))
         if motion == "prescribed" and not callable(path):
-            raise ValueError(f"{name}: prescribed motion needs path(t) -> (position, angle), got {path!r}")
+            raise validate.fail(_key(name, "path"), path, "a callable path(t) -> (position, angle) for "
+                                "motion 'prescribed'")
         area = geo.polygon_area(v)
         c = geo.polygon_centroid(v)
         j0 = geo.polygon_polar_moment(v)
@@ -145,10 +147,10 @@ class Body:
         self.mass = rho * area
         self.inertia = rho * (j0 - area * float(c @ c))
         self.radius = float(np.sqrt((self.vertices**2).sum(axis=1)).max())
-        self.position = _vec2(position, f"{name}: position")
-        self.angle = _finite(angle, f"{name}: angle")
-        self.velocity = _vec2(velocity, f"{name}: velocity")
-        self.omega = _finite(omega, f"{name}: omega")
+        self.position = _pair(_key(name, "position"), position)
+        self.angle = _real(_key(name, "angle"), angle)
+        self.velocity = _pair(_key(name, "velocity"), velocity)
+        self.omega = _real(_key(name, "omega"), omega)
         self.motion = motion
         self.path = path
         self.name = name
@@ -224,15 +226,19 @@ class Body:
         ValueError
             When ``n`` bodies do not fit in ``box``.
         """
+        n = validate.integer("Body.random_packing(n=...)", n, lo=1)
+        xmin, xmax, ymin, ymax = _box("Body.random_packing(box=...)", box)
+        lo, hi = (validate.positive("Body.random_packing(sizes=...)", s) for s in validate.pair(
+            "Body.random_packing(sizes=...)", tuple(sizes)))
+        spacing = validate.positive("Body.random_packing(spacing=...)", spacing)
         rng = np.random.default_rng(rng)
-        xmin, xmax, ymin, ymax = (float(b) for b in box)
-        dmax = float(max(sizes))
+        dmax = max(lo, hi)
         h = spacing * dmax
         nx = int(np.floor((xmax - xmin) / h))
         ny = int(np.floor((ymax - ymin) / h))
         if nx * ny < n:
-            raise ValueError(f"{n} bodies of size up to {dmax} do not fit in box {box} "
-                             f"(room for {max(nx, 0) * max(ny, 0)})")
+            raise validate.fail("Body.random_packing(n=...)", n, f"at most {max(nx, 0) * max(ny, 0)}: the "
+                                f"bodies of size up to {dmax:g} on a lattice of spacing {h:g} fit in box {box}")
         out = []
         for k in range(n):
             iy, ix = divmod(k, nx)
@@ -247,7 +253,7 @@ class Body:
     def pose_at(self, t: float) -> tuple[np.ndarray, float]:
         """Position (2,) and angle of a prescribed body at time ``t`` (s)."""
         p, a = self.path(t)
-        return _vec2(p, f"{self.name}: path({t}) position"), _finite(a, f"{self.name}: path({t}) angle")
+        return _pair(f"{self.name}.path({t!r})[0]", p), _real(f"{self.name}.path({t!r})[1]", a)
 
     def world_vertices(self, position=None, angle=None) -> np.ndarray:
         """Outline in world coordinates (m), shape ``(n, 2)``, at the given or initial pose."""

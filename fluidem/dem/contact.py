@@ -47,6 +47,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fluidem import validate
+
 __all__ = ["ContactModel", "Contacts", "WALL_IDS", "grid_pairs", "clip_convex",
            "polygon_overlaps", "wall_overlaps", "contact_forces"]
 
@@ -80,15 +82,13 @@ class ContactModel:
     kt_ratio: float = 2.0 / 7.0
 
     def __post_init__(self):
-        checks = (("E", self.E, False), ("mu", self.mu, True), ("gamma", self.gamma, True),
-                  ("kt_ratio", self.kt_ratio, False))
-        for name, val, zero_ok in checks:
-            ok = np.isfinite(val) and (val >= 0 if zero_ok else val > 0)
-            if not ok:
-                allowed = ">= 0" if zero_ok else "> 0"
-                raise ValueError(f"ContactModel: {name} must be finite and {allowed}, got {val!r}")
-        if self.gamma_t is not None and not (np.isfinite(self.gamma_t) and self.gamma_t >= 0):
-            raise ValueError(f"ContactModel: gamma_t must be finite and >= 0 or None, got {self.gamma_t!r}")
+        set_ = object.__setattr__  # frozen: store the checked values once
+        set_(self, "E", validate.positive("ContactModel(E=...)", self.E))
+        set_(self, "mu", validate.nonnegative("ContactModel(mu=...)", self.mu))
+        set_(self, "gamma", validate.nonnegative("ContactModel(gamma=...)", self.gamma))
+        if self.gamma_t is not None:
+            set_(self, "gamma_t", validate.nonnegative("ContactModel(gamma_t=...)", self.gamma_t))
+        set_(self, "kt_ratio", validate.positive("ContactModel(kt_ratio=...)", self.kt_ratio))
 
     @property
     def kt(self) -> float:

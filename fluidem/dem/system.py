@@ -18,10 +18,12 @@ import numpy as np
 
 from ..cost import CostSplit
 
-from .bodies import Body
+from .. import validate
+from ..errors import InputError
+from .bodies import Body, _box, _pair
 from .contact import (Contacts, ContactModel, contact_forces, grid_pairs, polygon_overlaps,
                       wall_overlaps)
-from .integrate import Gear
+from .integrate import GEAR_ORDERS, Gear
 
 __all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS"]
 
@@ -120,24 +122,18 @@ class DEM:
     def __init__(self, bodies, walls=None, gravity=(0.0, -9.81), contact: ContactModel | None = None,
                  order: int = 2, skin: float | None = None, overlap_tolerance: float = 0.01,
                  t0: float = 0.0):
-        bodies = list(bodies)
-        for k, b in enumerate(bodies):
-            if not isinstance(b, Body):
-                raise ValueError(f"body {k}: expected a fluidem.dem.Body, got {type(b).__name__}")
+        bodies = _check_bodies("DEM(bodies=...)", bodies)
         if not bodies:
-            raise ValueError("DEM needs at least one body")
+            raise validate.fail("DEM(bodies=...)", bodies, "at least one fluidem.dem.Body")
         self.model = contact if contact is not None else ContactModel()
         if not isinstance(self.model, ContactModel):
-            raise ValueError(f"contact must be a ContactModel, got {type(contact).__name__}")
-        g = np.asarray(gravity, float).reshape(-1)
-        if g.shape != (2,) or not np.all(np.isfinite(g)):
-            raise ValueError(f"gravity must be a pair of finite numbers (m/s²), got {gravity!r}")
-        self.gravity = g
+            raise validate.fail("DEM(contact=...)", _Shown(contact), "a fluidem.dem.ContactModel")
+        self.gravity = _pair("DEM(gravity=...)", gravity)
         self.walls = walls
-        self.order = order
-        self.overlap_tolerance = float(overlap_tolerance)
-        self.time = float(t0)
-        self._skin_arg = skin
+        self.order = int(validate.choice("DEM(order=...)", order, GEAR_ORDERS))
+        self.overlap_tolerance = validate.nonnegative("DEM(overlap_tolerance=...)", overlap_tolerance)
+        self.time = validate.number("DEM(t0=...)", t0)
+        self._skin_arg = None if skin is None else validate.nonnegative("DEM(skin=...)", skin)
         self.cost = _new_cost()
         self.bodies: list[Body] = []
         self._setup(bodies)
@@ -204,12 +200,7 @@ class DEM:
 
     @walls.setter
     def walls(self, walls):
-        if walls is not None:
-            w = np.asarray(walls, float).reshape(-1)
-            if w.shape != (4,) or np.any(np.isnan(w)) or not (w[0] < w[1] and w[2] < w[3]):
-                raise ValueError(f"walls must be (xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax, got {walls!r}")
-            walls = tuple(float(x) for x in w)
-        self._walls = walls
+        self._walls = None if walls is None else _box("DEM(walls=...)", walls)
 
     @property
     def dt_max(self) -> float:
@@ -315,8 +306,8 @@ class DEM:
             for k in bad:
                 if int(i[k]) in which or int(j[k]) in which:
                     other = f"body {int(j[k])}" if j[k] >= 0 else f"wall {int(j[k])} ({_wall_name(j[k])})"
-                    raise ValueError(
-                        f"body {int(i[k])} and {other} overlap at start by {A[k]:.4g} m² = "
+                    raise InputError(
+                        f"body {int(i[k])} and {other} overlap at start by {A[k]:.4g} (length²) = "
                         f"{A[k] / ref[k]:.3g} of the body area; allowed: overlap_tolerance = "
                         f"{self.overlap_tolerance:g}")
 
@@ -387,15 +378,13 @@ class DEM:
         ValueError
             ``dt`` not positive, or above :attr:`dt_max` (naming the lightest body).
         """
-        dt = float(dt)
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"time step must be a positive number, got {dt!r}")
+        dt = validate.positive("DEM.step(dt=...)", dt)
         if dt > self._dt_max * (1 + 1e-12):
             k = self._lightest
-            raise ValueError(
-                f"time step dt = {dt:.4g} s exceeds the stability bound dt_max = 0.1π√(m/E) = "
-                f"{self._dt_max:.4g} s set by body {k} (mass {self.mass[k]:.4g} kg, E = "
-                f"{self.model.E:.4g} N/m); use dt <= {self._dt_max:.4g} s or DEM.advance() to sub-step")
+            raise InputError(
+                f"DEM.step(dt=...) = {dt:.4g}: exceeds the stability bound dt_max = 0.1π√(m/E) = "
+                f"{self._dt_max:.4g} set by body {k} (mass {self.mass[k]:.4g}, E = {self.model.E:.4g}); "
+                f"expected dt <= {self._dt_max:.4g}, or DEM.advance() to sub-step")
         if self._fresh:
             # accelerations at t0 with the external forces the caller may have set since
             # construction (the predictor uses them)
@@ -419,6 +408,11 @@ class DEM:
 
     def run(self, t_end: float, dt: float, callback=None, every: int = 1) -> None:
         """Step with ``dt`` until ``time ≥ t_end − dt/2``; ``callback(sim)`` after every ``every`` steps."""
+        t_end = validate.number("DEM.run(t_end=...)", t_end)
+        dt = validate.positive("DEM.run(dt=...)", dt)
+        every = validate.integer("DEM.run(every=...)", every, lo=1)
+        if callback is not None and not callable(callback):
+            raise validate.fail("DEM.run(callback=...)", _Shown(callback), "None or a callable callback(sim)")
         n = int(np.round((t_end - self.time) / dt))
         for k in range(max(n, 0)):
             self.step(dt)
@@ -430,7 +424,8 @@ class DEM:
 
         Returns the number of sub-steps taken.
         """
-        h = self._dt_max if dt is None else min(float(dt), self._dt_max)
+        duration = validate.positive("DEM.advance(duration=...)", duration)
+        h = self._dt_max if dt is None else min(validate.positive("DEM.advance(dt=...)", dt), self._dt_max)
         n = max(int(np.ceil(duration / h - 1e-9)), 1)
         for _ in range(n):
             self.step(duration / n)
@@ -442,10 +437,7 @@ class DEM:
 
         Raises ``ValueError`` if a new body overlaps another beyond ``overlap_tolerance``.
         """
-        new = list(bodies)
-        for k, b in enumerate(new):
-            if not isinstance(b, Body):
-                raise ValueError(f"new body {k}: expected a fluidem.dem.Body, got {type(b).__name__}")
+        new = _check_bodies("DEM.add_bodies(bodies=...)", bodies)
         n0 = self.n
         X = self.gear.X
         xn = np.array([[*b.position, b.angle] for b in new])
@@ -500,6 +492,28 @@ class DEM:
         z = np.bincount(idx, minlength=self.n)[self.free]
         touching = z > 0
         return float(z[touching].mean()) if touching.any() else 0.0
+
+
+class _Shown:
+    """A value shown in an error message by its type (``<list object>``), not its full repr."""
+
+    def __init__(self, value):
+        self.value = value
+
+    def __repr__(self) -> str:
+        return f"<{type(self.value).__name__} object>"
+
+
+def _check_bodies(key: str, bodies) -> list:
+    """``bodies`` as a list of :class:`Body`, or an :class:`InputError` naming the first other item."""
+    try:
+        out = list(bodies)
+    except TypeError:
+        raise validate.fail(key, _Shown(bodies), "a sequence of fluidem.dem.Body") from None
+    for k, b in enumerate(out):
+        if not isinstance(b, Body):
+            raise validate.fail(f"{key}[{k}]", _Shown(b), "a fluidem.dem.Body")
+    return out
 
 
 def _empty_history() -> dict:
