@@ -10,8 +10,9 @@ Mass properties come from :mod:`fluidem.geometry` (shoelace area and centroid, p
 polar moment ``J``); the inertia about the centroid is ``ρ (J_0 − A |c|²)`` (parallel
 axis theorem).
 
-Units: lengths in metres, areal density in kg/m², mass in kg, inertia in kg·m², angles in
-radians (any consistent unit system works; CGS cases use cm, g, s).
+Units: one consistent system of the user's choice (see :mod:`fluidem.dem`, "Units"):
+lengths in length units, areal density in mass/length² (kg/m² in SI), mass in mass units,
+inertia in mass·length², angles in radians.
 """
 
 from __future__ import annotations
@@ -71,7 +72,7 @@ def random_convex_vertices(size: float, n_vertices: int = 6, elongation: float =
     Parameters
     ----------
     size : float
-        Diameter of the circumscribing ellipse along its long axis, metres.
+        Diameter of the circumscribing ellipse along its long axis (length, e.g. m).
     n_vertices : int
         Number of corners, ≥ 3.
     elongation : float
@@ -101,30 +102,30 @@ class Body:
     Attributes
     ----------
     vertices : (n, 2) float
-        Outline in body coordinates (m), counter-clockwise, centre of mass at the origin.
+        Outline in body coordinates (length), counter-clockwise, centre of mass at the origin.
     area : float
-        Polygon area, m².
+        Polygon area, length² (m² in SI).
     density : float
-        Areal density, kg/m².
+        Areal density, mass/length² (kg/m²).
     mass : float
-        ``density · area``, kg.
+        ``density · area``, mass (kg).
     inertia : float
-        Moment of inertia about the centre of mass, kg·m².
+        Moment of inertia about the centre of mass, mass·length² (kg·m²).
     radius : float
-        Bounding radius: largest distance of a vertex from the centre of mass, m.
+        Bounding radius: largest distance of a vertex from the centre of mass, length.
     position : (2,) float
-        Initial position of the centre of mass, m.
+        Initial position of the centre of mass, length.
     angle : float
         Initial orientation, rad (world = rotate(angle) · body + position).
     velocity : (2,) float
-        Initial velocity of the centre of mass, m/s.
+        Initial velocity of the centre of mass, length/time (m/s).
     omega : float
-        Initial angular velocity, rad/s (counter-clockwise positive).
+        Initial angular velocity, rad/time (counter-clockwise positive).
     motion : {"free", "fixed", "prescribed"}
         ``free`` bodies obey Newton's laws; ``fixed`` ones never move; ``prescribed`` ones
         follow ``path``.
     path : callable or None
-        For prescribed motion, ``path(t) -> (position (2,), angle)``, with t in s.
+        For prescribed motion, ``path(t) -> (position (2,), angle)``, with ``t`` in time units.
     """
 
     def __init__(self, vertices, density: float = 1.0, position=(0.0, 0.0), angle: float = 0.0,
@@ -168,18 +169,18 @@ class Body:
         Parameters
         ----------
         vertices : (n, 2) array_like
-            Counter-clockwise outline (m).  It is shifted so that its centroid is the
+            Counter-clockwise outline (length).  It is shifted so that its centroid is the
             origin of body coordinates; ``position`` then places that centroid.
         density : float
-            Areal density, kg/m², > 0.
+            Areal density, mass/length² (kg/m² in SI), > 0.
         position : (2,) array_like
-            Centre of mass, m.
+            Centre of mass, length.
         angle : float
             Orientation, rad.
         velocity : (2,) array_like
-            m/s.
+            Length/time (m/s).
         omega : float
-            rad/s.
+            Rad/time (rad/s).
         motion : {"free", "fixed", "prescribed"} or callable
             A callable is taken as ``path`` with ``motion="prescribed"``.
         path : callable, optional
@@ -187,20 +188,21 @@ class Body:
 
         Raises
         ------
-        ValueError
-            Clockwise, self-intersecting or non-convex outline; density ≤ 0; bad motion.
+        fluidem.errors.InputError
+            (a ``ValueError``) Clockwise, self-intersecting or non-convex outline; density
+            ≤ 0; an unknown motion; a non-finite position, angle or velocity.
         """
         return cls(vertices, density=density, position=position, angle=angle,
                    velocity=velocity, omega=omega, motion=motion, path=path)
 
     @classmethod
     def disk(cls, radius: float, segments: int = 16, density: float = 1.0, **kwargs) -> "Body":
-        """Regular ``segments``-gon inscribed in a circle of ``radius`` (m); other keywords as :meth:`polygon`."""
+        """Regular ``segments``-gon inscribed in a circle of ``radius`` (length); other keywords as :meth:`polygon`."""
         return cls(geo.regular_polygon(radius, segments), density=density, **kwargs)
 
     @classmethod
     def rectangle(cls, width: float, height: float, density: float = 1.0, **kwargs) -> "Body":
-        """Rectangle ``width`` × ``height`` (m) centred on its centre of mass; keywords as :meth:`polygon`."""
+        """Rectangle ``width`` × ``height`` (length) centred on its centre of mass; keywords as :meth:`polygon`."""
         return cls(geo.rectangle(width, height), density=density, **kwargs)
 
     @classmethod
@@ -216,15 +218,15 @@ class Body:
                        density: float = 1.0) -> list["Body"]:
         """``n`` random convex polygons placed on a loose square lattice inside ``box``.
 
-        Sizes are uniform in ``sizes`` (m); corners uniform integers in ``n_vertices``;
+        Sizes are uniform in ``sizes`` (length); corners uniform integers in ``n_vertices``;
         elongation uniform in ``elongation``.  Lattice spacing is ``spacing`` × the largest
         size, filled row by row from the bottom left of ``box = (xmin, xmax, ymin, ymax)``,
         so bodies never overlap at start.
 
         Raises
         ------
-        ValueError
-            When ``n`` bodies do not fit in ``box``.
+        fluidem.errors.InputError
+            (a ``ValueError``) When ``n`` bodies do not fit in ``box``, or a bad argument.
         """
         n = validate.integer("Body.random_packing(n=...)", n, lo=1)
         xmin, xmax, ymin, ymax = _box("Body.random_packing(box=...)", box)
@@ -251,15 +253,15 @@ class Body:
 
     # ---- prescribed motion ------------------------------------------------------------
     def pose_at(self, t: float) -> tuple[np.ndarray, float]:
-        """Position (2,) and angle of a prescribed body at time ``t`` (s)."""
+        """Position (2,) (length) and angle (rad) of a prescribed body at time ``t`` (time units)."""
         p, a = self.path(t)
         return _pair(f"{self.name}.path({t!r})[0]", p), _real(f"{self.name}.path({t!r})[1]", a)
 
     def world_vertices(self, position=None, angle=None) -> np.ndarray:
-        """Outline in world coordinates (m), shape ``(n, 2)``, at the given or initial pose."""
+        """Outline in world coordinates (length), shape ``(n, 2)``, at the given or initial pose."""
         return geo.transform(self.vertices, self.position if position is None else position,
                              self.angle if angle is None else angle)
 
     def __repr__(self) -> str:
-        return (f"Body({len(self.vertices)}-gon, mass={self.mass:.4g} kg, inertia={self.inertia:.4g} kg·m², "
+        return (f"Body({len(self.vertices)}-gon, mass={self.mass:.4g}, inertia={self.inertia:.4g}, "
                 f"position={self.position.tolist()}, motion={self.motion!r})")

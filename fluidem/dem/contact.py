@@ -63,7 +63,8 @@ class ContactModel:
     Parameters
     ----------
     E : float
-        2D "Young's modulus" of the overlap law ``F = E A / l``, N/m (> 0).
+        2D "Young's modulus" of the overlap law ``F = E A / l``, force/length (> 0; N/m
+        in SI, dyn/cm in CGS): a 3D modulus times the unit depth of the 2D bodies.
     mu : float
         Coulomb friction coefficient (≥ 0).
     gamma : float
@@ -72,7 +73,12 @@ class ContactModel:
     gamma_t : float or None
         Tangential damping coefficient (dimensionless, ≥ 0); ``None`` uses ``gamma``.
     kt_ratio : float
-        Tangential stiffness ``k_t = kt_ratio · E`` (N/m); 2/7 after Matuttis & Chen.
+        Tangential stiffness ``k_t = kt_ratio · E`` (force/length); 2/7 after Matuttis & Chen.
+
+    Raises
+    ------
+    fluidem.errors.InputError
+        (a ``ValueError``) A parameter out of range, named with its value.
     """
 
     E: float = 1e7
@@ -92,11 +98,12 @@ class ContactModel:
 
     @property
     def kt(self) -> float:
-        """Tangential spring stiffness, N/m."""
+        """Tangential spring stiffness ``kt_ratio · E``, force/length (N/m in SI)."""
         return self.kt_ratio * self.E
 
     @property
     def gt(self) -> float:
+        """Tangential damping coefficient in use (``gamma_t``, or ``gamma`` when that is None)."""
         return self.gamma if self.gamma_t is None else self.gamma_t
 
 
@@ -111,25 +118,26 @@ class Contacts:
     j : (n,) int
         Second body index, or a wall id < 0 (see :data:`WALL_IDS`).
     point : (n, 2) float
-        Point of action (overlap centroid), m.
+        Point of action (overlap centroid), length.
     normal : (n, 2) float
         Unit normal pointing from ``j`` towards ``i``.
     normal_force : (n, 2) float
-        Normal force on ``i`` (``j`` feels the opposite), N.
+        Normal force on ``i`` (``j`` feels the opposite), force (N in SI).
     tangential_force : (n, 2) float
-        Tangential (friction) force on ``i``, N.
+        Tangential (friction) force on ``i``, force.
     area : (n,) float
-        Overlap area, m².
+        Overlap area, length².
     length : (n,) float
-        Characteristic length ``l``, m.
+        Characteristic length ``l``, length.
     chord : (n,) float
-        Distance ``|S|`` between the two intersection points, m.
+        Distance ``|S|`` between the two intersection points, length.
     xi : (n,) float
-        Tangential spring elongation, m.
+        Tangential spring elongation, length.
     sliding : (n,) bool
         True where the Coulomb cap is active.
     work : (n,) float
-        Work done so far by the elastic normal force of the contact, J: the stored normal
+        Work done so far by the elastic normal force of the contact, force·length (J in
+        SI): the stored normal
         elastic energy (trapezoidal rule of ``∫ (F_el/|S|) dA``, ``dA = |S| dδ``).
     """
 
@@ -182,15 +190,15 @@ def grid_pairs(centers: np.ndarray, radii: np.ndarray, cell: float, movable: np.
     Parameters
     ----------
     centers : (N, 2) float
-        Centres of mass, m.
+        Centres of mass, length.
     radii : (N,) float
-        Bounding radii, m.
+        Bounding radii, length.
     cell : float
-        Cell side, ≥ twice the largest radius of the binned bodies plus ``skin``, m.
+        Cell side, ≥ twice the largest radius of the binned bodies plus ``skin``, length.
     movable : (N,) bool
         Pairs of two non-movable bodies are skipped.
     skin : float
-        Extra distance, m.
+        Extra distance, length.
 
     Returns
     -------
@@ -427,8 +435,8 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
 
     Returns
     -------
-    dict with, per overlapping pair (P' ≤ P rows): ``i``, ``j``, ``area`` (m²),
-    ``centroid`` (m, world), ``p1``, ``p2`` (intersection points, world), ``ncross``.
+    dict with, per overlapping pair (P' ≤ P rows): ``i``, ``j``, ``area`` (length²),
+    ``centroid`` (world), ``p1``, ``p2`` (intersection points, world), ``ncross``.
     """
     K = verts.shape[1]
     # per body, in contiguous x / y arrays; edge k runs from vertex k to vertex k+1
@@ -544,16 +552,16 @@ def contact_forces(ov: dict, pos, vel, omega, mass, free, model: ContactModel, d
     ov : dict
         Output of :func:`polygon_overlaps` or :func:`wall_overlaps`.
     pos, vel : (N, 2) float
-        Positions (m) and velocities (m/s) of the bodies.
+        Positions (length) and velocities (length/time) of the bodies.
     omega : (N,) float
-        Angular velocities, rad/s.
+        Angular velocities, rad/time.
     mass : (N,) float
-        kg.
+        Masses (mass units).
     free : (N,) bool
         Free bodies (the others count as infinitely heavy in ``m_eff``).
     model : ContactModel
     dt : float
-        Step for the tangential spring increment, s (0 for a force evaluation without
+        Step for the tangential spring increment, time units (0 for a force evaluation without
         advancing the spring).
     history : dict
         The contacts of the previous step: ``key`` (sorted), ``xi``, ``area``, ``g``

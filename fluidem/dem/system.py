@@ -6,8 +6,12 @@ solver.  The fluid coupling enters through :attr:`DEM.external_force` and
 :meth:`DEM.advance`, which sub-steps a fluid step with stable DEM steps.
 
 Time step.  The bound is ``dt_max = 0.1 π √(m_min / E)`` (Matuttis & Chen 2014, ch. 7;
-``m_min`` the lightest free body): :meth:`DEM.step` raises a ``ValueError`` naming that
-body above it, :meth:`DEM.advance` sub-steps below it.
+``m_min`` the lightest free body): :meth:`DEM.step` raises an
+:class:`~fluidem.errors.InputError` (a ``ValueError``) naming that body above it,
+:meth:`DEM.advance` sub-steps below it.
+
+Units: one consistent system of the user's choice, quantities of a slab of unit depth (see
+:mod:`fluidem.dem`, "Units"); dimensions below, SI as the example.
 """
 
 from __future__ import annotations
@@ -60,43 +64,47 @@ class DEM:
     bodies : sequence of Body
         The particles (free, fixed or prescribed).
     walls : (xmin, xmax, ymin, ymax) or None
-        Domain sides acting as rigid walls with the same contact law (m); a side may be
-        ``±inf`` to leave it open.
+        Domain sides acting as rigid walls with the same contact law (length); a side may
+        be ``±inf`` to leave it open.
     gravity : (2,) float
-        m/s².
+        Length/time² (m/s² in SI: the default ``(0, -9.81)``; give ``(0, -981)`` in CGS).
     contact : ContactModel
         Material parameters.
     order : int
         Gear predictor order (2 or 5 are the usual choices; 2 is the default).
     skin : float or None
-        Verlet-list skin, m; ``None`` takes 0.2 × the largest bounding radius.
+        Verlet-list skin, length; ``None`` takes 0.2 × the largest bounding radius.
     overlap_tolerance : float
         Largest overlap allowed at start, as a fraction of the smaller body's area.
     t0 : float
-        Initial time, s.
+        Initial time, time units.
 
     Attributes
     ----------
     positions : (N, 2) float
-        Centres of mass, m.
+        Centres of mass, length (m in SI).
     angles : (N,) float
-        rad.
+        Rad.
     velocities : (N, 2) float
-        m/s.
+        Length/time (m/s).
     omegas : (N,) float
-        rad/s.
+        Rad/time (rad/s).
+    mass, inertia : (N,) float
+        Masses (mass units, kg) and moments of inertia about the centres of mass
+        (mass·length², kg·m²).
     forces : (N, 2) float
-        Total force on each body in the last step (contacts + gravity + external), N.
+        Total force on each body in the last step (contacts + gravity + external), force
+        (N).
     torques : (N,) float
-        Total torque about each centre of mass in the last step, N·m.
+        Total torque about each centre of mass in the last step, force·length (N·m).
     contacts : Contacts
         Contacts of the last step.
     external_force : (N, 2) float
-        User forces (e.g. from a fluid), N; kept until changed.
+        User forces (e.g. from a fluid), force; kept until changed.
     external_torque : (N,) float
-        User torques, N·m.
+        User torques, force·length.
     time : float
-        s.
+        Time units (s).
     cost : fluidem.cost.CostSplit
         Wall seconds per part of the steps so far (``broad``, ``narrow``, ``forces``,
         ``integrate``; read as ``sim.cost.broad``) and counters ``steps``, ``contacts``
@@ -105,9 +113,9 @@ class DEM:
 
     Raises
     ------
-    ValueError
-        Bad walls, bodies outside the walls or overlapping beyond ``overlap_tolerance``
-        (naming the bodies and overlap).
+    fluidem.errors.InputError
+        (a ``ValueError``) A bad argument (named with its value), or bodies overlapping each
+        other or a wall beyond ``overlap_tolerance`` (naming the bodies and the overlap).
 
     Examples
     --------
@@ -192,7 +200,7 @@ class DEM:
 
     @property
     def walls(self):
-        """Domain sides ``(xmin, xmax, ymin, ymax)`` in m (``±inf`` for an open side) or None.
+        """Domain sides ``(xmin, xmax, ymin, ymax)`` in length units (``±inf`` for an open side) or None.
 
         May be changed between steps, e.g. to open a gate.
         """
@@ -204,7 +212,7 @@ class DEM:
 
     @property
     def dt_max(self) -> float:
-        """Largest stable step ``0.1 π √(m_min/E)``, s (Matuttis & Chen 2014, ch. 7)."""
+        """Largest stable step ``0.1 π √(m_min/E)``, time units (Matuttis & Chen 2014, ch. 7)."""
         return self._dt_max
 
     # ---- cost ----------------------------------------------------------------------------
@@ -230,7 +238,7 @@ class DEM:
     # ---- state views ---------------------------------------------------------------------
     @property
     def positions(self) -> np.ndarray:
-        """(N, 2) float, m."""
+        """(N, 2) float, length."""
         return self.gear.X[0][:, :2]
 
     @property
@@ -240,16 +248,19 @@ class DEM:
 
     @property
     def velocities(self) -> np.ndarray:
-        """(N, 2) float, m/s."""
+        """(N, 2) float, length/time."""
         return self.gear.X[1][:, :2]
 
     @property
     def omegas(self) -> np.ndarray:
-        """(N,) float, rad/s."""
+        """(N,) float, rad/time."""
         return self.gear.X[1][:, 2]
 
     def world_vertices(self, x=None) -> np.ndarray:
-        """World outlines, (N, K, 2) padded by repeating each body's first vertex, m."""
+        """World outlines, (N, K, 2) padded by repeating each body's first vertex, length.
+
+        ``x`` : (N, 3) poses ``(x, y, angle)``, default the current ones.
+        """
         x = self.gear.X[0] if x is None else x
         c, s = np.cos(x[:, 2])[:, None], np.sin(x[:, 2])[:, None]
         V = self._V
@@ -257,7 +268,7 @@ class DEM:
                          s * V[..., 0] + c * V[..., 1] + x[:, 1:2]], axis=-1)
 
     def outlines(self) -> list[np.ndarray]:
-        """World outline of each body as a list of (n_k, 2) arrays, m."""
+        """World outline of each body as a list of (n_k, 2) arrays, length."""
         W = self.world_vertices()
         return [W[k, : self._nv[k]] for k in range(self.n)]
 
@@ -371,12 +382,13 @@ class DEM:
 
     # ---- stepping ------------------------------------------------------------------------
     def step(self, dt: float) -> None:
-        """Advance by one Gear predictor–corrector step of ``dt`` seconds.
+        """Advance by one Gear predictor–corrector step of ``dt`` (time units).
 
         Raises
         ------
-        ValueError
-            ``dt`` not positive, or above :attr:`dt_max` (naming the lightest body).
+        fluidem.errors.InputError
+            (a ``ValueError``) ``dt`` not positive, or above :attr:`dt_max` (naming the
+            lightest body).
         """
         dt = validate.positive("DEM.step(dt=...)", dt)
         if dt > self._dt_max * (1 + 1e-12):
@@ -420,7 +432,7 @@ class DEM:
                 callback(self)
 
     def advance(self, duration: float, dt: float | None = None) -> int:
-        """Advance by ``duration`` s in equal sub-steps no larger than ``dt`` (default :attr:`dt_max`).
+        """Advance by ``duration`` (time units) in equal sub-steps no larger than ``dt`` (default :attr:`dt_max`).
 
         Returns the number of sub-steps taken.
         """
@@ -435,7 +447,7 @@ class DEM:
     def add_bodies(self, bodies) -> np.ndarray:
         """Append bodies (e.g. for pouring); returns their indices.
 
-        Raises ``ValueError`` if a new body overlaps another beyond ``overlap_tolerance``.
+        Raises :class:`~fluidem.errors.InputError` (a ``ValueError``) if a new body overlaps another beyond ``overlap_tolerance``.
         """
         new = _check_bodies("DEM.add_bodies(bodies=...)", bodies)
         n0 = self.n
@@ -462,13 +474,13 @@ class DEM:
 
     # ---- diagnostics -------------------------------------------------------------------
     def kinetic_energy(self) -> float:
-        """Translational plus rotational kinetic energy of all bodies, J."""
+        """Translational plus rotational kinetic energy of all bodies, force·length (J in SI)."""
         v = self.velocities
         return float(0.5 * (self.mass * (v * v).sum(axis=1)).sum()
                      + 0.5 * (self.inertia * self.omegas**2).sum())
 
     def elastic_energy(self) -> float:
-        """Energy stored in the contacts of the last step, J.
+        """Energy stored in the contacts of the last step, force·length (J in SI).
 
         Work stored by the elastic normal forces plus ``Σ k_t ξ² / 2`` of the tangential
         springs (see :mod:`fluidem.dem.contact`).  Evaluated at the predicted positions,
@@ -480,7 +492,7 @@ class DEM:
         return float(C.work.sum() + 0.5 * self.model.kt * (C.xi**2).sum())
 
     def potential_energy(self) -> float:
-        """Gravitational potential energy ``−Σ m g·x`` of the free bodies, J."""
+        """Gravitational potential energy ``−Σ m g·x`` of the free bodies, force·length (J in SI)."""
         return float(-(self.mass[self.free] * (self.positions[self.free] @ self.gravity)).sum())
 
     def coordination_number(self) -> float:
