@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fluidem import geometry as geo
 from fluidem import validate
 
 __all__ = ["ContactModel", "Contacts", "WALL_IDS", "grid_pairs", "clip_convex",
@@ -354,17 +355,6 @@ def clip_convex(subj: np.ndarray, n_subj: np.ndarray, edge_a: np.ndarray, edge_d
     return np.stack([SX, SY], axis=-1), n, cross
 
 
-def _polygon_area_centroid(S: np.ndarray):
-    """Area and centroid of padded polygons (padding repeats vertex 0), shoelace about vertex 0."""
-    Q = S - S[:, :1, :]
-    Qn = np.roll(Q, -1, axis=1)
-    c = Q[..., 0] * Qn[..., 1] - Qn[..., 0] * Q[..., 1]
-    A = 0.5 * c.sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cen = ((Q + Qn) * c[..., None]).sum(axis=1) / (6.0 * A[:, None])
-    return A, cen + S[:, 0, :]
-
-
 def _crossing_points(S: np.ndarray, cross: np.ndarray):
     """The two intersection points of the outlines (the farthest pair if more than two)."""
     P, W, _ = S.shape
@@ -480,7 +470,7 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
     A_sub = np.stack([AX, AY], axis=-1)
     o = pos[i][:, None, :]
     S, cnt, cross = clip_convex(A_sub, nA, Bc, Dc, K + kc, n_cut)
-    A, cen = _polygon_area_centroid(S)
+    A, cen = geo.polygon_area_centroid(S)
     p1, p2, ncross = _crossing_points(S, cross)
     ok = (cnt >= 3) & (A > 0)
     oo = o[ok, 0, :]
@@ -528,7 +518,7 @@ def wall_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, lo: np.nda
     rel[:, 1] = np.where(vert, 0.0, np.take([0.0, 0.0, ymin, ymax], w) - o[:, 1])
     S, cnt, cross = clip_convex(verts[b] - o[:, None, :], nv[b], rel[:, None, :],
                                 _WALL_DIR[w][:, None, :], verts.shape[1] + 1)
-    A, cen = _polygon_area_centroid(S)
+    A, cen = geo.polygon_area_centroid(S)
     p1, p2, ncross = _crossing_points(S, cross)
     ok = (cnt >= 3) & (A > 0)
     o = o[ok]

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..cost import CostSplit
 
+from .. import geometry as geo
 from .. import validate
 from ..errors import InputError
 from .bodies import Body, _box, _pair
@@ -261,11 +262,7 @@ class DEM:
 
         ``x`` : (N, 3) poses ``(x, y, angle)``, default the current ones.
         """
-        x = self.gear.X[0] if x is None else x
-        c, s = np.cos(x[:, 2])[:, None], np.sin(x[:, 2])[:, None]
-        V = self._V
-        return np.stack([c * V[..., 0] - s * V[..., 1] + x[:, 0:1],
-                         s * V[..., 0] + c * V[..., 1] + x[:, 1:2]], axis=-1)
+        return geo.rigid_transform(self._V, self.gear.X[0] if x is None else x)
 
     def outlines(self) -> list[np.ndarray]:
         """World outline of each body as a list of (n_k, 2) arrays, length."""
