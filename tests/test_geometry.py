@@ -1,5 +1,7 @@
 import numpy as np
 import pytest
+import shapely
+from shapely import affinity
 
 from fluidem import geometry as g
 
@@ -36,8 +38,6 @@ def test_point_in_polygon_and_transform():
 
 
 # ---- the kernels: rigid transforms, orientation and areas, barycentric coordinates ----------
-import shapely  # noqa: E402
-from shapely import affinity  # noqa: E402
 
 
 def _random_bodies(rng, n, k=8):

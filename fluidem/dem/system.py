@@ -20,10 +20,9 @@ import time
 
 import numpy as np
 
-from ..cost import CostSplit
-
 from .. import geometry as geo
 from .. import validate
+from ..cost import CostSplit
 from ..errors import InputError
 from .bodies import Body, _box, _pair
 from .contact import (Contacts, ContactModel, contact_forces, grid_pairs, polygon_overlaps,
