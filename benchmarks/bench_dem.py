@@ -78,14 +78,17 @@ def test_dem_step(benchmark, n_copies):
     dt = sim.dt_max
     for _ in range(3):
         sim.step(dt)
-    sim.cost.__init__()
+    sim.reset_cost()
     benchmark.pedantic(sim.step, args=(dt,), rounds=40 if n_copies == 1 else 10, iterations=1,
                        warmup_rounds=1)
-    p = sim.cost.per_step()
+    p = sim.cost_per_step()
     benchmark.extra_info.update(
         n_bodies=sim.n, contacts_per_step=round(p["contacts_per_step"]),
         coordination=round(sim.coordination_number(), 2),
         broad_ms=round(1e3 * p["broad"], 3), narrow_ms=round(1e3 * p["narrow"], 3),
         forces_ms=round(1e3 * p["forces"], 3), integrate_ms=round(1e3 * p["integrate"], 3),
         us_per_contact=round(1e6 * p["per_contact"], 2))
-    print(f"\n{sim.n} bodies: {sim.cost}")
+    print(f"\n{sim.n} bodies, {sim.cost.steps} steps: {1e3 * p['total']:.3f} ms/step = broad "
+          f"{1e3 * p['broad']:.3f} + narrow {1e3 * p['narrow']:.3f} + forces {1e3 * p['forces']:.3f} + "
+          f"integrate {1e3 * p['integrate']:.3f}; {p['contacts_per_step']:.0f} contacts, "
+          f"{1e6 * p['per_contact']:.2f} µs/contact")

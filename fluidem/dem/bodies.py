@@ -10,8 +10,9 @@ Mass properties come from :mod:`fluidem.geometry` (shoelace area and centroid, p
 polar moment ``J``); the inertia about the centroid is ``ρ (J_0 − A |c|²)`` (parallel
 axis theorem).
 
-Units: lengths in metres, areal density in kg/m², mass in kg, inertia in kg·m², angles in
-radians (any consistent unit system works; CGS cases use cm, g, s).
+Units: one consistent system of the user's choice (see :mod:`fluidem.dem`, "Units"):
+lengths in length units, areal density in mass/length² (kg/m² in SI), mass in mass units,
+inertia in mass·length², angles in radians.
 """
 
 from __future__ import annotations
@@ -21,31 +22,42 @@ from typing import Callable
 import numpy as np
 
 from fluidem import geometry as geo
+from fluidem import names, validate
 
 __all__ = ["Body", "MOTIONS", "random_convex_vertices"]
 
 #: The kinds of motion a body may have.
-MOTIONS = ("free", "fixed", "prescribed")
+MOTIONS = names.choices("motion")  # ("free", "fixed", "prescribed")
 
 
-def _vec2(value, what: str) -> np.ndarray:
+def _key(name: str, param: str, call: str = "Body") -> str:
+    """Where a value was given: ``Body(density=...)``, or ``Body(name='grain', density=...)``."""
+    return f"{call}({param}=...)" if name == "body" else f"{call}(name={name!r}, {param}=...)"
+
+
+def _pair(key: str, value) -> np.ndarray:
+    """A pair of finite numbers as a float (2,) array (numpy arrays of any shape with 2 entries pass)."""
+    if isinstance(value, np.ndarray):
+        value = value.reshape(-1)
+    return np.array(validate.pair(key, value))
+
+
+def _real(key: str, value) -> float:
+    """A finite number (numpy 0-d arrays pass)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    return validate.number(key, value)
+
+
+def _box(key: str, box) -> tuple[float, float, float, float]:
+    """``(xmin, xmax, ymin, ymax)`` with ``xmin < xmax`` and ``ymin < ymax`` (sides may be ±inf)."""
     try:
-        v = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{what} must be a pair of numbers, got {value!r}") from exc
-    if v.shape != (2,) or not np.all(np.isfinite(v)):
-        raise ValueError(f"{what} must be a pair of finite numbers, got {value!r}")
-    return v
-
-
-def _finite(value, what: str) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{what} must be a number, got {value!r}") from exc
-    if not np.isfinite(x):
-        raise ValueError(f"{what} must be finite, got {value!r}")
-    return x
+        w = np.asarray(box, float).reshape(-1)
+    except (TypeError, ValueError):
+        raise validate.fail(key, box, "(xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax") from None
+    if w.shape != (4,) or np.any(np.isnan(w)) or not (w[0] < w[1] and w[2] < w[3]):
+        raise validate.fail(key, box, "(xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax")
+    return tuple(float(x) for x in w)
 
 
 def random_convex_vertices(size: float, n_vertices: int = 6, elongation: float = 1.0,
@@ -60,7 +72,7 @@ def random_convex_vertices(size: float, n_vertices: int = 6, elongation: float =
     Parameters
     ----------
     size : float
-        Diameter of the circumscribing ellipse along its long axis, metres.
+        Diameter of the circumscribing ellipse along its long axis (length, e.g. m).
     n_vertices : int
         Number of corners, ≥ 3.
     elongation : float
@@ -70,16 +82,12 @@ def random_convex_vertices(size: float, n_vertices: int = 6, elongation: float =
     rng : numpy.random.Generator or int or None
         Random source.
     """
+    size = validate.positive("random_convex_vertices(size=...)", size)
+    n = validate.integer("random_convex_vertices(n_vertices=...)", n_vertices, lo=3)
+    elongation = validate.number("random_convex_vertices(elongation=...)", elongation, "a finite number >= 1",
+                                 lo=1.0)
+    jitter = validate.fraction("random_convex_vertices(jitter=...)", jitter, hi_open=True)
     rng = np.random.default_rng(rng)
-    if not (np.isfinite(size) and size > 0):
-        raise ValueError(f"size must be a positive number, got {size!r}")
-    if int(n_vertices) != n_vertices or n_vertices < 3:
-        raise ValueError(f"n_vertices must be an integer >= 3, got {n_vertices!r}")
-    if not (elongation >= 1.0):
-        raise ValueError(f"elongation must be >= 1, got {elongation!r}")
-    if not (0.0 <= jitter < 1.0):
-        raise ValueError(f"jitter must be in [0, 1), got {jitter!r}")
-    n = int(n_vertices)
     t = 2.0 * np.pi * (np.arange(n) + jitter * (rng.random(n) - 0.5)) / n
     v = 0.5 * size * np.column_stack([np.cos(t), np.sin(t) / elongation])
     return v @ geo.rotation_matrix(rng.uniform(0, 2 * np.pi)).T
@@ -94,48 +102,43 @@ class Body:
     Attributes
     ----------
     vertices : (n, 2) float
-        Outline in body coordinates (m), counter-clockwise, centre of mass at the origin.
+        Outline in body coordinates (length), counter-clockwise, centre of mass at the origin.
     area : float
-        Polygon area, m².
+        Polygon area, length² (m² in SI).
     density : float
-        Areal density, kg/m².
+        Areal density, mass/length² (kg/m²).
     mass : float
-        ``density · area``, kg.
+        ``density · area``, mass (kg).
     inertia : float
-        Moment of inertia about the centre of mass, kg·m².
+        Moment of inertia about the centre of mass, mass·length² (kg·m²).
     radius : float
-        Bounding radius: largest distance of a vertex from the centre of mass, m.
+        Bounding radius: largest distance of a vertex from the centre of mass, length.
     position : (2,) float
-        Initial position of the centre of mass, m.
+        Initial position of the centre of mass, length.
     angle : float
         Initial orientation, rad (world = rotate(angle) · body + position).
     velocity : (2,) float
-        Initial velocity of the centre of mass, m/s.
+        Initial velocity of the centre of mass, length/time (m/s).
     omega : float
-        Initial angular velocity, rad/s (counter-clockwise positive).
+        Initial angular velocity, rad/time (counter-clockwise positive).
     motion : {"free", "fixed", "prescribed"}
         ``free`` bodies obey Newton's laws; ``fixed`` ones never move; ``prescribed`` ones
         follow ``path``.
     path : callable or None
-        For prescribed motion, ``path(t) -> (position (2,), angle)``, with t in s.
+        For prescribed motion, ``path(t) -> (position (2,), angle)``, with ``t`` in time units.
     """
 
     def __init__(self, vertices, density: float = 1.0, position=(0.0, 0.0), angle: float = 0.0,
                  velocity=(0.0, 0.0), omega: float = 0.0, motion="free",
                  path: Callable | None = None, name: str = "body"):
         v = geo.validate_polygon(vertices, name=name, require_convex=True)
-        try:
-            rho = float(density)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{name}: density must be a number, got {density!r}") from exc
-        if not (np.isfinite(rho) and rho > 0):
-            raise ValueError(f"{name}: density must be positive and finite (kg/m²), got {density!r}")
+        rho = validate.positive(_key(name, "density"), density)
         if callable(motion):
             path, motion = motion, "prescribed"
-        if motion not in MOTIONS:
-            raise ValueError(f"{name}: motion must be one of {MOTIONS} or a callable, got {motion!r}")
+        motion = names.lookup("motion", motion, where=_key(name, "motion"))
         if motion == "prescribed" and not callable(path):
-            raise ValueError(f"{name}: prescribed motion needs path(t) -> (position, angle), got {path!r}")
+            raise validate.fail(_key(name, "path"), path, "a callable path(t) -> (position, angle) for "
+                                "motion 'prescribed'")
         area = geo.polygon_area(v)
         c = geo.polygon_centroid(v)
         j0 = geo.polygon_polar_moment(v)
@@ -145,10 +148,10 @@ class Body:
         self.mass = rho * area
         self.inertia = rho * (j0 - area * float(c @ c))
         self.radius = float(np.sqrt((self.vertices**2).sum(axis=1)).max())
-        self.position = _vec2(position, f"{name}: position")
-        self.angle = _finite(angle, f"{name}: angle")
-        self.velocity = _vec2(velocity, f"{name}: velocity")
-        self.omega = _finite(omega, f"{name}: omega")
+        self.position = _pair(_key(name, "position"), position)
+        self.angle = _real(_key(name, "angle"), angle)
+        self.velocity = _pair(_key(name, "velocity"), velocity)
+        self.omega = _real(_key(name, "omega"), omega)
         self.motion = motion
         self.path = path
         self.name = name
@@ -166,18 +169,18 @@ class Body:
         Parameters
         ----------
         vertices : (n, 2) array_like
-            Counter-clockwise outline (m).  It is shifted so that its centroid is the
+            Counter-clockwise outline (length).  It is shifted so that its centroid is the
             origin of body coordinates; ``position`` then places that centroid.
         density : float
-            Areal density, kg/m², > 0.
+            Areal density, mass/length² (kg/m² in SI), > 0.
         position : (2,) array_like
-            Centre of mass, m.
+            Centre of mass, length.
         angle : float
             Orientation, rad.
         velocity : (2,) array_like
-            m/s.
+            Length/time (m/s).
         omega : float
-            rad/s.
+            Rad/time (rad/s).
         motion : {"free", "fixed", "prescribed"} or callable
             A callable is taken as ``path`` with ``motion="prescribed"``.
         path : callable, optional
@@ -185,20 +188,21 @@ class Body:
 
         Raises
         ------
-        ValueError
-            Clockwise, self-intersecting or non-convex outline; density ≤ 0; bad motion.
+        fluidem.errors.InputError
+            (a ``ValueError``) Clockwise, self-intersecting or non-convex outline; density
+            ≤ 0; an unknown motion; a non-finite position, angle or velocity.
         """
         return cls(vertices, density=density, position=position, angle=angle,
                    velocity=velocity, omega=omega, motion=motion, path=path)
 
     @classmethod
     def disk(cls, radius: float, segments: int = 16, density: float = 1.0, **kwargs) -> "Body":
-        """Regular ``segments``-gon inscribed in a circle of ``radius`` (m); other keywords as :meth:`polygon`."""
+        """Regular ``segments``-gon inscribed in a circle of ``radius`` (length); other keywords as :meth:`polygon`."""
         return cls(geo.regular_polygon(radius, segments), density=density, **kwargs)
 
     @classmethod
     def rectangle(cls, width: float, height: float, density: float = 1.0, **kwargs) -> "Body":
-        """Rectangle ``width`` × ``height`` (m) centred on its centre of mass; keywords as :meth:`polygon`."""
+        """Rectangle ``width`` × ``height`` (length) centred on its centre of mass; keywords as :meth:`polygon`."""
         return cls(geo.rectangle(width, height), density=density, **kwargs)
 
     @classmethod
@@ -214,25 +218,29 @@ class Body:
                        density: float = 1.0) -> list["Body"]:
         """``n`` random convex polygons placed on a loose square lattice inside ``box``.
 
-        Sizes are uniform in ``sizes`` (m); corners uniform integers in ``n_vertices``;
+        Sizes are uniform in ``sizes`` (length); corners uniform integers in ``n_vertices``;
         elongation uniform in ``elongation``.  Lattice spacing is ``spacing`` × the largest
         size, filled row by row from the bottom left of ``box = (xmin, xmax, ymin, ymax)``,
         so bodies never overlap at start.
 
         Raises
         ------
-        ValueError
-            When ``n`` bodies do not fit in ``box``.
+        fluidem.errors.InputError
+            (a ``ValueError``) When ``n`` bodies do not fit in ``box``, or a bad argument.
         """
+        n = validate.integer("Body.random_packing(n=...)", n, lo=1)
+        xmin, xmax, ymin, ymax = _box("Body.random_packing(box=...)", box)
+        lo, hi = (validate.positive("Body.random_packing(sizes=...)", s) for s in validate.pair(
+            "Body.random_packing(sizes=...)", tuple(sizes)))
+        spacing = validate.positive("Body.random_packing(spacing=...)", spacing)
         rng = np.random.default_rng(rng)
-        xmin, xmax, ymin, ymax = (float(b) for b in box)
-        dmax = float(max(sizes))
+        dmax = max(lo, hi)
         h = spacing * dmax
         nx = int(np.floor((xmax - xmin) / h))
         ny = int(np.floor((ymax - ymin) / h))
         if nx * ny < n:
-            raise ValueError(f"{n} bodies of size up to {dmax} do not fit in box {box} "
-                             f"(room for {max(nx, 0) * max(ny, 0)})")
+            raise validate.fail("Body.random_packing(n=...)", n, f"at most {max(nx, 0) * max(ny, 0)}: the "
+                                f"bodies of size up to {dmax:g} on a lattice of spacing {h:g} fit in box {box}")
         out = []
         for k in range(n):
             iy, ix = divmod(k, nx)
@@ -245,15 +253,15 @@ class Body:
 
     # ---- prescribed motion ------------------------------------------------------------
     def pose_at(self, t: float) -> tuple[np.ndarray, float]:
-        """Position (2,) and angle of a prescribed body at time ``t`` (s)."""
+        """Position (2,) (length) and angle (rad) of a prescribed body at time ``t`` (time units)."""
         p, a = self.path(t)
-        return _vec2(p, f"{self.name}: path({t}) position"), _finite(a, f"{self.name}: path({t}) angle")
+        return _pair(f"{self.name}.path({t!r})[0]", p), _real(f"{self.name}.path({t!r})[1]", a)
 
     def world_vertices(self, position=None, angle=None) -> np.ndarray:
-        """Outline in world coordinates (m), shape ``(n, 2)``, at the given or initial pose."""
+        """Outline in world coordinates (length), shape ``(n, 2)``, at the given or initial pose."""
         return geo.transform(self.vertices, self.position if position is None else position,
                              self.angle if angle is None else angle)
 
     def __repr__(self) -> str:
-        return (f"Body({len(self.vertices)}-gon, mass={self.mass:.4g} kg, inertia={self.inertia:.4g} kg·m², "
+        return (f"Body({len(self.vertices)}-gon, mass={self.mass:.4g}, inertia={self.inertia:.4g}, "
                 f"position={self.position.tolist()}, motion={self.motion!r})")

@@ -47,6 +47,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fluidem import geometry as geo
+from fluidem import validate
+
 __all__ = ["ContactModel", "Contacts", "WALL_IDS", "grid_pairs", "clip_convex",
            "polygon_overlaps", "wall_overlaps", "contact_forces"]
 
@@ -61,7 +64,8 @@ class ContactModel:
     Parameters
     ----------
     E : float
-        2D "Young's modulus" of the overlap law ``F = E A / l``, N/m (> 0).
+        2D "Young's modulus" of the overlap law ``F = E A / l``, force/length (> 0; N/m
+        in SI, dyn/cm in CGS): a 3D modulus times the unit depth of the 2D bodies.
     mu : float
         Coulomb friction coefficient (≥ 0).
     gamma : float
@@ -70,7 +74,12 @@ class ContactModel:
     gamma_t : float or None
         Tangential damping coefficient (dimensionless, ≥ 0); ``None`` uses ``gamma``.
     kt_ratio : float
-        Tangential stiffness ``k_t = kt_ratio · E`` (N/m); 2/7 after Matuttis & Chen.
+        Tangential stiffness ``k_t = kt_ratio · E`` (force/length); 2/7 after Matuttis & Chen.
+
+    Raises
+    ------
+    fluidem.errors.InputError
+        (a ``ValueError``) A parameter out of range, named with its value.
     """
 
     E: float = 1e7
@@ -80,23 +89,22 @@ class ContactModel:
     kt_ratio: float = 2.0 / 7.0
 
     def __post_init__(self):
-        checks = (("E", self.E, False), ("mu", self.mu, True), ("gamma", self.gamma, True),
-                  ("kt_ratio", self.kt_ratio, False))
-        for name, val, zero_ok in checks:
-            ok = np.isfinite(val) and (val >= 0 if zero_ok else val > 0)
-            if not ok:
-                allowed = ">= 0" if zero_ok else "> 0"
-                raise ValueError(f"ContactModel: {name} must be finite and {allowed}, got {val!r}")
-        if self.gamma_t is not None and not (np.isfinite(self.gamma_t) and self.gamma_t >= 0):
-            raise ValueError(f"ContactModel: gamma_t must be finite and >= 0 or None, got {self.gamma_t!r}")
+        set_ = object.__setattr__  # frozen: store the checked values once
+        set_(self, "E", validate.positive("ContactModel(E=...)", self.E))
+        set_(self, "mu", validate.nonnegative("ContactModel(mu=...)", self.mu))
+        set_(self, "gamma", validate.nonnegative("ContactModel(gamma=...)", self.gamma))
+        if self.gamma_t is not None:
+            set_(self, "gamma_t", validate.nonnegative("ContactModel(gamma_t=...)", self.gamma_t))
+        set_(self, "kt_ratio", validate.positive("ContactModel(kt_ratio=...)", self.kt_ratio))
 
     @property
     def kt(self) -> float:
-        """Tangential spring stiffness, N/m."""
+        """Tangential spring stiffness ``kt_ratio · E``, force/length (N/m in SI)."""
         return self.kt_ratio * self.E
 
     @property
     def gt(self) -> float:
+        """Tangential damping coefficient in use (``gamma_t``, or ``gamma`` when that is None)."""
         return self.gamma if self.gamma_t is None else self.gamma_t
 
 
@@ -111,25 +119,26 @@ class Contacts:
     j : (n,) int
         Second body index, or a wall id < 0 (see :data:`WALL_IDS`).
     point : (n, 2) float
-        Point of action (overlap centroid), m.
+        Point of action (overlap centroid), length.
     normal : (n, 2) float
         Unit normal pointing from ``j`` towards ``i``.
     normal_force : (n, 2) float
-        Normal force on ``i`` (``j`` feels the opposite), N.
+        Normal force on ``i`` (``j`` feels the opposite), force (N in SI).
     tangential_force : (n, 2) float
-        Tangential (friction) force on ``i``, N.
+        Tangential (friction) force on ``i``, force.
     area : (n,) float
-        Overlap area, m².
+        Overlap area, length².
     length : (n,) float
-        Characteristic length ``l``, m.
+        Characteristic length ``l``, length.
     chord : (n,) float
-        Distance ``|S|`` between the two intersection points, m.
+        Distance ``|S|`` between the two intersection points, length.
     xi : (n,) float
-        Tangential spring elongation, m.
+        Tangential spring elongation, length.
     sliding : (n,) bool
         True where the Coulomb cap is active.
     work : (n,) float
-        Work done so far by the elastic normal force of the contact, J: the stored normal
+        Work done so far by the elastic normal force of the contact, force·length (J in
+        SI): the stored normal
         elastic energy (trapezoidal rule of ``∫ (F_el/|S|) dA``, ``dA = |S| dδ``).
     """
 
@@ -182,15 +191,15 @@ def grid_pairs(centers: np.ndarray, radii: np.ndarray, cell: float, movable: np.
     Parameters
     ----------
     centers : (N, 2) float
-        Centres of mass, m.
+        Centres of mass, length.
     radii : (N,) float
-        Bounding radii, m.
+        Bounding radii, length.
     cell : float
-        Cell side, ≥ twice the largest radius of the binned bodies plus ``skin``, m.
+        Cell side, ≥ twice the largest radius of the binned bodies plus ``skin``, length.
     movable : (N,) bool
         Pairs of two non-movable bodies are skipped.
     skin : float
-        Extra distance, m.
+        Extra distance, length.
 
     Returns
     -------
@@ -346,17 +355,6 @@ def clip_convex(subj: np.ndarray, n_subj: np.ndarray, edge_a: np.ndarray, edge_d
     return np.stack([SX, SY], axis=-1), n, cross
 
 
-def _polygon_area_centroid(S: np.ndarray):
-    """Area and centroid of padded polygons (padding repeats vertex 0), shoelace about vertex 0."""
-    Q = S - S[:, :1, :]
-    Qn = np.roll(Q, -1, axis=1)
-    c = Q[..., 0] * Qn[..., 1] - Qn[..., 0] * Q[..., 1]
-    A = 0.5 * c.sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cen = ((Q + Qn) * c[..., None]).sum(axis=1) / (6.0 * A[:, None])
-    return A, cen + S[:, 0, :]
-
-
 def _crossing_points(S: np.ndarray, cross: np.ndarray):
     """The two intersection points of the outlines (the farthest pair if more than two)."""
     P, W, _ = S.shape
@@ -427,8 +425,8 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
 
     Returns
     -------
-    dict with, per overlapping pair (P' ≤ P rows): ``i``, ``j``, ``area`` (m²),
-    ``centroid`` (m, world), ``p1``, ``p2`` (intersection points, world), ``ncross``.
+    dict with, per overlapping pair (P' ≤ P rows): ``i``, ``j``, ``area`` (length²),
+    ``centroid`` (world), ``p1``, ``p2`` (intersection points, world), ``ncross``.
     """
     K = verts.shape[1]
     # per body, in contiguous x / y arrays; edge k runs from vertex k to vertex k+1
@@ -472,7 +470,7 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
     A_sub = np.stack([AX, AY], axis=-1)
     o = pos[i][:, None, :]
     S, cnt, cross = clip_convex(A_sub, nA, Bc, Dc, K + kc, n_cut)
-    A, cen = _polygon_area_centroid(S)
+    A, cen = geo.polygon_area_centroid(S)
     p1, p2, ncross = _crossing_points(S, cross)
     ok = (cnt >= 3) & (A > 0)
     oo = o[ok, 0, :]
@@ -520,7 +518,7 @@ def wall_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, lo: np.nda
     rel[:, 1] = np.where(vert, 0.0, np.take([0.0, 0.0, ymin, ymax], w) - o[:, 1])
     S, cnt, cross = clip_convex(verts[b] - o[:, None, :], nv[b], rel[:, None, :],
                                 _WALL_DIR[w][:, None, :], verts.shape[1] + 1)
-    A, cen = _polygon_area_centroid(S)
+    A, cen = geo.polygon_area_centroid(S)
     p1, p2, ncross = _crossing_points(S, cross)
     ok = (cnt >= 3) & (A > 0)
     o = o[ok]
@@ -544,16 +542,16 @@ def contact_forces(ov: dict, pos, vel, omega, mass, free, model: ContactModel, d
     ov : dict
         Output of :func:`polygon_overlaps` or :func:`wall_overlaps`.
     pos, vel : (N, 2) float
-        Positions (m) and velocities (m/s) of the bodies.
+        Positions (length) and velocities (length/time) of the bodies.
     omega : (N,) float
-        Angular velocities, rad/s.
+        Angular velocities, rad/time.
     mass : (N,) float
-        kg.
+        Masses (mass units).
     free : (N,) bool
         Free bodies (the others count as infinitely heavy in ``m_eff``).
     model : ContactModel
     dt : float
-        Step for the tangential spring increment, s (0 for a force evaluation without
+        Step for the tangential spring increment, time units (0 for a force evaluation without
         advancing the spring).
     history : dict
         The contacts of the previous step: ``key`` (sorted), ``xi``, ``area``, ``g``

@@ -31,7 +31,9 @@ from math import factorial
 
 import numpy as np
 
-__all__ = ["GEAR_COEFFICIENTS", "Gear"]
+from fluidem import validate
+
+__all__ = ["GEAR_COEFFICIENTS", "GEAR_ORDERS", "Gear"]
 
 GEAR_COEFFICIENTS = {
     3: (0.0, 1.0, 1.0),
@@ -39,6 +41,10 @@ GEAR_COEFFICIENTS = {
     5: (19.0 / 120.0, 3.0 / 4.0, 1.0, 1.0 / 2.0, 1.0 / 12.0),
     6: (3.0 / 16.0, 251.0 / 360.0, 1.0, 11.0 / 18.0, 1.0 / 6.0, 1.0 / 60.0),
 }
+
+
+#: The predictor orders :class:`Gear` offers (q = order + 1 values per coordinate).
+GEAR_ORDERS = tuple(q - 1 for q in GEAR_COEFFICIENTS)
 
 
 class Gear:
@@ -57,9 +63,7 @@ class Gear:
     """
 
     def __init__(self, x, v, a, order: int = 2):
-        q = int(order) + 1
-        if q not in GEAR_COEFFICIENTS:
-            raise ValueError(f"Gear order must be one of 2, 3, 4, 5, got {order!r}")
+        q = int(validate.choice("Gear(order=...)", order, GEAR_ORDERS)) + 1
         self.q = q
         self.c = np.array(GEAR_COEFFICIENTS[q])
         x = np.asarray(x, float)

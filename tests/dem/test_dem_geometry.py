@@ -9,7 +9,7 @@ import shapely
 
 from fluidem.dem import Body, ContactModel, DEM
 from fluidem.dem.contact import grid_pairs, polygon_overlaps, wall_overlaps
-from fluidem.dem.simulation import _pad_vertices
+from fluidem.dem.system import _pad_vertices
 
 
 def test_mass_and_inertia_of_rectangle_and_disk():
@@ -107,9 +107,9 @@ def test_bad_polygons_and_density_raise():
     with pytest.raises(ValueError, match="not convex"):
         Body.polygon([[0, 0], [2, 0], [1, 0.2], [2, 2], [0, 2]])
     for rho in (0.0, -3.0):
-        with pytest.raises(ValueError, match=f"density must be positive.*{rho}"):
+        with pytest.raises(ValueError, match=rf"Body\(density=\.\.\.\) = {rho}: expected a positive finite number"):
             Body.disk(1.0, 6, density=rho)
-    with pytest.raises(ValueError, match="motion"):
+    with pytest.raises(ValueError, match=r"Body\(motion=\.\.\.\) = 'wobbly': expected one of 'free', 'fixed', 'prescribed'"):
         Body.disk(1.0, 6, motion="wobbly")
 
 
@@ -136,7 +136,29 @@ def test_time_step_above_bound_names_lightest_body():
 
 
 def test_bad_model_parameters_raise():
-    with pytest.raises(ValueError, match="E must be finite and > 0"):
+    with pytest.raises(ValueError, match=r"ContactModel\(E=\.\.\.\) = 0\.0: expected a positive finite number"):
         ContactModel(E=0.0)
-    with pytest.raises(ValueError, match="mu must be finite and >= 0"):
+    with pytest.raises(ValueError, match=r"ContactModel\(mu=\.\.\.\) = -0\.1: expected a finite number >= 0"):
         ContactModel(mu=-0.1)
+
+
+@pytest.mark.parametrize("make,message", [
+    (lambda: Body.disk(1.0, 6, position=(0.0, np.nan)), r"Body\(position=\.\.\.\) = \(0\.0, nan\): expected a pair"),
+    (lambda: Body.disk(1.0, 6, angle="up"), r"Body\(angle=\.\.\.\) = 'up': expected a finite number"),
+    (lambda: Body.disk(1.0, 6, motion="prescribed"), r"Body\(path=\.\.\.\) = None: expected a callable"),
+    (lambda: Body.random_convex(0.01, 2), r"random_convex_vertices\(n_vertices=\.\.\.\) = 2: expected an integer >= 3"),
+    (lambda: Body.random_convex(0.01, 5, jitter=1.0), r"random_convex_vertices\(jitter=\.\.\.\) = 1\.0: expected a number in \[0, 1\)"),
+    (lambda: ContactModel(gamma_t=-1.0), r"ContactModel\(gamma_t=\.\.\.\) = -1\.0: expected a finite number >= 0"),
+    (lambda: DEM([Body.disk(1.0, 6)], gravity=(0.0,)), r"DEM\(gravity=\.\.\.\) = \(0\.0,\): expected a pair"),
+    (lambda: DEM([Body.disk(1.0, 6)], walls=(1, -1, 0, 1)), r"DEM\(walls=\.\.\.\) = \(1, -1, 0, 1\): expected \(xmin"),
+    (lambda: DEM([Body.disk(1.0, 6)], order=7), r"DEM\(order=\.\.\.\) = 7: expected one of 2, 3, 4, 5"),
+    (lambda: DEM([Body.disk(1.0, 6), "disk"]), r"DEM\(bodies=\.\.\.\)\[1\] = <str object>: expected a fluidem\.dem\.Body"),
+    (lambda: DEM([]), r"DEM\(bodies=\.\.\.\) = \[\]: expected at least one"),
+    (lambda: DEM([Body.disk(1.0, 6)]).step(0.0), r"DEM\.step\(dt=\.\.\.\) = 0\.0: expected a positive finite number"),
+    (lambda: DEM([Body.disk(1.0, 6)]).run(1.0, 1e-3, every=0), r"DEM\.run\(every=\.\.\.\) = 0: expected an integer >= 1"),
+])
+def test_bad_arguments_name_parameter_and_value(make, message):
+    from fluidem.errors import InputError
+
+    with pytest.raises(InputError, match=message):
+        make()

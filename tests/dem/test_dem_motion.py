@@ -95,5 +95,29 @@ def test_add_bodies_and_contact_output_shapes():
 def test_docstring_examples_run():
     import doctest
 
-    import fluidem.dem.simulation as mod
+    import fluidem.dem.system as mod
     assert doctest.testmod(mod).failed == 0
+
+
+def test_cost_is_the_one_cost_split_type():
+    from fluidem.cost import CostSplit
+    from fluidem.dem import StepCost
+
+    assert StepCost is CostSplit  # deprecated alias, kept for one version
+    bodies = [Body.rectangle(0.02, 0.01, density=RHO, position=(0.03 * k, 0.00499)) for k in range(3)]
+    sim = DEM(bodies, walls=(-1, 1, 0, 1), contact=ContactModel(E=1e5, mu=0.5, gamma=0.3))
+    for _ in range(20):
+        sim.step(sim.dt_max)
+    c = sim.cost
+    assert isinstance(c, CostSplit)
+    assert list(c.parts) == ["broad", "narrow", "forces", "integrate"]
+    assert (c.steps, c.rebuilds) == (20, 1) and c.contacts > 0  # they touch the floor
+    assert c.total == pytest.approx(c.broad + c.narrow + c.forces + c.integrate) and c.total > 0
+    p = sim.cost_per_step()
+    assert p["total"] == pytest.approx(c.total / 20)
+    assert p["per_contact"] == pytest.approx(c.total / c.contacts)
+    assert p["contacts_per_step"] == pytest.approx(c.contacts / 20)
+    sim.reset_cost()
+    assert sim.cost.total == 0.0 and sim.cost.steps == 0
+    sim.step(sim.dt_max)
+    assert sim.cost.steps == 1 and sim.cost_per_step()["contacts_per_step"] == sim.cost.contacts

@@ -6,57 +6,43 @@ solver.  The fluid coupling enters through :attr:`DEM.external_force` and
 :meth:`DEM.advance`, which sub-steps a fluid step with stable DEM steps.
 
 Time step.  The bound is ``dt_max = 0.1 π √(m_min / E)`` (Matuttis & Chen 2014, ch. 7;
-``m_min`` the lightest free body): :meth:`DEM.step` raises a ``ValueError`` naming that
-body above it, :meth:`DEM.advance` sub-steps below it.
+``m_min`` the lightest free body): :meth:`DEM.step` raises an
+:class:`~fluidem.errors.InputError` (a ``ValueError``) naming that body above it,
+:meth:`DEM.advance` sub-steps below it.
+
+Units: one consistent system of the user's choice, quantities of a slab of unit depth (see
+:mod:`fluidem.dem`, "Units"); dimensions below, SI as the example.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from .bodies import Body
+from .. import geometry as geo
+from .. import validate
+from ..cost import CostSplit
+from ..errors import InputError
+from .bodies import Body, _box, _pair
 from .contact import (Contacts, ContactModel, contact_forces, grid_pairs, polygon_overlaps,
                       wall_overlaps)
-from .integrate import Gear
+from .integrate import GEAR_ORDERS, Gear
 
-__all__ = ["DEM", "StepCost"]
+__all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS"]
 
 
-@dataclass
-class StepCost:
-    """Wall-clock seconds spent in each part of the steps taken so far."""
+#: Deprecated alias of :class:`fluidem.cost.CostSplit`, the one cost-split type (kept for one version).
+StepCost = CostSplit
 
-    broad: float = 0.0
-    narrow: float = 0.0
-    forces: float = 0.0
-    integrate: float = 0.0
-    steps: int = 0
-    contacts: int = 0
-    rebuilds: int = 0
-    extra: dict = field(default_factory=dict)
+#: The parts of a DEM step, in the order :attr:`DEM.cost` lists them.
+COST_PARTS = ("broad", "narrow", "forces", "integrate")
+#: The counters of :attr:`DEM.cost`.
+COST_COUNTS = ("steps", "contacts", "rebuilds")
 
-    @property
-    def total(self) -> float:
-        return self.broad + self.narrow + self.forces + self.integrate
 
-    def per_step(self) -> dict:
-        """Seconds per step of each part and in total, and seconds per contact per step."""
-        s = max(self.steps, 1)
-        out = {k: getattr(self, k) / s for k in ("broad", "narrow", "forces", "integrate")}
-        out["total"] = self.total / s
-        out["per_contact"] = self.total / max(self.contacts, 1)
-        out["contacts_per_step"] = self.contacts / s
-        return out
-
-    def __str__(self) -> str:
-        p = self.per_step()
-        return (f"StepCost({self.steps} steps: {1e3 * p['total']:.3f} ms/step = broad {1e3 * p['broad']:.3f}"
-                f" + narrow {1e3 * p['narrow']:.3f} + forces {1e3 * p['forces']:.3f} + integrate "
-                f"{1e3 * p['integrate']:.3f}; {p['contacts_per_step']:.0f} contacts, "
-                f"{1e6 * p['per_contact']:.2f} µs/contact)")
+def _new_cost() -> CostSplit:
+    return CostSplit(dict.fromkeys(COST_PARTS, 0.0), dict.fromkeys(COST_COUNTS, 0))
 
 
 def _pad_vertices(bodies) -> tuple[np.ndarray, np.ndarray]:
@@ -78,51 +64,58 @@ class DEM:
     bodies : sequence of Body
         The particles (free, fixed or prescribed).
     walls : (xmin, xmax, ymin, ymax) or None
-        Domain sides acting as rigid walls with the same contact law (m); a side may be
-        ``±inf`` to leave it open.
+        Domain sides acting as rigid walls with the same contact law (length); a side may
+        be ``±inf`` to leave it open.
     gravity : (2,) float
-        m/s².
+        Length/time² (m/s² in SI: the default ``(0, -9.81)``; give ``(0, -981)`` in CGS).
     contact : ContactModel
         Material parameters.
     order : int
         Gear predictor order (2 or 5 are the usual choices; 2 is the default).
     skin : float or None
-        Verlet-list skin, m; ``None`` takes 0.2 × the largest bounding radius.
+        Verlet-list skin, length; ``None`` takes 0.2 × the largest bounding radius.
     overlap_tolerance : float
         Largest overlap allowed at start, as a fraction of the smaller body's area.
     t0 : float
-        Initial time, s.
+        Initial time, time units.
 
     Attributes
     ----------
     positions : (N, 2) float
-        Centres of mass, m.
+        Centres of mass, length (m in SI).
     angles : (N,) float
-        rad.
+        Rad.
     velocities : (N, 2) float
-        m/s.
+        Length/time (m/s).
     omegas : (N,) float
-        rad/s.
+        Rad/time (rad/s).
+    mass, inertia : (N,) float
+        Masses (mass units, kg) and moments of inertia about the centres of mass
+        (mass·length², kg·m²).
     forces : (N, 2) float
-        Total force on each body in the last step (contacts + gravity + external), N.
+        Total force on each body in the last step (contacts + gravity + external), force
+        (N).
     torques : (N,) float
-        Total torque about each centre of mass in the last step, N·m.
+        Total torque about each centre of mass in the last step, force·length (N·m).
     contacts : Contacts
         Contacts of the last step.
     external_force : (N, 2) float
-        User forces (e.g. from a fluid), N; kept until changed.
+        User forces (e.g. from a fluid), force; kept until changed.
     external_torque : (N,) float
-        User torques, N·m.
+        User torques, force·length.
     time : float
-        s.
-    cost : StepCost
-        Time spent per part.
+        Time units (s).
+    cost : fluidem.cost.CostSplit
+        Wall seconds per part of the steps so far (``broad``, ``narrow``, ``forces``,
+        ``integrate``; read as ``sim.cost.broad``) and counters ``steps``, ``contacts``
+        (contacts evaluated, summed over steps) and ``rebuilds`` (Verlet-list rebuilds);
+        :meth:`cost_per_step` divides them, :meth:`reset_cost` starts afresh.
 
     Raises
     ------
-    ValueError
-        Bad walls, bodies outside the walls or overlapping beyond ``overlap_tolerance``
-        (naming the bodies and overlap).
+    fluidem.errors.InputError
+        (a ``ValueError``) A bad argument (named with its value), or bodies overlapping each
+        other or a wall beyond ``overlap_tolerance`` (naming the bodies and the overlap).
 
     Examples
     --------
@@ -137,25 +130,19 @@ class DEM:
     def __init__(self, bodies, walls=None, gravity=(0.0, -9.81), contact: ContactModel | None = None,
                  order: int = 2, skin: float | None = None, overlap_tolerance: float = 0.01,
                  t0: float = 0.0):
-        bodies = list(bodies)
-        for k, b in enumerate(bodies):
-            if not isinstance(b, Body):
-                raise ValueError(f"body {k}: expected a fluidem.dem.Body, got {type(b).__name__}")
+        bodies = _check_bodies("DEM(bodies=...)", bodies)
         if not bodies:
-            raise ValueError("DEM needs at least one body")
+            raise validate.fail("DEM(bodies=...)", bodies, "at least one fluidem.dem.Body")
         self.model = contact if contact is not None else ContactModel()
         if not isinstance(self.model, ContactModel):
-            raise ValueError(f"contact must be a ContactModel, got {type(contact).__name__}")
-        g = np.asarray(gravity, float).reshape(-1)
-        if g.shape != (2,) or not np.all(np.isfinite(g)):
-            raise ValueError(f"gravity must be a pair of finite numbers (m/s²), got {gravity!r}")
-        self.gravity = g
+            raise validate.fail("DEM(contact=...)", _Shown(contact), "a fluidem.dem.ContactModel")
+        self.gravity = _pair("DEM(gravity=...)", gravity)
         self.walls = walls
-        self.order = order
-        self.overlap_tolerance = float(overlap_tolerance)
-        self.time = float(t0)
-        self._skin_arg = skin
-        self.cost = StepCost()
+        self.order = int(validate.choice("DEM(order=...)", order, GEAR_ORDERS))
+        self.overlap_tolerance = validate.nonnegative("DEM(overlap_tolerance=...)", overlap_tolerance)
+        self.time = validate.number("DEM(t0=...)", t0)
+        self._skin_arg = None if skin is None else validate.nonnegative("DEM(skin=...)", skin)
+        self.cost = _new_cost()
         self.bodies: list[Body] = []
         self._setup(bodies)
         self._check_overlaps(np.arange(len(self.bodies)))
@@ -213,7 +200,7 @@ class DEM:
 
     @property
     def walls(self):
-        """Domain sides ``(xmin, xmax, ymin, ymax)`` in m (``±inf`` for an open side) or None.
+        """Domain sides ``(xmin, xmax, ymin, ymax)`` in length units (``±inf`` for an open side) or None.
 
         May be changed between steps, e.g. to open a gate.
         """
@@ -221,22 +208,37 @@ class DEM:
 
     @walls.setter
     def walls(self, walls):
-        if walls is not None:
-            w = np.asarray(walls, float).reshape(-1)
-            if w.shape != (4,) or np.any(np.isnan(w)) or not (w[0] < w[1] and w[2] < w[3]):
-                raise ValueError(f"walls must be (xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax, got {walls!r}")
-            walls = tuple(float(x) for x in w)
-        self._walls = walls
+        self._walls = None if walls is None else _box("DEM(walls=...)", walls)
 
     @property
     def dt_max(self) -> float:
-        """Largest stable step ``0.1 π √(m_min/E)``, s (Matuttis & Chen 2014, ch. 7)."""
+        """Largest stable step ``0.1 π √(m_min/E)``, time units (Matuttis & Chen 2014, ch. 7)."""
         return self._dt_max
+
+    # ---- cost ----------------------------------------------------------------------------
+    def reset_cost(self) -> None:
+        """Start a fresh :attr:`cost` (all parts and counters zero)."""
+        self.cost = _new_cost()
+
+    def cost_per_step(self) -> dict:
+        """Seconds per step of each part and in total, seconds per contact, contacts per step.
+
+        :meth:`fluidem.cost.CostSplit.per_step` of :attr:`cost` plus ``"per_contact"``
+        (total seconds over the contacts evaluated) and ``"contacts_per_step"``.
+        """
+        c = self.cost
+        steps = max(int(c.counts.get("steps", 0)), 1)
+        contacts = int(c.counts.get("contacts", 0))
+        out = dict.fromkeys(COST_PARTS, 0.0)
+        out.update(c.per_step(steps))
+        out["per_contact"] = c.total / max(contacts, 1)
+        out["contacts_per_step"] = contacts / steps
+        return out
 
     # ---- state views ---------------------------------------------------------------------
     @property
     def positions(self) -> np.ndarray:
-        """(N, 2) float, m."""
+        """(N, 2) float, length."""
         return self.gear.X[0][:, :2]
 
     @property
@@ -246,24 +248,23 @@ class DEM:
 
     @property
     def velocities(self) -> np.ndarray:
-        """(N, 2) float, m/s."""
+        """(N, 2) float, length/time."""
         return self.gear.X[1][:, :2]
 
     @property
     def omegas(self) -> np.ndarray:
-        """(N,) float, rad/s."""
+        """(N,) float, rad/time."""
         return self.gear.X[1][:, 2]
 
     def world_vertices(self, x=None) -> np.ndarray:
-        """World outlines, (N, K, 2) padded by repeating each body's first vertex, m."""
-        x = self.gear.X[0] if x is None else x
-        c, s = np.cos(x[:, 2])[:, None], np.sin(x[:, 2])[:, None]
-        V = self._V
-        return np.stack([c * V[..., 0] - s * V[..., 1] + x[:, 0:1],
-                         s * V[..., 0] + c * V[..., 1] + x[:, 1:2]], axis=-1)
+        """World outlines, (N, K, 2) padded by repeating each body's first vertex, length.
+
+        ``x`` : (N, 3) poses ``(x, y, angle)``, default the current ones.
+        """
+        return geo.rigid_transform(self._V, self.gear.X[0] if x is None else x)
 
     def outlines(self) -> list[np.ndarray]:
-        """World outline of each body as a list of (n_k, 2) arrays, m."""
+        """World outline of each body as a list of (n_k, 2) arrays, length."""
         W = self.world_vertices()
         return [W[k, : self._nv[k]] for k in range(self.n)]
 
@@ -277,12 +278,12 @@ class DEM:
         if rebuild:
             self._nbr = grid_pairs(pos, self.radii, self._cell, self.movable, self.skin)
             self._nbr_ref = pos.copy()
-            self.cost.rebuilds += 1
+            self.cost.count("rebuilds")
         i, j = self._nbr
         d = pos[j] - pos[i]
         reach = self.radii[i] + self.radii[j]
         keep = (d * d).sum(axis=1) < reach * reach
-        self.cost.broad += time.perf_counter() - t0
+        self.cost.add("broad", time.perf_counter() - t0)
         return i[keep], j[keep]
 
     def _overlaps(self, x):
@@ -299,7 +300,7 @@ class DEM:
             ow = wall_overlaps(W, self._nv, pos, lo, hi, self.walls, mv)
             if ow is not None:
                 ovs.append(ow)
-        self.cost.narrow += time.perf_counter() - t0
+        self.cost.add("narrow", time.perf_counter() - t0)
         return ovs
 
     def _check_overlaps(self, which):
@@ -312,8 +313,8 @@ class DEM:
             for k in bad:
                 if int(i[k]) in which or int(j[k]) in which:
                     other = f"body {int(j[k])}" if j[k] >= 0 else f"wall {int(j[k])} ({_wall_name(j[k])})"
-                    raise ValueError(
-                        f"body {int(i[k])} and {other} overlap at start by {A[k]:.4g} m² = "
+                    raise InputError(
+                        f"body {int(i[k])} and {other} overlap at start by {A[k]:.4g} (length²) = "
                         f"{A[k] / ref[k]:.3g} of the body area; allowed: overlap_tolerance = "
                         f"{self.overlap_tolerance:g}")
 
@@ -347,8 +348,8 @@ class DEM:
         self.contacts = C
         self.forces = forces
         self.torques = torques
-        self.cost.forces += time.perf_counter() - t0
-        self.cost.contacts += len(C)
+        self.cost.add("forces", time.perf_counter() - t0)
+        self.cost.count("contacts", len(C))
         return forces, torques
 
     def _initial_forces(self):
@@ -357,7 +358,7 @@ class DEM:
         if len(self._prescribed):
             self._apply_prescribed(self.time, x, self.gear.X[1])
         F, T = self._evaluate(x, self.gear.X[1], 0.0)
-        self.cost.contacts -= len(self.contacts)
+        self.cost.count("contacts", -len(self.contacts))
         a = np.where(self._mask, self._acc(F, T), 0.0)
         self.gear.set(a=a)
 
@@ -377,22 +378,21 @@ class DEM:
 
     # ---- stepping ------------------------------------------------------------------------
     def step(self, dt: float) -> None:
-        """Advance by one Gear predictor–corrector step of ``dt`` seconds.
+        """Advance by one Gear predictor–corrector step of ``dt`` (time units).
 
         Raises
         ------
-        ValueError
-            ``dt`` not positive, or above :attr:`dt_max` (naming the lightest body).
+        fluidem.errors.InputError
+            (a ``ValueError``) ``dt`` not positive, or above :attr:`dt_max` (naming the
+            lightest body).
         """
-        dt = float(dt)
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"time step must be a positive number, got {dt!r}")
+        dt = validate.positive("DEM.step(dt=...)", dt)
         if dt > self._dt_max * (1 + 1e-12):
             k = self._lightest
-            raise ValueError(
-                f"time step dt = {dt:.4g} s exceeds the stability bound dt_max = 0.1π√(m/E) = "
-                f"{self._dt_max:.4g} s set by body {k} (mass {self.mass[k]:.4g} kg, E = "
-                f"{self.model.E:.4g} N/m); use dt <= {self._dt_max:.4g} s or DEM.advance() to sub-step")
+            raise InputError(
+                f"DEM.step(dt=...) = {dt:.4g}: exceeds the stability bound dt_max = 0.1π√(m/E) = "
+                f"{self._dt_max:.4g} set by body {k} (mass {self.mass[k]:.4g}, E = {self.model.E:.4g}); "
+                f"expected dt <= {self._dt_max:.4g}, or DEM.advance() to sub-step")
         if self._fresh:
             # accelerations at t0 with the external forces the caller may have set since
             # construction (the predictor uses them)
@@ -402,7 +402,7 @@ class DEM:
         x, v = x.copy(), v.copy()
         if len(self._prescribed):
             self._apply_prescribed(self.time + dt, x, v)
-        self.cost.integrate += time.perf_counter() - t0
+        self.cost.add("integrate", time.perf_counter() - t0)
         F, T = self._evaluate(x, v, dt)
         t0 = time.perf_counter()
         self.gear.correct(self._acc(F, T))
@@ -411,11 +411,16 @@ class DEM:
             m[self._prescribed] = True
             self.gear.set(x=x, v=v, a=np.zeros_like(x), mask=m)
         self.time += dt
-        self.cost.integrate += time.perf_counter() - t0
-        self.cost.steps += 1
+        self.cost.add("integrate", time.perf_counter() - t0)
+        self.cost.count("steps")
 
     def run(self, t_end: float, dt: float, callback=None, every: int = 1) -> None:
         """Step with ``dt`` until ``time ≥ t_end − dt/2``; ``callback(sim)`` after every ``every`` steps."""
+        t_end = validate.number("DEM.run(t_end=...)", t_end)
+        dt = validate.positive("DEM.run(dt=...)", dt)
+        every = validate.integer("DEM.run(every=...)", every, lo=1)
+        if callback is not None and not callable(callback):
+            raise validate.fail("DEM.run(callback=...)", _Shown(callback), "None or a callable callback(sim)")
         n = int(np.round((t_end - self.time) / dt))
         for k in range(max(n, 0)):
             self.step(dt)
@@ -423,11 +428,12 @@ class DEM:
                 callback(self)
 
     def advance(self, duration: float, dt: float | None = None) -> int:
-        """Advance by ``duration`` s in equal sub-steps no larger than ``dt`` (default :attr:`dt_max`).
+        """Advance by ``duration`` (time units) in equal sub-steps no larger than ``dt`` (default :attr:`dt_max`).
 
         Returns the number of sub-steps taken.
         """
-        h = self._dt_max if dt is None else min(float(dt), self._dt_max)
+        duration = validate.positive("DEM.advance(duration=...)", duration)
+        h = self._dt_max if dt is None else min(validate.positive("DEM.advance(dt=...)", dt), self._dt_max)
         n = max(int(np.ceil(duration / h - 1e-9)), 1)
         for _ in range(n):
             self.step(duration / n)
@@ -437,12 +443,9 @@ class DEM:
     def add_bodies(self, bodies) -> np.ndarray:
         """Append bodies (e.g. for pouring); returns their indices.
 
-        Raises ``ValueError`` if a new body overlaps another beyond ``overlap_tolerance``.
+        Raises :class:`~fluidem.errors.InputError` (a ``ValueError``) if a new body overlaps another beyond ``overlap_tolerance``.
         """
-        new = list(bodies)
-        for k, b in enumerate(new):
-            if not isinstance(b, Body):
-                raise ValueError(f"new body {k}: expected a fluidem.dem.Body, got {type(b).__name__}")
+        new = _check_bodies("DEM.add_bodies(bodies=...)", bodies)
         n0 = self.n
         X = self.gear.X
         xn = np.array([[*b.position, b.angle] for b in new])
@@ -467,13 +470,13 @@ class DEM:
 
     # ---- diagnostics -------------------------------------------------------------------
     def kinetic_energy(self) -> float:
-        """Translational plus rotational kinetic energy of all bodies, J."""
+        """Translational plus rotational kinetic energy of all bodies, force·length (J in SI)."""
         v = self.velocities
         return float(0.5 * (self.mass * (v * v).sum(axis=1)).sum()
                      + 0.5 * (self.inertia * self.omegas**2).sum())
 
     def elastic_energy(self) -> float:
-        """Energy stored in the contacts of the last step, J.
+        """Energy stored in the contacts of the last step, force·length (J in SI).
 
         Work stored by the elastic normal forces plus ``Σ k_t ξ² / 2`` of the tangential
         springs (see :mod:`fluidem.dem.contact`).  Evaluated at the predicted positions,
@@ -485,7 +488,7 @@ class DEM:
         return float(C.work.sum() + 0.5 * self.model.kt * (C.xi**2).sum())
 
     def potential_energy(self) -> float:
-        """Gravitational potential energy ``−Σ m g·x`` of the free bodies, J."""
+        """Gravitational potential energy ``−Σ m g·x`` of the free bodies, force·length (J in SI)."""
         return float(-(self.mass[self.free] * (self.positions[self.free] @ self.gravity)).sum())
 
     def coordination_number(self) -> float:
@@ -497,6 +500,28 @@ class DEM:
         z = np.bincount(idx, minlength=self.n)[self.free]
         touching = z > 0
         return float(z[touching].mean()) if touching.any() else 0.0
+
+
+class _Shown:
+    """A value shown in an error message by its type (``<list object>``), not its full repr."""
+
+    def __init__(self, value):
+        self.value = value
+
+    def __repr__(self) -> str:
+        return f"<{type(self.value).__name__} object>"
+
+
+def _check_bodies(key: str, bodies) -> list:
+    """``bodies`` as a list of :class:`Body`, or an :class:`InputError` naming the first other item."""
+    try:
+        out = list(bodies)
+    except TypeError:
+        raise validate.fail(key, _Shown(bodies), "a sequence of fluidem.dem.Body") from None
+    for k, b in enumerate(out):
+        if not isinstance(b, Body):
+            raise validate.fail(f"{key}[{k}]", _Shown(b), "a fluidem.dem.Body")
+    return out
 
 
 def _empty_history() -> dict:
