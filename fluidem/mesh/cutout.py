@@ -28,6 +28,7 @@ import shapely
 import triangle as tr
 
 from ..errors import MeshError
+from ..geometry import barycentric
 from .adjacency import edges_from_neighbors, split_with_neighbors
 from .contact_outline import ContactOutline
 from .gaps import gap_from_pairs
@@ -252,11 +253,7 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
             # the triangle of outline nodes they split
             jv = t[junction_tris]
             P = nodes[jv]
-            e1, e2, r = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0], junction_pts - P[:, 0]
-            det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-            l1 = (r[:, 0] * e2[:, 1] - r[:, 1] * e2[:, 0]) / det
-            l2 = (e1[:, 0] * r[:, 1] - e1[:, 1] * r[:, 0]) / det
-            junction_bary = np.column_stack([1 - l1 - l2, l1, l2])
+            junction_bary = barycentric(junction_pts, P[:, 0], P[:, 1], P[:, 2])
             junction_verts = jv
             junction_nodes = n0 + np.arange(len(junction_pts))
             t, neighbors = split_with_neighbors(t, neighbors, junction_tris, junction_nodes)

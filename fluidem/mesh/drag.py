@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry import rotate
 from .nodes import OUTLINE, world
 from .relax import signed_areas
 
@@ -80,10 +81,8 @@ def drag_association(points, h_node, drag_mobility, table, drag_reach: float, dr
 def rigid_displacement(points, pose_old, pose_new) -> np.ndarray:
     """Displacement ``(k, 2)`` of ``points (k, 2)`` under the rigid motion of their body from
     ``pose_old (k, 3)`` to ``pose_new (k, 3)``."""
-    dth = pose_new[:, 2] - pose_old[:, 2]
-    c, s_ = np.cos(dth), np.sin(dth)
     r = points - pose_old[:, :2]
-    return np.column_stack([c * r[:, 0] - s_ * r[:, 1], s_ * r[:, 0] + c * r[:, 1]]) + pose_new[:, :2] - points
+    return rotate(r, pose_new[:, 2] - pose_old[:, 2]) + pose_new[:, :2] - points
 
 
 def dragged_positions(points, triangles, kind, outline_row, outline_local, outline_body, contact_nodes,

@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
+from ..geometry import barycentric
+
 __all__ = ["junction_triangles", "junction_points", "split_triangles"]
 
 
@@ -82,11 +84,7 @@ def junction_points(points, triangles, owner, centres, polygons, h, clearance: f
     v = np.column_stack([a[:, 0] + (day * b2 - bay * d2) / safe, a[:, 1] + (bax * d2 - dax * b2) / safe])
     # is it inside the junction triangle? (barycentric coordinates)
     P = p[t[jt]]
-    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
-    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    r = v - P[:, 0]
-    l1 = (r[:, 0] * e2[:, 1] - r[:, 1] * e2[:, 0]) / det
-    l2 = (e1[:, 0] * r[:, 1] - e1[:, 1] * r[:, 0]) / det
+    l1, l2 = barycentric(v, P[:, 0], P[:, 1], P[:, 2])[:, 1:].T
     inside = (np.abs(den) > 1e-300) & (l1 > 0.05) & (l2 > 0.05) & (l1 + l2 < 0.95)
     # incentre as the fallback
     la = np.linalg.norm(P[:, 2] - P[:, 1], axis=1)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import validate_polygon
+from ..geometry import rigid_transform, to_body_frame, validate_polygon
 from .background import friedrichs_keller_grid, graded_background, subdivide_segment
 
 __all__ = ["FREE", "SIDE", "CORNER", "OUTLINE", "JUNCTION", "CONTACT", "UID_OUTLINE", "UID_NEW",
@@ -95,19 +95,14 @@ def body_vertices(b, i: int):
 
 def world(local, body, poses) -> np.ndarray:
     """World positions ``(m, 2)`` of body-frame points ``local (m, 2)`` of bodies ``body (m,)``
-    at ``poses (n_bodies, 3)`` (x, y, angle): ``x = R(θ) local + (x, y)``."""
-    c, s = np.cos(poses[body, 2]), np.sin(poses[body, 2])
-    x = c * local[:, 0] - s * local[:, 1] + poses[body, 0]
-    y = s * local[:, 0] + c * local[:, 1] + poses[body, 1]
-    return np.column_stack([x, y])
+    at ``poses (n_bodies, 3)`` (x, y, angle): ``x = R(θ) local + (x, y)`` (:func:`fluidem.geometry.rigid_transform`)."""
+    return rigid_transform(local, poses, body)
 
 
 def to_body(points, pose_rows) -> np.ndarray:
     """Body-frame positions ``(m, 2)`` of world ``points (m, 2)``; ``pose_rows (m, 3)``:
-    the pose of each point's body (the inverse of :func:`world`)."""
-    c, s = np.cos(pose_rows[:, 2]), np.sin(pose_rows[:, 2])
-    d = points - pose_rows[:, :2]
-    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+    the pose of each point's body (the inverse of :func:`world`; :func:`fluidem.geometry.to_body_frame`)."""
+    return to_body_frame(points, pose_rows)
 
 
 def classify_box(points, box):

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..geometry import triangle_areas as signed_areas  # signed areas (n_triangles,), length²
 
 __all__ = ["RelaxParams", "MeshTopology", "mesh_topology", "signed_areas", "relax"]
 
@@ -151,13 +152,6 @@ def mesh_topology(triangles) -> MeshTopology:
     edge_tris[idx[second], 1] = t_s[second]
     interior = edge_tris[:, 0] != edge_tris[:, 1]
     return MeshTopology(t, edges, edge_tris, interior)
-
-
-def signed_areas(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Signed areas ``(n_triangles,)`` (positive for counter-clockwise triangles), units²."""
-    x, y = np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
-    t = np.asarray(triangles)
-    return _areas(x, y, np.ascontiguousarray(t[:, 0]), np.ascontiguousarray(t[:, 1]), np.ascontiguousarray(t[:, 2]))
 
 
 def _areas(x, y, t0, t1, t2):

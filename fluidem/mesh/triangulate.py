@@ -20,7 +20,7 @@ import numpy as np
 import triangle as tr
 
 from ..errors import InputError, MeshError
-from ..geometry import point_in_polygon, polygon_area, validate_polygon
+from ..geometry import orient_ccw, point_in_polygon, polygon_area, triangle_areas, validate_polygon
 from .background import as_size_field, subdivide_segment
 
 __all__ = ["Obstacle", "BoxDomain", "TriangleMesh", "triangulate_box", "to_skfem", "SIDE_NAMES"]
@@ -195,7 +195,7 @@ def triangulate_box(domain, obstacles=(), size=0.1, min_angle: float = 30.0, max
         p, t = mesh["vertices"], mesh["triangles"]
         centroids = p[t].mean(axis=1)
         target = np.sqrt(3.0) / 4.0 * np.asarray(size(centroids)) ** 2
-        area = _triangle_areas(p, t)
+        area = triangle_areas(p, t)
         too_big = area > 1.05 * target
         if not too_big.any():
             break
@@ -203,7 +203,7 @@ def triangulate_box(domain, obstacles=(), size=0.1, min_angle: float = 30.0, max
         mesh = tr.triangulate(mesh, f"rpq{min_angle:g}Ya")
 
     p, t = mesh["vertices"], mesh["triangles"].astype(np.int64)
-    t = _orient_ccw(p, t)
+    t = orient_ccw(p, t)
     edges = mesh.get("edges")
     if edges is None:
         edges, emarks = _boundary_from_segments(mesh)
@@ -235,18 +235,6 @@ def _interior_point(v: np.ndarray) -> np.ndarray:
             if point_in_polygon(c[None], v)[0]:
                 return c
     raise InputError("could not find an interior point of the obstacle")
-
-
-def _triangle_areas(p: np.ndarray, t: np.ndarray) -> np.ndarray:
-    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
-    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-
-
-def _orient_ccw(p, t):
-    neg = _triangle_areas(p, t) < 0
-    t = t.copy()
-    t[neg] = t[neg][:, [0, 2, 1]]
-    return t
 
 
 def to_skfem(tmesh: TriangleMesh, curved: bool = False):
