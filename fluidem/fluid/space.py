@@ -92,6 +92,36 @@ class FlowSpace:
         self.n_p = self.pb.N
         self._boundary_cache: dict = {}
 
+    def moved(self, mesh) -> "FlowSpace":
+        """The same space on ``mesh``: the same triangles with moved nodes (ALE).
+
+        Shares the DOF numbering (scikit-fem ``Dofs``), the quadrature and the boundary DOF
+        lists of this space; only the geometry map, the basis values and the DOF locations
+        are recomputed (no facet or DOF search).
+
+        Parameters
+        ----------
+        mesh : skfem.MeshTri
+            With ``mesh.t`` equal to ``self.mesh.t`` (straight elements).
+
+        Raises
+        ------
+        ValueError
+            If the triangles differ or the mesh is curved.
+        """
+        if isinstance(mesh, MeshTri2) or self.curved:
+            raise ValueError("FlowSpace.moved supports straight (MeshTri) meshes only")
+        if mesh.t.shape != self.mesh.t.shape or not np.array_equal(mesh.t, self.mesh.t):
+            raise ValueError("FlowSpace.moved needs the same triangles; build a new FlowSpace after a "
+                             "re-triangulation")
+        new = object.__new__(FlowSpace)
+        new.pair, new.mesh, new.curved = self.pair, mesh, False
+        new.ub = Basis(mesh, self.ub.elem, quadrature=self.ub.quadrature, dofs=self.ub.dofs)
+        new.pb = Basis(mesh, self.pb.elem, quadrature=self.ub.quadrature, dofs=self.pb.dofs)
+        new.n_u, new.n_p = self.n_u, self.n_p
+        new._boundary_cache = self._boundary_cache  # DOF lists depend on the connectivity only
+        return new
+
     @property
     def n_dofs(self) -> int:
         return self.n_u + self.n_p
