@@ -82,10 +82,18 @@ def make_flow_solver(problem: FlowProblem, method: str = "auto", dt: float | Non
     return AutoSolver(n_u=free_u, direct_options=direct, iterative_options=iterative)
 
 
-def _solve_free(problem: FlowProblem, uu_data: np.ndarray, rhs_full: np.ndarray, solver) -> np.ndarray:
-    """Solve K δ = rhs on the free DOFs (δ = 0 on fixed ones); K from velocity-block data."""
+def _solve_free(problem: FlowProblem, uu_data: np.ndarray, rhs_full: np.ndarray, solver,
+                refactorize: bool = False) -> np.ndarray:
+    """Solve K δ = rhs on the free DOFs (δ = 0 on fixed ones); K from velocity-block data.
+
+    ``refactorize``: a lagged LU factorises this K now (the DOF numbering changed).
+    """
     f = problem.free
-    solver.factorize(problem.condensed_matrix(uu_data))
+    K = problem.condensed_matrix(uu_data)
+    if refactorize and isinstance(solver, LaggedLUSolver):
+        solver.factorize(K, force=True)
+    else:
+        solver.factorize(K)
     out = np.zeros_like(rhs_full)
     out[f] = solver.solve(rhs_full[f])
     return out
@@ -198,6 +206,41 @@ class BDF2Stepper:
         self.last_cfl = None
         self._explicit_conv = None
         self._explicit_a0 = None
+        self._refactorize = False
+        self.last_cost = CostSplit()
+
+    @property
+    def previous_velocity(self) -> np.ndarray | None:
+        """u^{n−1} (n_u,), or None before the first step (the next step is then BDF1)."""
+        return self._u_prev
+
+    def take_over(self, problem: FlowProblem, u: np.ndarray, u_prev: np.ndarray | None = None,
+                  mesh_velocity: np.ndarray | None = None, renumbered: bool = False) -> None:
+        """Continue on ``problem`` (a moved or new mesh) from velocities given on its DOFs.
+
+        Parameters
+        ----------
+        problem : FlowProblem
+            The problem of the next step (same time step, model and solver).
+        u, u_prev : (problem.space.n_u,) float
+            u^n and u^{n−1} on the new DOFs (``u_prev`` None: the next step is BDF1); the
+            pressure restarts from zero (the next step solves for it).
+        mesh_velocity : (n_u,) float, optional
+            ALE mesh velocity w of the next step (convection with u − w); None: Eulerian.
+        renumbered : bool
+            The DOF numbering changed (a re-triangulation): a lagged LU is recomputed on the
+            next solve instead of preconditioning with the LU of the old numbering.
+        """
+        n_u = problem.space.n_u
+        x = np.zeros(problem.space.n_dofs)
+        x[:n_u] = u
+        self.problem = problem
+        self.state = FlowState(x, n_u, self.t)
+        self._u_prev = None if u_prev is None else np.asarray(u_prev, dtype=float)
+        self.mesh_velocity = mesh_velocity
+        self._explicit_a0 = None  # the explicit scheme's LU belongs to the old matrix
+        self.__dict__.pop("_h_cache", None)
+        self._refactorize = self._refactorize or renumbered
 
     def _bdf(self):
         """Coefficients (a0, a1, a2) of (a0 u^{n+1} + a1 u^n + a2 u^{n-1}) / dt."""
@@ -252,7 +295,7 @@ class BDF2Stepper:
             r = self.residual(x, a0, hist, b)
             tm.add("assembly", time.perf_counter() - t0)
             t0 = time.perf_counter()
-            x -= _solve_free(pr, K, r, self.solver)
+            x -= _solve_free(pr, K, r, self.solver, self._refactorize)
             tm.add("solve", time.perf_counter() - t0)
             self.last_b = b
         elif self.convection == "explicit":
@@ -282,7 +325,8 @@ class BDF2Stepper:
                 J = base + pr.newton_data(x[:n_u], b)
                 tm.add("assembly", time.perf_counter() - t0)
                 t0 = time.perf_counter()
-                x -= _solve_free(pr, J, r, self.solver)
+                x -= _solve_free(pr, J, r, self.solver, self._refactorize)
+                self._refactorize = False
                 tm.add("solve", time.perf_counter() - t0)
             else:
                 raise NewtonError(f"Newton did not converge in time step {self.n_steps + 1} (t = {t_new:g})", [res])
@@ -291,6 +335,7 @@ class BDF2Stepper:
         pr.normalise_pressure(x)
         pr.timings += tm
         self.last_cost = tm
+        self._refactorize = False
         self._last = (a0, hist)
         self._u_prev = self.state.u.copy()
         self.state = FlowState(x, n_u, t_new)

@@ -62,10 +62,15 @@ class FlowProblem:
         Density, mass/length³ (2D: mass/length²); forces are ρ times the kinematic ones.
     body_force : (2,) float
         Body force per unit mass, length/time².
+    moving : bool
+        The mesh will move (ALE): assemble the constant forms by the same pattern refill as
+        :meth:`update_geometry` (straight meshes only), so that a problem built on a mesh
+        and one moved onto it agree bit for bit (restarts of moving-mesh runs).  Default:
+        scikit-fem assembly.
     """
 
     def __init__(self, space: FlowSpace, nu: float, bcs: Sequence[VelocityBC] = (), rho: float = 1.0,
-                 body_force=(0.0, 0.0)):
+                 body_force=(0.0, 0.0), moving: bool = False):
         if not (np.isfinite(nu) and nu > 0):
             raise ValueError(f"viscosity nu must be a positive number, got {nu!r}")
         if not (np.isfinite(rho) and rho > 0):
@@ -100,14 +105,17 @@ class FlowProblem:
         t0 = time.perf_counter()
         ub, pb = space.ub, space.pb
         self.assembler = VectorAssembler(ub)
-        self.A_data = self.assembler.pattern_data(self.nu * asm(forms.viscous, ub))
-        self.M_data = self.assembler.pattern_data(asm(forms.mass, ub))
-        self.A = self.assembler.matrix(self.A_data)
-        self.M = self.assembler.matrix(self.M_data)
-        self.B = asm(forms.divergence, ub, pb).tocsr()
+        self._divergence = None  # B's scatter map, built for a moving mesh
+        if moving:
+            self._refill_forms()
+        else:
+            self.A_data = self.assembler.pattern_data(self.nu * asm(forms.viscous, ub))
+            self.M_data = self.assembler.pattern_data(asm(forms.mass, ub))
+            self.A = self.assembler.matrix(self.A_data)
+            self.M = self.assembler.matrix(self.M_data)
+            self.B = asm(forms.divergence, ub, pb).tocsr()
+            self._f = self._body_force_vector()
         self.system = CondensedSystem(self.assembler, self.B, self.free)
-        self._f = self._body_force_vector()
-        self._divergence = None  # B's scatter map, built at the first update_geometry
         self._bv_index = None
         self._index_boundary_values()
         self.timings.add("assembly", time.perf_counter() - t0)
@@ -142,25 +150,30 @@ class FlowProblem:
                 raise ValueError("update_geometry: bcs must name the same boundaries and components as before")
             self.bcs = bcs
         self.space = self.space.moved(mesh)
-        ub, pb = self.space.ub, self.space.pb
-        self.assembler.update_geometry(ub)
-        self.A_data = self.nu * self.assembler.viscous_data()
-        self.M_data = self.assembler.mass_data()
-        self.A = self.assembler.matrix(self.A_data)
-        self.M = self.assembler.matrix(self.M_data)
-        if self._divergence is None:
-            self._divergence = DivergencePattern(self.assembler, pb)
-        self.B = self._divergence.matrix(pb)
+        self.assembler.update_geometry(self.space.ub)
+        self._refill_forms()
         if not self.system.update_divergence(self.B):
-            # the first refill: scikit-fem's B dropped structural zeros, ours keeps them
+            # B's structure changed (built by scikit-fem, which drops structural zeros): once
             self.system = CondensedSystem(self.assembler, self.B, self.free)
+        self._index_boundary_values()
+        self.timings.add("rebuild", time.perf_counter() - t0)
+
+    def _refill_forms(self) -> None:
+        """ν A, M, B and the body-force vector from the assembler's current basis values."""
+        va, pb = self.assembler, self.space.pb
+        self.A_data = self.nu * va.viscous_data()
+        self.M_data = va.mass_data()
+        self.A = va.matrix(self.A_data)
+        self.M = va.matrix(self.M_data)
+        if self._divergence is None:
+            self._divergence = DivergencePattern(va, pb)
+        self.B = self._divergence.matrix(pb)
         if np.any(self.body_force):
-            va = self.assembler
             w = va.psi_dx.sum(axis=2)  # (nel, ns): ∫ ψ_s
             self._f = sum(np.bincount(va.dofs_c[c].ravel(), weights=self.body_force[c] * w.ravel(), minlength=va.n)
                           for c in range(2))
-        self._index_boundary_values()
-        self.timings.add("rebuild", time.perf_counter() - t0)
+        else:
+            self._f = np.zeros(va.n)
 
     # -- boundary data -------------------------------------------------------------------
     def _collect_dirichlet_dofs(self):
