@@ -50,17 +50,54 @@ class VectorAssembler:
         dofs = ub.element_dofs  # (nb, nel)
         self._element_dofs = dofs
         self.dofs_c = [dofs[c::2].T.copy() for c in range(2)]  # (nel, ns) per component
-        nel = dofs.shape[1]
-        rows = np.broadcast_to(dofs.T[:, :, None], (nel, nb, nb)).ravel()
-        cols = np.broadcast_to(dofs.T[:, None, :], (nel, nb, nb)).ravel()
-        keys = rows.astype(np.int64) * self.n + cols
-        uniq, self._scatter = np.unique(keys, return_inverse=True)
-        self.nnz = len(uniq)
-        r, c = np.divmod(uniq, self.n)
-        self.indices = c.astype(np.int32)
-        self.indptr = np.searchsorted(r, np.arange(self.n + 1)).astype(np.int32)
+        if self.n % 2 == 0 and np.all(dofs[0::2] % 2 == 0) and np.array_equal(dofs[1::2], dofs[0::2] + 1):
+            self._interleaved_pattern(dofs)
+        else:
+            nel = dofs.shape[1]
+            rows = np.broadcast_to(dofs.T[:, :, None], (nel, nb, nb)).ravel()
+            cols = np.broadcast_to(dofs.T[:, None, :], (nel, nb, nb)).ravel()
+            keys = rows.astype(np.int64) * self.n + cols
+            uniq, self._scatter = np.unique(keys, return_inverse=True)
+            self.nnz = len(uniq)
+            r, c = np.divmod(uniq, self.n)
+            self.indices = c.astype(np.int32)
+            self.indptr = np.searchsorted(r, np.arange(self.n + 1)).astype(np.int32)
         self._comp = np.arange(nb) % 2
         self._scal = np.arange(nb) // 2
+
+    def _interleaved_pattern(self, dofs: np.ndarray) -> None:
+        """The pattern from the scalar one when vector DOF 2k + c is component c of scalar DOF k.
+
+        (scikit-fem's ``ElementVector`` numbering.)  The scalar pattern needs a sort of
+        nel · ns² keys instead of nel · (2 ns)²; each scalar entry (k, l) becomes the 2 × 2
+        block (2k + c, 2l + d), and the CSR order is the one of the general construction.
+        """
+        sd = (dofs[0::2] // 2).T  # (nel, ns) scalar DOFs
+        nel, ns = sd.shape
+        m = self.n // 2
+        keys = (np.broadcast_to(sd[:, :, None], (nel, ns, ns)).astype(np.int64) * m
+                + np.broadcast_to(sd[:, None, :], (nel, ns, ns))).ravel()
+        uniq, sinv = np.unique(keys, return_inverse=True)
+        r, q = np.divmod(uniq, m)
+        sptr = np.searchsorted(r, np.arange(m + 1))
+        L = np.diff(sptr)[r]  # scalar row length of each scalar entry
+        base = 4 * sptr[r] + 2 * (np.arange(len(uniq)) - sptr[r])  # vector row 2k: 4 start + 2 offset
+        self.nnz = 4 * len(uniq)
+        indptr = np.empty(self.n + 1, dtype=np.int64)
+        indptr[0:-1:2] = 4 * sptr[:-1]
+        indptr[1::2] = 4 * sptr[:-1] + 2 * np.diff(sptr)
+        indptr[-1] = self.nnz
+        indices = np.empty(self.nnz, dtype=np.int64)
+        for c in range(2):
+            for d in range(2):
+                indices[base + 2 * c * L + d] = 2 * q + d
+        self.indices = indices.astype(np.int32)
+        self.indptr = indptr.astype(np.int32)
+        b = base[sinv].reshape(nel, ns, 1, ns, 1)
+        lj = 2 * L[sinv].reshape(nel, ns, 1, ns, 1)
+        c = np.arange(2).reshape(1, 1, 2, 1, 1)
+        d = np.arange(2).reshape(1, 1, 1, 1, 2)
+        self._scatter = (b + c * lj + d).ravel()  # local entry (e, 2s + c, 2s' + d)
 
     def _set_geometry(self, ub) -> None:
         # scalar values/gradients in element-major layout: psi (nel, ns, nq), dpsi (2, nel, ns, nq)

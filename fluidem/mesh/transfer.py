@@ -82,30 +82,44 @@ def probe_matrix(basis, x):
     """
     x = np.asarray(x, dtype=float)
     cells, bary = locate(basis.mesh, x)
+    return _probe_from_location(basis, x.shape[1], cells, bary)
+
+
+def _probe_from_location(basis, n, cells, bary):
+    """The probe matrix of ``n`` points in ``cells`` at barycentric coordinates ``bary`` (n, 3)."""
     pts = np.stack([bary[:, 1], bary[:, 2]])[:, :, None]  # reference coordinates (2, n, 1)
     phis = np.array([basis.elem.gbasis(basis.mapping, pts, i, tind=cells)[0] for i in range(basis.Nbfun)]).flatten()
     comp = int(np.prod(basis._base_tensor_order))
-    rows = np.tile(np.arange(comp * x.shape[1], dtype=np.int64), basis.Nbfun)
+    rows = np.tile(np.arange(comp * n, dtype=np.int64), basis.Nbfun)
     cols = basis.element_dofs[:, np.tile(cells, comp)].flatten()
-    return coo_matrix((phis, (rows, cols)), shape=(comp * x.shape[1], basis.N)).tocsr()
+    return coo_matrix((phis, (rows, cols)), shape=(comp * n, basis.N)).tocsr()
 
 
-def _interpolate_scalar(basis_old, u_old, basis_new) -> np.ndarray:
+def _interpolate_scalar(basis_old, u_old, basis_new, probes=None) -> np.ndarray:
+    """Scalar interpolation of ``u_old`` (N_old,) or (N_old, k); ``probes`` caches point sets -> cells, bary."""
+    probes = {} if probes is None else probes
     locs = basis_new.doflocs
     nodal = np.all(np.isfinite(locs), axis=0)
-    u = np.zeros(basis_new.N)
-    u[nodal] = probe_matrix(basis_old, locs[:, nodal]) @ u_old
+    u = np.zeros((basis_new.N,) + u_old.shape[1:])
+
+    def values_at(basis, x, key):
+        if key not in probes:  # one point search per point set, shared by components and fields
+            probes[key] = locate(basis.mesh, x)
+        return _probe_from_location(basis, x.shape[1], *probes[key])
+
+    u[nodal] = values_at(basis_old, locs[:, nodal], ("old-dofs", int(nodal.sum()))) @ u_old
     if not nodal.all():
         # interior (bubble) DOFs: match the old function at the element centroid
         m = basis_new.mesh
         cen = m.p[:, m.t].mean(axis=1)
-        target = probe_matrix(basis_old, cen) @ u_old
+        target = values_at(basis_old, cen, "old-centroids") @ u_old
         P = probe_matrix(basis_new, cen).tocsc()
         bub = np.flatnonzero(~nodal)
         rest = P @ u  # bubble coefficients still zero
         Pb = P[:, bub].tocoo()
-        coef = np.zeros(len(bub))
-        coef[Pb.col] = (target[Pb.row] - rest[Pb.row]) / Pb.data
+        coef = np.zeros((len(bub),) + u_old.shape[1:])
+        d = Pb.data.reshape((-1,) + (1,) * (u_old.ndim - 1))
+        coef[Pb.col] = (target[Pb.row] - rest[Pb.row]) / d
         u[bub] = coef
     return u
 
@@ -117,19 +131,21 @@ def interpolate(basis_old, u_old, basis_new) -> np.ndarray:
     ----------
     basis_old, basis_new : skfem.CellBasis
         Same element type on the old and the new mesh (scalar or ElementVector).
-    u_old : (basis_old.N,) float
+    u_old : (basis_old.N,) or (basis_old.N, k) float
+        One field, or ``k`` fields at once (one point search for all of them).
 
     Returns
     -------
-    u_new : (basis_new.N,) float
+    u_new : (basis_new.N,) or (basis_new.N, k) float
     """
     u_old = np.asarray(u_old, dtype=float)
+    probes = {}  # the components of a vector basis share their DOF locations
     if int(np.prod(basis_new._base_tensor_order)) == 1:
-        return _interpolate_scalar(basis_old, u_old, basis_new)
-    u = np.zeros(basis_new.N)
+        return _interpolate_scalar(basis_old, u_old, basis_new, probes)
+    u = np.zeros((basis_new.N,) + u_old.shape[1:])
     for (bo, io), (bn, inew) in zip(zip(basis_old.split_bases(), basis_old.split_indices()),
                                     zip(basis_new.split_bases(), basis_new.split_indices())):
-        u[inew] = _interpolate_scalar(bo, u_old[io], bn)
+        u[inew] = _interpolate_scalar(bo, u_old[io], bn, probes)
     return u
 
 
