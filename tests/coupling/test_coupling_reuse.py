@@ -129,17 +129,31 @@ def _moving_scene(solver):
         "mesh": {"h": 0.08, "retriangulate_every": 3}, "time": {"dt": 0.02, "t_end": 0.14}})
 
 
-def _forces(sim):
+def _forces(sim, costs=None):
     out = []
-    sim.run(out_dir=None, progress=lambda k, n, t, c: out.append(np.concatenate([*map(np.ravel, sim.flow.loads())])))
+
+    def progress(k, n, t, cost):
+        out.append(np.concatenate([*map(np.ravel, sim.flow.loads())]))
+        if costs is not None:
+            costs.append(cost)
+
+    res = sim.run(out_dir=None, progress=progress)
+    if costs is not None:
+        costs.append(res.totals)
     return np.array(out)
 
 
 def test_moving_flow_with_reuse_gives_the_forces_of_a_full_rebuild(monkeypatch):
     """Moved problem + lagged LU against a new scikit-fem-assembled problem + fresh LU every step."""
     reuse = Simulation(_moving_scene("auto"))
-    F_reuse = _forces(reuse)
+    costs = []
+    F_reuse = _forces(reuse, costs)
     assert reuse.counters["transfers"] >= 1  # the run crosses a re-triangulation
+    # the cost split of every step and of the run: parts read as attributes, they add up
+    *steps, totals = costs
+    assert all(c.mesh > 0 and c.rebuild > 0 and c.solve > 0 and c.assembly > 0 for c in steps)
+    assert totals.steps == len(steps) == reuse.counters["steps"]
+    assert np.isclose(totals.total, sum(c.total for c in steps)) and "solve" in str(totals)
 
     from fluidem.coupling import moving_flow
 
