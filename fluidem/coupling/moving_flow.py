@@ -150,7 +150,7 @@ class MovingMeshFlow(FlowLoads):
 
         fl = self.scene.fluid
         self.mesh = self.mm.skfem_mesh()
-        self._triangles = self.mesh.t.copy()
+        self._triangles = np.array(self.mm.triangles, copy=True)  # the connectivity this problem was built on
         self.space = FlowSpace(self.mesh, fl.element)
         self.centers = self._poses(t)[:, :2]
         self.problem = FlowProblem(self.space, fl.viscosity, velocity_bcs(self.scene, self.centers), rho=fl.density,
@@ -159,10 +159,11 @@ class MovingMeshFlow(FlowLoads):
 
     def _refit(self, t) -> bool:
         """Move space, problem and rigid modes to the current node positions; False if the triangles changed."""
-        mesh = dataclasses.replace(self.mesh, doflocs=np.ascontiguousarray(self.mm.points.T, dtype=float))
-        if mesh.t.shape != self._triangles.shape or not np.array_equal(mesh.t, self._triangles) or \
-                mesh.p.shape != self.mesh.p.shape:
+        tri = self.mm.triangles
+        if tri.shape != self._triangles.shape or not np.array_equal(tri, self._triangles) or \
+                self.mm.points.shape[0] != self.mesh.p.shape[1]:
             return False
+        mesh = dataclasses.replace(self.mesh, doflocs=np.ascontiguousarray(self.mm.points.T, dtype=float))
         self.mesh = mesh
         self.centers = self._poses(t)[:, :2]
         self.problem.update_geometry(mesh, velocity_bcs(self.scene, self.centers))
