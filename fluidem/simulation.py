@@ -44,7 +44,6 @@ __all__ = ["Simulation", "RunResult", "StepTimes", "run", "LinearPath"]
 StepTimes = CostSplit
 
 
-
 @dataclass
 class RunResult:
     """Outcome of :meth:`Simulation.run`: steps taken, final time, output directory, timings.

@@ -15,4 +15,4 @@ scene never loads the mesh or fluid layers.
 
 from .bodies import DEMBodies, KinematicBodies, LinearPath
 
-__all__ = ["LinearPath", "KinematicBodies", "DEMBodies"]
+__all__ = ["DEMBodies", "KinematicBodies", "LinearPath"]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["LinearPath", "KinematicBodies", "DEMBodies"]
+__all__ = ["DEMBodies", "KinematicBodies", "LinearPath"]
 
 
 class LinearPath:

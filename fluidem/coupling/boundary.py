@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-__all__ = ["velocity_bcs", "inflow_value"]
+__all__ = ["inflow_value", "velocity_bcs"]
 
 
 def inflow_value(side: str, box, profile: dict):

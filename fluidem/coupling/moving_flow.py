@@ -22,7 +22,7 @@ from .bodies import LinearPath
 from .boundary import velocity_bcs
 from .loads import FlowLoads
 
-__all__ = ["MovingMeshFlow", "Outline", "p1_at_dofs", "LAGGED_REFACTOR_ITERATIONS"]
+__all__ = ["LAGGED_REFACTOR_ITERATIONS", "MovingMeshFlow", "Outline", "p1_at_dofs"]
 
 #: GMRES iterations of a solve above which the lagged LU is recomputed on the moving mesh.
 LAGGED_REFACTOR_ITERATIONS = 25
