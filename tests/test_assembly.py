@@ -22,3 +22,18 @@ def test_convection_matches_skfem(element, curved):
     assert abs(got - ref).max() < 1e-12 * abs(ref).max()
     ref_v = asm(forms.convection_residual, ub, a=ub.interpolate(a), b=ub.interpolate(b))
     np.testing.assert_allclose(va.convection_vector(a, b), ref_v, atol=1e-12 * np.abs(ref_v).max())
+
+
+@pytest.mark.parametrize("element, curved", [("p2b", True), ("th", False), ("mini", False), ("p3", True)])
+def test_constant_forms_match_skfem(element, curved):
+    """The pattern refill of the moving mesh: viscous, mass and divergence as scikit-fem assembles them."""
+    from fluidem.fluid.assembly import DivergencePattern
+
+    space = FlowSpace(dfg_mesh(0, curved=curved), element)
+    ub, pb = space.ub, space.pb
+    va = VectorAssembler(ub)
+    for form, data in ((forms.viscous, va.viscous_data()), (forms.mass, va.mass_data())):
+        ref = asm(form, ub)
+        assert abs(va.matrix(data) - ref).max() < 1e-12 * abs(ref).max()
+    ref = asm(forms.divergence, ub, pb)
+    assert abs(DivergencePattern(va, pb).matrix(pb) - ref).max() < 1e-12 * abs(ref).max()

@@ -8,6 +8,12 @@ quadrature points are stored once, the sparsity pattern of the velocity block is
 keeps one structure whose data array is refilled in place.  Same quadrature, same numbers as
 the scikit-fem forms in :mod:`fluidem.fluid.forms` (checked in the tests).
 
+On a moving mesh whose connectivity is unchanged (nodes moved, no re-triangulation), the
+pattern, the scatter maps and the condensed structure stay; only the basis values at the
+quadrature points are refreshed (:meth:`VectorAssembler.update_geometry`) and the constant
+forms (viscous, mass, divergence) are refilled from them (:meth:`VectorAssembler.viscous_data`,
+:meth:`VectorAssembler.mass_data`, :class:`DivergencePattern`, :meth:`CondensedSystem.update_divergence`).
+
 Vector basis functions of scikit-fem's ``ElementVector`` interleave components: local function
 ``k = 2 s + c`` is the scalar function ``s`` in component ``c``.
 """
@@ -17,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["VectorAssembler", "CondensedSystem"]
+__all__ = ["VectorAssembler", "CondensedSystem", "DivergencePattern"]
 
 
 class VectorAssembler:
@@ -40,24 +46,95 @@ class VectorAssembler:
             raise ValueError("expected a 2D vector basis")
         self.n = ub.N
         self.ns = nb // 2
+        self._set_geometry(ub)
+        dofs = ub.element_dofs  # (nb, nel)
+        self._element_dofs = dofs
+        self.dofs_c = [dofs[c::2].T.copy() for c in range(2)]  # (nel, ns) per component
+        if self.n % 2 == 0 and np.all(dofs[0::2] % 2 == 0) and np.array_equal(dofs[1::2], dofs[0::2] + 1):
+            self._interleaved_pattern(dofs)
+        else:
+            nel = dofs.shape[1]
+            rows = np.broadcast_to(dofs.T[:, :, None], (nel, nb, nb)).ravel()
+            cols = np.broadcast_to(dofs.T[:, None, :], (nel, nb, nb)).ravel()
+            keys = rows.astype(np.int64) * self.n + cols
+            uniq, self._scatter = np.unique(keys, return_inverse=True)
+            self.nnz = len(uniq)
+            r, c = np.divmod(uniq, self.n)
+            self.indices = c.astype(np.int32)
+            self.indptr = np.searchsorted(r, np.arange(self.n + 1)).astype(np.int32)
+        self._comp = np.arange(nb) % 2
+        self._scal = np.arange(nb) // 2
+
+    def _interleaved_pattern(self, dofs: np.ndarray) -> None:
+        """The pattern from the scalar one when vector DOF 2k + c is component c of scalar DOF k.
+
+        (scikit-fem's ``ElementVector`` numbering.)  The scalar pattern needs a sort of
+        nel · ns² keys instead of nel · (2 ns)²; each scalar entry (k, l) becomes the 2 × 2
+        block (2k + c, 2l + d), and the CSR order is the one of the general construction.
+        """
+        sd = (dofs[0::2] // 2).T  # (nel, ns) scalar DOFs
+        nel, ns = sd.shape
+        m = self.n // 2
+        keys = (np.broadcast_to(sd[:, :, None], (nel, ns, ns)).astype(np.int64) * m
+                + np.broadcast_to(sd[:, None, :], (nel, ns, ns))).ravel()
+        uniq, sinv = np.unique(keys, return_inverse=True)
+        r, q = np.divmod(uniq, m)
+        sptr = np.searchsorted(r, np.arange(m + 1))
+        L = np.diff(sptr)[r]  # scalar row length of each scalar entry
+        base = 4 * sptr[r] + 2 * (np.arange(len(uniq)) - sptr[r])  # vector row 2k: 4 start + 2 offset
+        self.nnz = 4 * len(uniq)
+        indptr = np.empty(self.n + 1, dtype=np.int64)
+        indptr[0:-1:2] = 4 * sptr[:-1]
+        indptr[1::2] = 4 * sptr[:-1] + 2 * np.diff(sptr)
+        indptr[-1] = self.nnz
+        indices = np.empty(self.nnz, dtype=np.int64)
+        for c in range(2):
+            for d in range(2):
+                indices[base + 2 * c * L + d] = 2 * q + d
+        self.indices = indices.astype(np.int32)
+        self.indptr = indptr.astype(np.int32)
+        b = base[sinv].reshape(nel, ns, 1, ns, 1)
+        lj = 2 * L[sinv].reshape(nel, ns, 1, ns, 1)
+        c = np.arange(2).reshape(1, 1, 2, 1, 1)
+        d = np.arange(2).reshape(1, 1, 1, 1, 2)
+        self._scatter = (b + c * lj + d).ravel()  # local entry (e, 2s + c, 2s' + d)
+
+    def _set_geometry(self, ub) -> None:
         # scalar values/gradients in element-major layout: psi (nel, ns, nq), dpsi (2, nel, ns, nq)
         self.psi = np.stack([np.asarray(ub.basis[2 * s][0])[0] for s in range(self.ns)], axis=1)
         self.dpsi = np.stack([ub.basis[2 * s][0].grad[0] for s in range(self.ns)], axis=2)
         self.dx = np.asarray(ub.dx)  # (nel, nq)
         self.psi_dx = self.psi * self.dx[:, None, :]
-        dofs = ub.element_dofs  # (nb, nel)
-        self.dofs_c = [dofs[c::2].T.copy() for c in range(2)]  # (nel, ns) per component
-        nel = dofs.shape[1]
-        rows = np.broadcast_to(dofs.T[:, :, None], (nel, nb, nb)).ravel()
-        cols = np.broadcast_to(dofs.T[:, None, :], (nel, nb, nb)).ravel()
-        keys = rows.astype(np.int64) * self.n + cols
-        uniq, self._scatter = np.unique(keys, return_inverse=True)
-        self.nnz = len(uniq)
-        r, c = np.divmod(uniq, self.n)
-        self.indices = c.astype(np.int32)
-        self.indptr = np.searchsorted(r, np.arange(self.n + 1)).astype(np.int32)
-        self._comp = np.arange(nb) % 2
-        self._scal = np.arange(nb) // 2
+
+    def update_geometry(self, ub) -> None:
+        """Take the basis values of ``ub``: the same element DOFs on moved nodes.
+
+        Keeps the pattern and the scatter maps; raises ``ValueError`` if the element DOFs of
+        ``ub`` differ from those the pattern was built for (a re-triangulation needs a new
+        assembler).
+        """
+        ed = ub.element_dofs
+        if ed.shape != self._element_dofs.shape or ub.N != self.n or not np.array_equal(ed, self._element_dofs):
+            raise ValueError("update_geometry needs the same element DOFs (same connectivity); "
+                             "build a new VectorAssembler after a re-triangulation")
+        self._set_geometry(ub)
+
+    def _block_diagonal(self, S: np.ndarray) -> np.ndarray:
+        """Pattern data of the vector operator with scalar element matrices ``S`` (nel, ns, ns) per component."""
+        nb = 2 * self.ns
+        local = np.zeros((S.shape[0], nb, nb))
+        for c in range(2):  # same-component blocks
+            local[:, c::2, c::2] = S
+        return self._scatter_local(local)
+
+    def mass_data(self) -> np.ndarray:
+        """Pattern data of the velocity mass u · v (:func:`fluidem.fluid.forms.mass`), (nnz,)."""
+        return self._block_diagonal(np.matmul(self.psi_dx, self.psi.transpose(0, 2, 1)))
+
+    def viscous_data(self) -> np.ndarray:
+        """Pattern data of ∇u : ∇v (:func:`fluidem.fluid.forms.viscous`, multiply by ν), (nnz,)."""
+        S = sum(np.matmul(self.dpsi[d] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1)) for d in range(2))
+        return self._block_diagonal(S)
 
     # -- data arrays on the fixed pattern ----------------------------------------------
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
@@ -159,8 +236,11 @@ class CondensedSystem:
         self._uu_src = codes[self._uu_pos].astype(np.int64) - 1
         b_pos = np.flatnonzero(codes < 0)
         const = np.zeros(len(codes))
-        const[b_pos] = B.data[(-codes[b_pos]).astype(np.int64) - 1]
+        self._b_pos = b_pos
+        self._b_src = (-codes[b_pos]).astype(np.int64) - 1
+        const[b_pos] = B.data[self._b_src]
         self._const = const
+        self._B_indptr, self._B_indices = B.indptr.copy(), B.indices.copy()
         self._indices = Kff.indices
         self._indptr = Kff.indptr
         self.shape = Kff.shape
@@ -169,3 +249,61 @@ class CondensedSystem:
         data = self._const.copy()
         data[self._uu_pos] = uu_data[self._uu_src]
         return sp.csr_matrix((data, self._indices, self._indptr), shape=self.shape)
+
+    def update_divergence(self, B) -> bool:
+        """Take new values of the divergence matrix ``B`` (same structure as at construction).
+
+        Returns ``False`` (and changes nothing) if the CSR structure of ``B`` differs; the
+        caller then builds a new :class:`CondensedSystem`.
+        """
+        B = sp.csr_matrix(B)
+        B.sum_duplicates()
+        if not (np.array_equal(B.indptr, self._B_indptr) and np.array_equal(B.indices, self._B_indices)):
+            return False
+        self._const[self._b_pos] = B.data[self._b_src]
+        return True
+
+
+class DivergencePattern:
+    """CSR structure and scatter map of the divergence matrix B (n_p, n_u), −∫ q div v.
+
+    Parameters
+    ----------
+    assembler : VectorAssembler
+        Velocity basis values (refreshed by its ``update_geometry``).
+    pb : skfem.CellBasis
+        Pressure basis on the same mesh and quadrature.
+
+    ``matrix(pb)`` refills B from the current basis values (same numbers as
+    ``asm(forms.divergence, ub, pb)`` to round-off); the structure is sorted CSR, fixed
+    while the connectivity is.
+    """
+
+    def __init__(self, assembler: VectorAssembler, pb):
+        self.va = assembler
+        self.n_p = pb.N
+        pd = pb.element_dofs  # (npl, nel)
+        ud = assembler._element_dofs  # (nb, nel)
+        npl, nel = pd.shape
+        nb = ud.shape[0]
+        rows = np.broadcast_to(pd.T[:, :, None], (nel, npl, nb)).ravel()
+        cols = np.broadcast_to(ud.T[:, None, :], (nel, npl, nb)).ravel()
+        keys = rows.astype(np.int64) * assembler.n + cols
+        uniq, self._scatter = np.unique(keys, return_inverse=True)
+        self.nnz = len(uniq)
+        r, c = np.divmod(uniq, assembler.n)
+        self.indices = c.astype(np.int32)
+        self.indptr = np.searchsorted(r, np.arange(self.n_p + 1)).astype(np.int32)
+        self._npl = npl
+
+    def matrix(self, pb) -> sp.csr_matrix:
+        """B on the current geometry: B[i, 2s+c] = −∫ q_i ∂ψ_s/∂x_c, (n_p, n_u) CSR."""
+        va = self.va
+        q = np.stack([np.asarray(pb.basis[i][0]) for i in range(self._npl)], axis=1)  # (nel, npl, nq)
+        q_dx = q * va.dx[:, None, :]
+        nel = q.shape[0]
+        local = np.empty((nel, self._npl, 2 * va.ns))
+        for c in range(2):
+            local[:, :, c::2] = -np.matmul(q_dx, va.dpsi[c].transpose(0, 2, 1))
+        data = np.bincount(self._scatter, weights=local.ravel(), minlength=self.nnz)
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n_p, va.n))

@@ -12,10 +12,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from .space import FlowSpace
 
-__all__ = ["BodyLoad", "body_loads", "PeriodicStats", "periodic_stats"]
+__all__ = ["BodyLoad", "body_loads", "RigidModes", "PeriodicStats", "periodic_stats"]
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,76 @@ def body_loads(space: FlowSpace, residual: np.ndarray, boundary: str, rho: float
     lv = cache[key]
     ru = residual[: space.n_u]
     return BodyLoad(-rho * float(lv.ex @ ru), -rho * float(lv.ey @ ru), -rho * float(lv.rot @ ru))
+
+
+class RigidModes:
+    """The rigid-mode operator R (3 n_bodies, n_u) of the body outlines of a space.
+
+    Rows ``3k, 3k + 1, 3k + 2`` are the test vectors of body ``k`` (outline ``boundaries[k]``):
+    unit x and y translation and the rotation e_z × (x − X_k) about its centre X_k, on the
+    outline velocity DOFs and zero elsewhere (:meth:`FlowSpace.rigid_test_vector`).  Then
+
+    * loads: ``(fx, fy, torque)_k = −ρ (R r_u)_k`` for the momentum residual ``r_u``
+      (John 2004, Sec. 3; the same numbers as :func:`body_loads`, one mat-vec for all bodies);
+    * prolongation: ``Rᵀ [U_k, V_k, ω_k]`` is the rigid velocity U_k + ω_k e_z × (x − X_k)
+      on every outline DOF (the no-slip data of moving bodies, and of free bodies later).
+
+    Parameters
+    ----------
+    space : FlowSpace
+    boundaries : sequence of str
+        Outline boundary names, one per body.
+    centers : (n_bodies, 2) float
+        Reference points of the torques, length units.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fluidem.mesh.triangulate import Obstacle, to_skfem, triangulate_box
+    >>> from fluidem.geometry import rectangle
+    >>> from fluidem.fluid.space import FlowSpace
+    >>> m = to_skfem(triangulate_box((0, 2, 0, 1), [Obstacle(rectangle(0.2, 0.2) + [1.0, 0.5], "sq")], 0.2))
+    >>> R = RigidModes(FlowSpace(m, "th"), ["sq"], [[1.0, 0.5]])
+    >>> R.matrix.shape[0], bool(np.allclose(R.prolong([[0.5, 0.0]], [0.0])[R.matrix[0].indices], 0.5))
+    (3, True)
+    """
+
+    def __init__(self, space: FlowSpace, boundaries, centers):
+        self.boundaries = list(boundaries)
+        nb = len(self.boundaries)
+        dx = [space.velocity_dofs(b, 0) for b in self.boundaries]  # one short list per body, once per mesh
+        dy = [space.velocity_dofs(b, 1) for b in self.boundaries]
+        body_x = np.concatenate([np.full(len(d), k) for k, d in enumerate(dx)]) if nb else np.zeros(0, int)
+        body_y = np.concatenate([np.full(len(d), k) for k, d in enumerate(dy)]) if nb else np.zeros(0, int)
+        self._dx = np.concatenate(dx) if nb else np.zeros(0, int)
+        self._dy = np.concatenate(dy) if nb else np.zeros(0, int)
+        self._bx, self._by = body_x, body_y
+        rows = np.concatenate([3 * body_x, 3 * body_y + 1, 3 * body_x + 2, 3 * body_y + 2])
+        cols = np.concatenate([self._dx, self._dy, self._dx, self._dy])
+        self._order = np.lexsort((cols, rows))
+        self._n_trans = len(self._dx) + len(self._dy)
+        self.matrix = sp.csr_matrix((np.zeros(len(rows)), cols[self._order],
+                                     np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=3 * nb))])),
+                                    shape=(3 * nb, space.n_u))
+        self.update(space, centers)
+
+    def update(self, space: FlowSpace, centers) -> None:
+        """Refill the torque rows for moved DOF locations (same connectivity) and ``centers`` (n_bodies, 2)."""
+        self.centers = np.asarray(centers, dtype=float).reshape(len(self.boundaries), 2)
+        c = self.centers
+        px, py = space.dof_locations(self._dx), space.dof_locations(self._dy)
+        data = np.concatenate([np.ones(self._n_trans), -(px[1] - c[self._bx, 1]), py[0] - c[self._by, 0]])
+        self.matrix.data[:] = data[self._order]
+
+    def loads(self, residual: np.ndarray, rho: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+        """Forces (n_bodies, 2) and torques (n_bodies,) from the residual (n_dofs,) (kinematic, times ``rho``)."""
+        L = -rho * (self.matrix @ residual[: self.matrix.shape[1]]).reshape(-1, 3)
+        return L[:, :2].copy(), L[:, 2].copy()
+
+    def prolong(self, velocities, omegas) -> np.ndarray:
+        """Velocity coefficients (n_u,) of the rigid motions (n_bodies, 2), (n_bodies,) on the outline DOFs."""
+        v = np.column_stack([np.asarray(velocities, float).reshape(-1, 2), np.asarray(omegas, float)]).ravel()
+        return self.matrix.T @ v
 
 
 @dataclass(frozen=True)

@@ -26,20 +26,20 @@ with a stop on the residual norm (the lift coefficient of DFG 2D-1 needs ≲ 1e-
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
-import scipy.sparse as sp
 from skfem import asm
 
+from ..cost import CostSplit
 from . import forms
-from .assembly import CondensedSystem, VectorAssembler
-from .solvers import SOLVERS, AutoSolver, BlockKrylovSolver, DirectSolver, LaggedLUSolver
-from .space import FlowSpace, VelocityBC
+from .problem import FlowProblem, FlowState
+from .solvers import SOLVERS, AutoSolver, BlockKrylovSolver, LaggedLUSolver
 
 __all__ = ["FlowProblem", "FlowState", "NewtonError", "solve_stokes", "solve_steady", "BDF2Stepper", "Timings",
            "make_flow_solver"]
+
+#: Former name of the per-phase timing record; the solvers now report a :class:`fluidem.cost.CostSplit`.
+Timings = CostSplit
 
 
 class NewtonError(RuntimeError):
@@ -48,179 +48,6 @@ class NewtonError(RuntimeError):
     def __init__(self, message, history):
         super().__init__(message + "; residual history: " + ", ".join(f"{r:.3e}" for r in history))
         self.history = list(history)
-
-
-@dataclass
-class Timings:
-    """Wall-clock seconds spent per phase (accumulated)."""
-
-    assembly: float = 0.0
-    solve: float = 0.0
-
-    def add(self, other: "Timings"):
-        self.assembly += other.assembly
-        self.solve += other.solve
-
-
-@dataclass
-class FlowState:
-    """A velocity/pressure solution: ``x = [u, p]`` with ``u`` (n_u,) and ``p`` (n_p,)."""
-
-    x: np.ndarray
-    n_u: int
-    t: float = 0.0
-    residual_history: list = field(default_factory=list)
-
-    @property
-    def u(self) -> np.ndarray:
-        return self.x[: self.n_u]
-
-    @property
-    def p(self) -> np.ndarray:
-        return self.x[self.n_u:]
-
-
-class FlowProblem:
-    """An incompressible flow problem on a fixed mesh.
-
-    Parameters
-    ----------
-    space : FlowSpace
-        Mesh and element pair.
-    nu : float
-        Kinematic viscosity, length²/time, > 0.
-    bcs : sequence of VelocityBC
-        Velocity conditions; boundaries not named get the do-nothing condition.
-    rho : float
-        Density, mass/length³ (2D: mass/length²); forces are ρ times the kinematic ones.
-    body_force : (2,) float
-        Body force per unit mass, length/time².
-    """
-
-    def __init__(self, space: FlowSpace, nu: float, bcs: Sequence[VelocityBC] = (), rho: float = 1.0,
-                 body_force=(0.0, 0.0)):
-        if not (np.isfinite(nu) and nu > 0):
-            raise ValueError(f"viscosity nu must be a positive number, got {nu!r}")
-        if not (np.isfinite(rho) and rho > 0):
-            raise ValueError(f"density rho must be a positive number, got {rho!r}")
-        self.space = space
-        self.nu = float(nu)
-        self.rho = float(rho)
-        self.bcs = list(bcs)
-        self.body_force = np.asarray(body_force, dtype=float)
-        named = set()
-        for bc in self.bcs:
-            for name in bc.names:
-                space._check_boundary(name)
-                named.add(name)
-            for c in bc.components:
-                if c not in (0, 1):
-                    raise ValueError(f"velocity components must be 0 or 1, got {bc.components!r}")
-        self.natural_boundaries = [b for b in space.boundary_names if b not in named]
-        self._dirichlet_dofs = self._collect_dirichlet_dofs()
-        n = space.n_dofs
-        # With no natural boundary the pressure is fixed only up to a constant: pin one DOF
-        # (the pressure is shifted to zero mean afterwards).
-        self.pressure_pinned = not self.natural_boundaries
-        fixed = self._dirichlet_dofs
-        if self.pressure_pinned:
-            fixed = np.concatenate([fixed, [space.n_u]])
-        self.fixed = np.unique(fixed)
-        mask = np.ones(n, dtype=bool)
-        mask[self.fixed] = False
-        self.free = np.flatnonzero(mask)
-        self.timings = Timings()
-        t0 = time.perf_counter()
-        ub, pb = space.ub, space.pb
-        self.assembler = VectorAssembler(ub)
-        self.A_data = self.assembler.pattern_data(self.nu * asm(forms.viscous, ub))
-        self.M_data = self.assembler.pattern_data(asm(forms.mass, ub))
-        self.A = self.assembler.matrix(self.A_data)
-        self.M = self.assembler.matrix(self.M_data)
-        self.B = asm(forms.divergence, ub, pb).tocsr()
-        self.system = CondensedSystem(self.assembler, self.B, self.free)
-        self._f = self._body_force_vector()
-        self.timings.assembly += time.perf_counter() - t0
-
-    # -- boundary data -------------------------------------------------------------------
-    def _collect_dirichlet_dofs(self):
-        parts = []
-        for bc in self.bcs:
-            for name in bc.names:
-                for c in bc.components:
-                    parts.append(self.space.velocity_dofs(name, c))
-        return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
-
-    def dirichlet_values(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """(dofs, values) of all velocity conditions at time ``t`` (later ones win on corners)."""
-        x = np.zeros(self.space.n_u)
-        for bc in self.bcs:
-            for name in bc.names:
-                for c in bc.components:
-                    d = self.space.velocity_dofs(name, c)
-                    x[d] = bc.evaluate(self.space.dof_locations(d), t)[c]
-        return self._dirichlet_dofs, x[self._dirichlet_dofs]
-
-    def _body_force_vector(self):
-        if not np.any(self.body_force):
-            return np.zeros(self.space.n_u)
-        f = self.body_force
-        return asm(forms.body_force, self.space.ub, f=f[:, None, None] * np.ones((1,) + self.space.ub.dx.shape))
-
-    # -- operators -----------------------------------------------------------------------
-    def condensed_matrix(self, uu_data: np.ndarray) -> sp.csr_matrix:
-        """Saddle-point matrix on the free DOFs for velocity-block data ``uu_data`` on the pattern."""
-        return self.system.matrix(uu_data)
-
-    def convection_data(self, b: np.ndarray) -> np.ndarray:
-        """Pattern data of ((b · ∇) u) · v for convecting velocity coefficients ``b`` (n_u,)."""
-        return self.assembler.convection(b)
-
-    def newton_data(self, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
-        """Pattern data of the convection Jacobian at ``a``: ((b·∇)δu + (δu·∇)a) · v, b = a by default."""
-        return self.assembler.convection(a if b is None else b, a)
-
-    def convection_matrix(self, b: np.ndarray) -> sp.csr_matrix:
-        """Matrix of ((b · ∇) u) · v for the convecting velocity coefficients ``b`` (n_u,)."""
-        return self.assembler.matrix(self.convection_data(b))
-
-    def convection_vector(self, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
-        """Vector ((b · ∇) a) · v (b = a when omitted)."""
-        return self.assembler.convection_vector(a, b)
-
-    def steady_residual(self, x: np.ndarray, convection: bool = True) -> np.ndarray:
-        """Residual of the (Navier–)Stokes equations at ``x`` on all DOFs, no conditions applied."""
-        u, p = x[: self.space.n_u], x[self.space.n_u:]
-        r = np.empty_like(x)
-        r[: self.space.n_u] = self.A @ u + self.B.T @ p - self._f
-        if convection:
-            r[: self.space.n_u] += self.convection_vector(u)
-        r[self.space.n_u:] = self.B @ u
-        return r
-
-    def normalise_pressure(self, x: np.ndarray) -> None:
-        """Shift the pressure to zero mean when it is defined only up to a constant."""
-        if self.pressure_pinned:
-            one = np.ones(self.space.n_p)
-            pm = self.space.pb
-            area = pm.dx.sum()
-            mean = (np.asarray(pm.interpolate(x[self.space.n_u:])) * pm.dx).sum() / area
-            x[self.space.n_u:] -= mean * one
-
-    def direct_solver(self) -> DirectSolver:
-        """The fastest reliable sparse LU for this element pair (measured on DFG systems).
-
-        Continuous pressure (th, p3, mini): SuperLU with a symmetric minimum-degree ordering
-        (2-3x faster than COLAMD, half the fill).  Discontinuous pressure (p2b): COLAMD, as that
-        ordering does not finish there.
-        """
-        return DirectSolver(backend="superlu", symmetric_mode=not self.space.pair.pressure_discontinuous)
-
-    def initial_vector(self, t: float = 0.0) -> np.ndarray:
-        x = np.zeros(self.space.n_dofs)
-        d, v = self.dirichlet_values(t)
-        x[d] = v
-        return x
 
 
 def make_flow_solver(problem: FlowProblem, method: str = "auto", dt: float | None = None):
@@ -255,10 +82,18 @@ def make_flow_solver(problem: FlowProblem, method: str = "auto", dt: float | Non
     return AutoSolver(n_u=free_u, direct_options=direct, iterative_options=iterative)
 
 
-def _solve_free(problem: FlowProblem, uu_data: np.ndarray, rhs_full: np.ndarray, solver) -> np.ndarray:
-    """Solve K δ = rhs on the free DOFs (δ = 0 on fixed ones); K from velocity-block data."""
+def _solve_free(problem: FlowProblem, uu_data: np.ndarray, rhs_full: np.ndarray, solver,
+                refactorize: bool = False) -> np.ndarray:
+    """Solve K δ = rhs on the free DOFs (δ = 0 on fixed ones); K from velocity-block data.
+
+    ``refactorize``: a lagged LU factorises this K now (the DOF numbering changed).
+    """
     f = problem.free
-    solver.factorize(problem.condensed_matrix(uu_data))
+    K = problem.condensed_matrix(uu_data)
+    if refactorize and isinstance(solver, LaggedLUSolver):
+        solver.factorize(K, force=True)
+    else:
+        solver.factorize(K)
     out = np.zeros_like(rhs_full)
     out[f] = solver.solve(rhs_full[f])
     return out
@@ -270,10 +105,10 @@ def solve_stokes(problem: FlowProblem, t: float = 0.0, solver=None) -> FlowState
     x = problem.initial_vector(t)
     t0 = time.perf_counter()
     r = problem.steady_residual(x, convection=False)
-    problem.timings.assembly += time.perf_counter() - t0
+    problem.timings.add("assembly", time.perf_counter() - t0)
     t0 = time.perf_counter()
     x -= _solve_free(problem, problem.A_data, r, solver)
-    problem.timings.solve += time.perf_counter() - t0
+    problem.timings.add("solve", time.perf_counter() - t0)
     problem.normalise_pressure(x)
     return FlowState(x, problem.space.n_u, t)
 
@@ -312,16 +147,16 @@ def solve_steady(problem: FlowProblem, tol: float = 1e-11, max_iter: int = 25, s
         if verbose:
             print(f"  Newton {it:2d}: |R| = {res:.3e}")
         if res < tol:
-            problem.timings.assembly += time.perf_counter() - t0
+            problem.timings.add("assembly", time.perf_counter() - t0)
             problem.normalise_pressure(x)
             return FlowState(x, problem.space.n_u, 0.0, history)
         if not np.isfinite(res) or res > 1e8 * max(history[0], tol):
             break
         J = problem.A_data + problem.newton_data(x[: problem.space.n_u])
-        problem.timings.assembly += time.perf_counter() - t0
+        problem.timings.add("assembly", time.perf_counter() - t0)
         t0 = time.perf_counter()
         x -= _solve_free(problem, J, r, solver)
-        problem.timings.solve += time.perf_counter() - t0
+        problem.timings.add("solve", time.perf_counter() - t0)
     raise NewtonError(f"steady Navier-Stokes did not converge to |R| < {tol:g} in {max_iter} Newton iterations",
                       history)
 
@@ -371,6 +206,41 @@ class BDF2Stepper:
         self.last_cfl = None
         self._explicit_conv = None
         self._explicit_a0 = None
+        self._refactorize = False
+        self.last_cost = CostSplit()
+
+    @property
+    def previous_velocity(self) -> np.ndarray | None:
+        """u^{n−1} (n_u,), or None before the first step (the next step is then BDF1)."""
+        return self._u_prev
+
+    def take_over(self, problem: FlowProblem, u: np.ndarray, u_prev: np.ndarray | None = None,
+                  mesh_velocity: np.ndarray | None = None, renumbered: bool = False) -> None:
+        """Continue on ``problem`` (a moved or new mesh) from velocities given on its DOFs.
+
+        Parameters
+        ----------
+        problem : FlowProblem
+            The problem of the next step (same time step, model and solver).
+        u, u_prev : (problem.space.n_u,) float
+            u^n and u^{n−1} on the new DOFs (``u_prev`` None: the next step is BDF1); the
+            pressure restarts from zero (the next step solves for it).
+        mesh_velocity : (n_u,) float, optional
+            ALE mesh velocity w of the next step (convection with u − w); None: Eulerian.
+        renumbered : bool
+            The DOF numbering changed (a re-triangulation): a lagged LU is recomputed on the
+            next solve instead of preconditioning with the LU of the old numbering.
+        """
+        n_u = problem.space.n_u
+        x = np.zeros(problem.space.n_dofs)
+        x[:n_u] = u
+        self.problem = problem
+        self.state = FlowState(x, n_u, self.t)
+        self._u_prev = None if u_prev is None else np.asarray(u_prev, dtype=float)
+        self.mesh_velocity = mesh_velocity
+        self._explicit_a0 = None  # the explicit scheme's LU belongs to the old matrix
+        self.__dict__.pop("_h_cache", None)
+        self._refactorize = self._refactorize or renumbered
 
     def _bdf(self):
         """Coefficients (a0, a1, a2) of (a0 u^{n+1} + a1 u^n + a2 u^{n-1}) / dt."""
@@ -410,7 +280,7 @@ class BDF2Stepper:
         n_u = pr.space.n_u
         a0, a1, a2 = self._bdf()
         t_new = self.t + self.dt
-        tm = Timings()
+        tm = CostSplit()
         t0 = time.perf_counter()
         hist = self._history_term(a1, a2)
         x = self.state.x.copy()
@@ -423,23 +293,23 @@ class BDF2Stepper:
             b = self._convecting_velocity()
             K = base + pr.convection_data(b)
             r = self.residual(x, a0, hist, b)
-            tm.assembly += time.perf_counter() - t0
+            tm.add("assembly", time.perf_counter() - t0)
             t0 = time.perf_counter()
-            x -= _solve_free(pr, K, r, self.solver)
-            tm.solve += time.perf_counter() - t0
+            x -= _solve_free(pr, K, r, self.solver, self._refactorize)
+            tm.add("solve", time.perf_counter() - t0)
             self.last_b = b
         elif self.convection == "explicit":
             b = self._convecting_velocity()
             self.last_cfl = self._cfl(b)
             self._explicit_conv = pr.convection_vector(b, b)
             r = self.residual(x, a0, hist, None) + np.concatenate([self._explicit_conv, np.zeros(pr.space.n_p)])
-            tm.assembly += time.perf_counter() - t0
+            tm.add("assembly", time.perf_counter() - t0)
             t0 = time.perf_counter()
             if self._explicit_a0 != a0:  # the matrix changes only from the BDF1 to the BDF2 step
                 self._explicit_lu = pr.direct_solver().factorize(pr.condensed_matrix(base))
                 self._explicit_a0 = a0
             x[pr.free] -= self._explicit_lu.solve(r[pr.free])
-            tm.solve += time.perf_counter() - t0
+            tm.add("solve", time.perf_counter() - t0)
             self.last_b = None
         else:
             f = pr.free
@@ -449,20 +319,23 @@ class BDF2Stepper:
                 r = self.residual(x, a0, hist, b)
                 res = np.linalg.norm(r[f])
                 if res < self.newton_tol:
-                    tm.assembly += time.perf_counter() - t0
+                    tm.add("assembly", time.perf_counter() - t0)
                     break
                 # ALE: ((u − w)·∇)δu + (δu·∇)u, with b = u − w
                 J = base + pr.newton_data(x[:n_u], b)
-                tm.assembly += time.perf_counter() - t0
+                tm.add("assembly", time.perf_counter() - t0)
                 t0 = time.perf_counter()
-                x -= _solve_free(pr, J, r, self.solver)
-                tm.solve += time.perf_counter() - t0
+                x -= _solve_free(pr, J, r, self.solver, self._refactorize)
+                self._refactorize = False
+                tm.add("solve", time.perf_counter() - t0)
             else:
                 raise NewtonError(f"Newton did not converge in time step {self.n_steps + 1} (t = {t_new:g})", [res])
             self.last_b = b
         self._check_finite(x, t_new, v)
         pr.normalise_pressure(x)
-        pr.timings.add(tm)
+        pr.timings += tm
+        self.last_cost = tm
+        self._refactorize = False
         self._last = (a0, hist)
         self._u_prev = self.state.u.copy()
         self.state = FlowState(x, n_u, t_new)

@@ -11,7 +11,6 @@ from typing import Callable, Sequence
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 from skfem import Basis, ElementVector, MeshTri2
 
 from .elements import ElementPair, element_pair
@@ -92,6 +91,36 @@ class FlowSpace:
         self.n_p = self.pb.N
         self._boundary_cache: dict = {}
 
+    def moved(self, mesh) -> "FlowSpace":
+        """The same space on ``mesh``: the same triangles with moved nodes (ALE).
+
+        Shares the DOF numbering (scikit-fem ``Dofs``), the quadrature and the boundary DOF
+        lists of this space; only the geometry map, the basis values and the DOF locations
+        are recomputed (no facet or DOF search).
+
+        Parameters
+        ----------
+        mesh : skfem.MeshTri
+            With ``mesh.t`` equal to ``self.mesh.t`` (straight elements).
+
+        Raises
+        ------
+        ValueError
+            If the triangles differ or the mesh is curved.
+        """
+        if isinstance(mesh, MeshTri2) or self.curved:
+            raise ValueError("FlowSpace.moved supports straight (MeshTri) meshes only")
+        if mesh.t.shape != self.mesh.t.shape or not np.array_equal(mesh.t, self.mesh.t):
+            raise ValueError("FlowSpace.moved needs the same triangles; build a new FlowSpace after a "
+                             "re-triangulation")
+        new = object.__new__(FlowSpace)
+        new.pair, new.mesh, new.curved = self.pair, mesh, False
+        new.ub = Basis(mesh, self.ub.elem, quadrature=self.ub.quadrature, dofs=self.ub.dofs)
+        new.pb = Basis(mesh, self.pb.elem, quadrature=self.ub.quadrature, dofs=self.pb.dofs)
+        new.n_u, new.n_p = self.n_u, self.n_p
+        new._boundary_cache = self._boundary_cache  # DOF lists depend on the connectivity only
+        return new
+
     @property
     def n_dofs(self) -> int:
         return self.n_u + self.n_p
@@ -148,64 +177,10 @@ class FlowSpace:
         discontinuous field the values of all of them are averaged.  Raises ``ValueError``
         for a point outside the fluid domain.
         """
+        from ..mesh.transfer import basis_values_matrix, locate_all
+
         basis = self.pb if field == "pressure" else self.ub
         pts = np.atleast_2d(np.asarray(points, dtype=float))
-        cells, refs, owners = _locate(self.mesh, pts)
-        rows, cols, vals = [], [], []
+        cells, refs, owners = locate_all(self.mesh, pts.T)
         weights = np.bincount(owners, minlength=len(pts)).astype(float)
-        ncomp = 1 if field == "pressure" else 2
-        for k in range(basis.Nbfun):
-            phi = basis.elem.gbasis(basis.mapping, refs[:, :, None], k, tind=cells)[0]
-            val = np.asarray(phi)[..., 0]  # (ncomp, m) or (m,)
-            val = val.reshape(ncomp, -1)
-            for c in range(ncomp):
-                rows.append(owners * ncomp + c)
-                cols.append(basis.element_dofs[k, cells])
-                vals.append(val[c] / weights[owners])
-        shape = (len(pts) * ncomp, basis.N)
-        return sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                             shape=shape).tocsr()
-
-
-def _locate(mesh, pts, k_near: int = 12, tol: float = 1e-9):
-    """All cells containing each point: (cells, reference coords (2, n), owner point index).
-
-    Candidate cells come from a k-d tree of cell centres; reference coordinates from the
-    affine map (exact for straight elements; for curved ones refined by the isoparametric
-    Newton inversion of scikit-fem).
-    """
-    p, t = mesh.p, mesh.t
-    nt = t.shape[1]
-    centres = p[:, t].mean(axis=1).T
-    tree = cKDTree(centres)
-    _, cand = tree.query(pts, k=min(k_near, nt))
-    cand = np.atleast_2d(cand)
-    owner = np.repeat(np.arange(len(pts)), cand.shape[1])
-    cc = cand.ravel()
-    a, b, c = p[:, t[0, cc]], p[:, t[1, cc]], p[:, t[2, cc]]
-    d1, d2 = b - a, c - a
-    det = d1[0] * d2[1] - d1[1] * d2[0]
-    r = pts[owner].T - a
-    X = (d2[1] * r[0] - d2[0] * r[1]) / det
-    Y = (-d1[1] * r[0] + d1[0] * r[1]) / det
-    inside = (X >= -tol) & (Y >= -tol) & (X + Y <= 1 + tol)
-    missing = np.setdiff1d(np.arange(len(pts)), owner[inside])
-    curved = isinstance(mesh, MeshTri2)
-    if len(missing) and curved:
-        # a point between a curved edge and its chord: invert the isoparametric map of the
-        # candidates (scikit-fem's Newton iteration) and keep those that map back onto it
-        sel = np.flatnonzero(np.isin(owner, missing))
-        mapping = mesh._mapping()
-        Xr = mapping.invF(pts[owner[sel]].T[:, :, None], tind=cc[sel], newton_max_iters=100, newton_tol=1e-13)
-        back = mapping.F(Xr, tind=cc[sel])[:, :, 0]
-        ok = np.linalg.norm(back - pts[owner[sel]].T, axis=0) < 1e-10 * max(1.0, np.abs(pts).max())
-        X[sel[ok]], Y[sel[ok]] = Xr[0, ok, 0], Xr[1, ok, 0]
-        inside[sel[ok]] = True
-        missing = np.setdiff1d(np.arange(len(pts)), owner[inside])
-    if len(missing):
-        raise ValueError(f"point(s) {pts[missing].tolist()} lie outside the fluid mesh")
-    cells, owner = cc[inside], owner[inside]
-    refs = np.vstack([np.clip(X[inside], 0, 1), np.clip(Y[inside], 0, 1)])
-    if curved:  # interior cells of a quadratic mesh may still be curved: refine every point
-        refs = mesh._mapping().invF(pts[owner].T[:, :, None], tind=cells)[:, :, 0]
-    return cells, refs, owner
+        return basis_values_matrix(basis, cells, refs, owners, len(pts), divisor=weights[owners], point_major=True)

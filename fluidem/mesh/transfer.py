@@ -32,7 +32,24 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
-__all__ = ["locate", "probe_matrix", "interpolate", "supermesh", "project_l2"]
+__all__ = ["locate", "locate_all", "probe_matrix", "basis_values_matrix", "interpolate", "supermesh",
+           "project_l2"]
+
+
+def _candidates(mesh, x, k: int):
+    """Nearest-centroid candidate triangles (n, k) of points ``x`` (2, n) and their reference coordinates."""
+    p, t = mesh.p, mesh.t
+    c = p[:, t[:3]].mean(axis=1).T
+    k = min(k, t.shape[1])
+    _, cand = cKDTree(c).query(np.asarray(x).T, k=k)
+    cand = cand.reshape(len(cand), -1)
+    a, b, d = p[:, t[0, cand]], p[:, t[1, cand]], p[:, t[2, cand]]  # (2, n, k)
+    e1, e2 = b - a, d - a
+    r = np.asarray(x)[:, :, None] - a
+    det = e1[0] * e2[1] - e1[1] * e2[0]
+    l1 = (r[0] * e2[1] - r[1] * e2[0]) / det
+    l2 = (e1[0] * r[1] - e1[1] * r[0]) / det
+    return cand, l1, l2
 
 
 def locate(mesh, x, k: int = 12) -> tuple[np.ndarray, np.ndarray]:
@@ -53,17 +70,7 @@ def locate(mesh, x, k: int = 12) -> tuple[np.ndarray, np.ndarray]:
         Barycentric coordinates, clamped into the triangle for points outside the mesh
         (nearest point of the chosen nearby triangle).
     """
-    p, t = mesh.p, mesh.t
-    c = p[:, t].mean(axis=1).T
-    k = min(k, t.shape[1])
-    _, cand = cKDTree(c).query(np.asarray(x).T, k=k)
-    cand = cand.reshape(len(cand), -1)
-    a, b, d = p[:, t[0, cand]], p[:, t[1, cand]], p[:, t[2, cand]]  # (2, n, k)
-    e1, e2 = b - a, d - a
-    r = np.asarray(x)[:, :, None] - a
-    det = e1[0] * e2[1] - e1[1] * e2[0]
-    l1 = (r[0] * e2[1] - r[1] * e2[0]) / det
-    l2 = (e1[0] * r[1] - e1[1] * r[0]) / det
+    cand, l1, l2 = _candidates(mesh, x, k)
     lam = np.stack([1 - l1 - l2, l1, l2], axis=-1)  # (n, k, 3)
     score = lam.min(axis=-1)
     j = np.argmax(score, axis=1)
@@ -74,6 +81,63 @@ def locate(mesh, x, k: int = 12) -> tuple[np.ndarray, np.ndarray]:
     return cells, bary
 
 
+def locate_all(mesh, x, k: int = 12, tol: float = 1e-9):
+    """Every cell containing each point (a vertex lies in several): for probes of discontinuous fields.
+
+    Parameters
+    ----------
+    mesh : skfem.MeshTri or skfem.MeshTri2
+        On a curved (quadratic) mesh the reference coordinates are refined by the inverse
+        isoparametric map (scikit-fem's Newton iteration), also for points between a
+        curved edge and its chord.
+    x : (2, n) float
+    k : int
+        Candidate cells per point (nearest centroids).
+    tol : float
+        Tolerance on the reference coordinates for "inside".
+
+    Returns
+    -------
+    cells : (m,) int
+    refs : (2, m) float
+        Reference coordinates in each cell.
+    owner : (m,) int
+        The point of each entry.
+
+    Raises
+    ------
+    ValueError
+        A point outside the mesh.
+    """
+    from skfem import MeshTri2
+
+    pts = np.asarray(x, dtype=float).T
+    cand, X, Y = _candidates(mesh, x, k)
+    owner = np.repeat(np.arange(len(pts)), cand.shape[1])
+    cc, X, Y = cand.ravel(), X.ravel(), Y.ravel()
+    inside = (X >= -tol) & (Y >= -tol) & (X + Y <= 1 + tol)
+    missing = np.setdiff1d(np.arange(len(pts)), owner[inside])
+    curved = isinstance(mesh, MeshTri2)
+    if len(missing) and curved:
+        # a point between a curved edge and its chord: invert the isoparametric map of the
+        # candidates and keep those that map back onto it
+        sel = np.flatnonzero(np.isin(owner, missing))
+        mapping = mesh._mapping()
+        Xr = mapping.invF(pts[owner[sel]].T[:, :, None], tind=cc[sel], newton_max_iters=100, newton_tol=1e-13)
+        back = mapping.F(Xr, tind=cc[sel])[:, :, 0]
+        ok = np.linalg.norm(back - pts[owner[sel]].T, axis=0) < 1e-10 * max(1.0, np.abs(pts).max())
+        X[sel[ok]], Y[sel[ok]] = Xr[0, ok, 0], Xr[1, ok, 0]
+        inside[sel[ok]] = True
+        missing = np.setdiff1d(np.arange(len(pts)), owner[inside])
+    if len(missing):
+        raise ValueError(f"point(s) {pts[missing].tolist()} lie outside the fluid mesh")
+    cells, owner = cc[inside], owner[inside]
+    refs = np.vstack([np.clip(X[inside], 0, 1), np.clip(Y[inside], 0, 1)])
+    if curved:  # interior cells of a quadratic mesh may still be curved: refine every point
+        refs = mesh._mapping().invF(pts[owner].T[:, :, None], tind=cells)[:, :, 0]
+    return cells, refs, owner
+
+
 def probe_matrix(basis, x):
     """Sparse matrix ``P`` with ``P @ u`` = values of the finite element function ``u`` at ``x`` (2, n).
 
@@ -82,30 +146,79 @@ def probe_matrix(basis, x):
     """
     x = np.asarray(x, dtype=float)
     cells, bary = locate(basis.mesh, x)
-    pts = np.stack([bary[:, 1], bary[:, 2]])[:, :, None]  # reference coordinates (2, n, 1)
-    phis = np.array([basis.elem.gbasis(basis.mapping, pts, i, tind=cells)[0] for i in range(basis.Nbfun)]).flatten()
+    return _probe_from_location(basis, x.shape[1], cells, bary)
+
+
+def _probe_from_location(basis, n, cells, bary):
+    """The probe matrix of ``n`` points in ``cells`` at barycentric coordinates ``bary`` (n, 3)."""
+    return basis_values_matrix(basis, cells, np.stack([bary[:, 1], bary[:, 2]]), np.arange(n), n)
+
+
+def basis_values_matrix(basis, cells, refs, owner, n_points: int, divisor=None, point_major: bool = False):
+    """Sparse matrix of basis function values at points given by cell and reference coordinates.
+
+    The one probe-matrix builder of the package (:func:`probe_matrix`, field transfer,
+    :meth:`fluidem.fluid.space.FlowSpace.probe_matrix`).
+
+    Parameters
+    ----------
+    basis : skfem.CellBasis
+        Scalar or vector basis.
+    cells : (m,) int
+    refs : (2, m) float
+        Reference coordinates of each entry in its cell.
+    owner : (m,) int
+        Row point of each entry (several entries of one point are summed).
+    n_points : int
+    divisor : (m,) float, optional
+        Each entry's values are divided by it (e.g. the number of cells of its point, to
+        average a discontinuous field).
+    point_major : bool
+        Rows ``point · comp + c`` instead of ``c · n_points + point``.
+
+    Returns
+    -------
+    P : (comp · n_points, basis.N) CSR
+    """
     comp = int(np.prod(basis._base_tensor_order))
-    rows = np.tile(np.arange(comp * x.shape[1], dtype=np.int64), basis.Nbfun)
-    cols = basis.element_dofs[:, np.tile(cells, comp)].flatten()
-    return coo_matrix((phis, (rows, cols)), shape=(comp * x.shape[1], basis.N)).tocsr()
+    m = len(cells)
+    phis = np.array([np.asarray(basis.elem.gbasis(basis.mapping, refs[:, :, None], i, tind=cells)[0]).reshape(comp, m)
+                     for i in range(basis.Nbfun)])  # (Nbfun, comp, m)
+    if divisor is not None:
+        phis = phis / divisor
+    c = np.arange(comp)[:, None]
+    rows = owner[None, :] * comp + c if point_major else c * n_points + owner[None, :]
+    rows = np.broadcast_to(rows, phis.shape)
+    cols = np.broadcast_to(basis.element_dofs[:, None, cells], phis.shape)
+    return coo_matrix((phis.ravel(), (rows.ravel().astype(np.int64), cols.ravel())),
+                      shape=(comp * n_points, basis.N)).tocsr()
 
 
-def _interpolate_scalar(basis_old, u_old, basis_new) -> np.ndarray:
+def _interpolate_scalar(basis_old, u_old, basis_new, probes=None) -> np.ndarray:
+    """Scalar interpolation of ``u_old`` (N_old,) or (N_old, k); ``probes`` caches point sets -> cells, bary."""
+    probes = {} if probes is None else probes
     locs = basis_new.doflocs
     nodal = np.all(np.isfinite(locs), axis=0)
-    u = np.zeros(basis_new.N)
-    u[nodal] = probe_matrix(basis_old, locs[:, nodal]) @ u_old
+    u = np.zeros((basis_new.N,) + u_old.shape[1:])
+
+    def values_at(basis, x, key):
+        if key not in probes:  # one point search per point set, shared by components and fields
+            probes[key] = locate(basis.mesh, x)
+        return _probe_from_location(basis, x.shape[1], *probes[key])
+
+    u[nodal] = values_at(basis_old, locs[:, nodal], ("old-dofs", int(nodal.sum()))) @ u_old
     if not nodal.all():
         # interior (bubble) DOFs: match the old function at the element centroid
         m = basis_new.mesh
         cen = m.p[:, m.t].mean(axis=1)
-        target = probe_matrix(basis_old, cen) @ u_old
+        target = values_at(basis_old, cen, "old-centroids") @ u_old
         P = probe_matrix(basis_new, cen).tocsc()
         bub = np.flatnonzero(~nodal)
         rest = P @ u  # bubble coefficients still zero
         Pb = P[:, bub].tocoo()
-        coef = np.zeros(len(bub))
-        coef[Pb.col] = (target[Pb.row] - rest[Pb.row]) / Pb.data
+        coef = np.zeros((len(bub),) + u_old.shape[1:])
+        d = Pb.data.reshape((-1,) + (1,) * (u_old.ndim - 1))
+        coef[Pb.col] = (target[Pb.row] - rest[Pb.row]) / d
         u[bub] = coef
     return u
 
@@ -117,19 +230,21 @@ def interpolate(basis_old, u_old, basis_new) -> np.ndarray:
     ----------
     basis_old, basis_new : skfem.CellBasis
         Same element type on the old and the new mesh (scalar or ElementVector).
-    u_old : (basis_old.N,) float
+    u_old : (basis_old.N,) or (basis_old.N, k) float
+        One field, or ``k`` fields at once (one point search for all of them).
 
     Returns
     -------
-    u_new : (basis_new.N,) float
+    u_new : (basis_new.N,) or (basis_new.N, k) float
     """
     u_old = np.asarray(u_old, dtype=float)
+    probes = {}  # the components of a vector basis share their DOF locations
     if int(np.prod(basis_new._base_tensor_order)) == 1:
-        return _interpolate_scalar(basis_old, u_old, basis_new)
-    u = np.zeros(basis_new.N)
+        return _interpolate_scalar(basis_old, u_old, basis_new, probes)
+    u = np.zeros((basis_new.N,) + u_old.shape[1:])
     for (bo, io), (bn, inew) in zip(zip(basis_old.split_bases(), basis_old.split_indices()),
                                     zip(basis_new.split_bases(), basis_new.split_indices())):
-        u[inew] = _interpolate_scalar(bo, u_old[io], bn)
+        u[inew] = _interpolate_scalar(bo, u_old[io], bn, probes)
     return u
 
 

@@ -1,0 +1,67 @@
+"""Velocity conditions of a scene: box sides (walls, moving walls, inflow) and rigid bodies."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["inflow_value", "velocity_bcs"]
+
+
+def inflow_value(side: str, box, profile: dict):
+    """Velocity ``(x, y, t) -> (2, n)`` of an inflow side, normal to it, pointing into the box.
+
+    Parameters
+    ----------
+    side : {"left", "right", "bottom", "top"}
+    box : (x0, x1, y0, y1) float
+        Length units.
+    profile : dict
+        ``type`` (``"parabolic"``: 4 s (L − s) / L², or uniform), ``umax`` (length/time) and
+        ``ramp`` (time of the smooth start (1 − cos(π t / ramp)) / 2; 0: none).
+
+    Examples
+    --------
+    >>> f = inflow_value("left", (0.0, 2.0, 0.0, 1.0), {"type": "parabolic", "umax": 1.5, "ramp": 0.0})
+    >>> f(np.array([0.0]), np.array([0.5]), 0.0).ravel().tolist()
+    [1.5, 0.0]
+    """
+    x0, x1, y0, y1 = box
+    kind, U, ramp = profile["type"], profile["umax"], profile["ramp"]
+    normal = {"left": (1.0, 0.0), "right": (-1.0, 0.0), "bottom": (0.0, 1.0), "top": (0.0, -1.0)}[side]
+
+    def value(x, y, t):
+        s, L = ((y - y0), y1 - y0) if side in ("left", "right") else ((x - x0), x1 - x0)
+        shape = 4.0 * s * (L - s) / L**2 if kind == "parabolic" else np.ones_like(s)
+        f = 1.0 if ramp <= 0 or t >= ramp else 0.5 * (1.0 - math.cos(math.pi * t / ramp))
+        speed = U * f * shape
+        return np.array([normal[0] * speed, normal[1] * speed])
+
+    return value
+
+
+def velocity_bcs(scene, centers):
+    """Velocity conditions of the box sides and the bodies (rigid motion about ``centers`` (n, 2)).
+
+    Returns a list of :class:`fluidem.fluid.space.VelocityBC`: the sides first (in the order
+    left, right, bottom, top; outflow sides get none), then one per body, so a body's
+    condition wins on DOFs it shares with a side.
+    """
+    from ..fluid.space import RigidMotion, VelocityBC
+
+    bcs = []
+    for s in ("left", "right", "bottom", "top"):
+        side = scene.domain.side(s)
+        if side.type == "wall":
+            bcs.append(VelocityBC(s, (0.0, 0.0)))
+        elif side.type == "moving-wall":
+            bcs.append(VelocityBC(s, side.velocity))
+        elif side.type == "inflow":
+            bcs.append(VelocityBC(s, inflow_value(s, scene.domain.box, scene.domain.profile_of(s))))
+    for b, c in zip(scene.bodies, centers):
+        if b.motion == "fixed":
+            bcs.append(VelocityBC(b.name, (0.0, 0.0)))
+        else:
+            bcs.append(VelocityBC(b.name, RigidMotion(b.velocity, b.omega, tuple(map(float, c)))))
+    return bcs

@@ -1,0 +1,259 @@
+"""ALE flow on the moving mesh around prescribed bodies whose outlines move.
+
+Each step the bodies move to their poses at t + dt and the mesh follows
+(:meth:`fluidem.mesh.MovingMesh.update`).  While the connectivity is unchanged the flow
+problem is moved, not rebuilt (:meth:`fluidem.fluid.problem.FlowProblem.update_geometry`:
+same DOF numbering, patterns, condensed structure, Dirichlet lists; new basis values and
+data), the rigid-mode operator's torque rows are refilled, and the lagged LU of the last
+matrices preconditions GMRES (scene ``solver = "direct"``: a fresh LU every step, for
+bit-for-bit restarts).  At a re-triangulation everything is rebuilt, the LU is recomputed
+and u^n, u^{n−1} are interpolated from the old mesh at time t onto the new nodes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from ..cost import CostSplit
+from .bodies import LinearPath
+from .boundary import velocity_bcs
+from .loads import FlowLoads
+
+__all__ = ["LAGGED_REFACTOR_ITERATIONS", "MovingMeshFlow", "Outline", "p1_at_dofs"]
+
+#: GMRES iterations of a solve above which the lagged LU is recomputed on the moving mesh.
+LAGGED_REFACTOR_ITERATIONS = 25
+
+
+def p1_at_dofs(space, w_nodes: np.ndarray) -> np.ndarray:
+    """Velocity coefficients (n_u,) of the piecewise linear field with vertex values ``w_nodes`` (n_vertices, 2).
+
+    The mesh velocity is linear on each element (the mesh moves affinely), so every element
+    pair represents it exactly: nodal DOFs take its point values, bubble DOFs zero.
+    """
+    ub, mesh = space.ub, space.mesh
+    p, t = mesh.p, mesh.t
+    ed = ub.element_dofs  # (Nbfun, n_elements)
+    loc = ub.doflocs[:, ed]  # (2, Nbfun, n_elements)
+    a, b, c = p[:, t[0]], p[:, t[1]], p[:, t[2]]
+    d1, d2 = b - a, c - a
+    det = d1[0] * d2[1] - d1[1] * d2[0]
+    r = loc - a[:, None, :]
+    l1 = (d2[1] * r[0] - d2[0] * r[1]) / det
+    l2 = (-d1[1] * r[0] + d1[0] * r[1]) / det
+    l0 = 1.0 - l1 - l2
+    comp = np.zeros(ub.N, dtype=int)
+    comp[ub.split_indices()[1]] = 1
+    cd = comp[ed]
+    wv = w_nodes.T  # (2, n_vertices)
+    val = np.where(cd == 0, l0 * wv[0, t[0]] + l1 * wv[0, t[1]] + l2 * wv[0, t[2]],
+                   l0 * wv[1, t[0]] + l1 * wv[1, t[1]] + l2 * wv[1, t[2]])
+    out = np.zeros(ub.N)
+    out[ed.ravel()] = np.nan_to_num(val.ravel(), nan=0.0)  # NaN locations: bubble DOFs
+    return out
+
+
+class Outline:
+    """A body outline for :class:`fluidem.mesh.MovingMesh`: ``vertices`` (k, 2) in body coordinates and ``name``."""
+
+    def __init__(self, vertices, name):
+        self.vertices = np.asarray(vertices, float)
+        self.name = name
+
+
+class MovingMeshFlow(FlowLoads):
+    """The flow around prescribed bodies whose outlines move: ALE on :class:`fluidem.mesh.MovingMesh`.
+
+    One BDF2 step per scene step with the mesh velocity w in the convection, (u − w)·∇u.
+    While the connectivity is unchanged the velocity coefficients stay attached to the nodes
+    (no interpolation) and the problem is moved in place; at a re-triangulation u^n and
+    u^{n−1} are interpolated from the old mesh at time t onto the new nodes
+    (:func:`fluidem.mesh.transfer.interpolate`), that step is Eulerian (w = 0), and the event
+    is logged.  The history term uses the mass matrix of the new positions (not
+    geometric-conservation exact; first order in the mesh motion per step).  Stokes is
+    quasi-steady: one solve per step on the current mesh, no mesh velocity.  Outlines are
+    polygons (straight edges).
+
+    Attributes
+    ----------
+    mm : MovingMesh
+    mesh : skfem.MeshTri
+    space : FlowSpace
+    problem : FlowProblem
+    rigid : RigidModes
+        Rigid-mode operator of the outlines about the current centres (loads, prolongation).
+    last_event : MeshEvent
+    last_cost : CostSplit
+        Seconds of the last step: ``mesh`` (mesh update and mesh velocity), ``rebuild``
+        (problem moved or rebuilt, fields transferred), ``assembly``, ``solve``.
+    """
+
+    def __init__(self, scene, sim):
+        from ..fluid.navier_stokes import BDF2Stepper
+        from ..fluid.solvers import LaggedLUSolver
+        from ..mesh import MovingMesh
+
+        fl, ms = scene.fluid, scene.mesh
+        self.scene = scene
+        t0 = time.perf_counter()
+        outlines = [Outline(b.local_vertices(scene.default_segments(b)), b.name) for b in scene.bodies]
+        self.path = [LinearPath(b.position, b.angle, b.velocity if b.motion != "fixed" else (0, 0),
+                                b.omega if b.motion != "fixed" else 0.0) for b in scene.bodies]
+        grading = None
+        if ms.grading is not None:
+            g = ms.grading
+            region = g["region"] if g["region"] != "bodies" else scene.world_outlines()
+            grading = {"region": region, "growth": g["growth"], "h_max": g["h_max"]}
+        self.mm = MovingMesh(scene.domain.box, outlines, self._poses(0.0), ms.h, grading=grading,
+                             strategy=ms.strategy, retriangulate_every=ms.retriangulate_every)
+        sim.counters["triangulations"] += 1
+        self.sim = sim
+        self.mesh_time = time.perf_counter() - t0
+        self.curved = False
+        self.rho = fl.density
+        self.stokes = fl.model == "stokes"
+        self.names = [b.name for b in scene.bodies]
+        self.t = 0.0
+        self.last_event = None
+        self.last_cost = CostSplit()
+        self.mesh_seconds = 0.0
+        self._build(0.0)
+        if self.stokes:
+            self.stepper = None
+            self.x = self.problem.initial_vector(0.0)
+        else:
+            # "auto": the LU of an earlier step preconditions GMRES while it converges fast,
+            # recomputed after every re-triangulation; "direct": a fresh LU each step.  The
+            # matrix changes more per step than on a fixed mesh (geometry and mesh velocity):
+            # 9-15 iterations after a few steps, where one LU costs 40-60 GMRES iterations
+            # (Taylor-Hood, 20k-80k DOFs), so refactorise only above LAGGED_REFACTOR_ITERATIONS
+            direct = self.problem.direct_solver()
+            solver = direct if fl.solver == "direct" else \
+                LaggedLUSolver(max_iterations_before_refactor=LAGGED_REFACTOR_ITERATIONS, direct=direct)
+            self.stepper = BDF2Stepper(self.problem, scene.time.dt, convection=fl.convection, solver=solver,
+                                       mesh_velocity=np.zeros(self.space.n_u))
+            self.x = self.stepper.state.x
+        self.events = []
+        sim.counters["fluid_solvers"] += 1
+
+    def _poses(self, t):
+        return np.array([[*p(t)[0], p(t)[1]] for p in self.path]).reshape(-1, 3)
+
+    def _build(self, t):
+        """A new space, problem and rigid-mode operator on the current mesh (after a re-triangulation)."""
+        from ..fluid.forces import RigidModes
+        from ..fluid.problem import FlowProblem
+        from ..fluid.space import FlowSpace
+
+        fl = self.scene.fluid
+        self.mesh = self.mm.skfem_mesh()
+        self._triangles = np.array(self.mm.triangles, copy=True)  # the connectivity this problem was built on
+        self.space = FlowSpace(self.mesh, fl.element)
+        self.centers = self._poses(t)[:, :2]
+        self.problem = FlowProblem(self.space, fl.viscosity, velocity_bcs(self.scene, self.centers), rho=fl.density,
+                                   body_force=fl.body_force, moving=True)
+        self.rigid = RigidModes(self.space, self.names, self.centers)
+
+    def _refit(self, t) -> bool:
+        """Move space, problem and rigid modes to the current node positions; False if the triangles changed."""
+        tri = self.mm.triangles
+        if tri.shape != self._triangles.shape or not np.array_equal(tri, self._triangles) or \
+                self.mm.points.shape[0] != self.mesh.p.shape[1]:
+            return False
+        mesh = dataclasses.replace(self.mesh, doflocs=np.ascontiguousarray(self.mm.points.T, dtype=float))
+        self.mesh = mesh
+        self.centers = self._poses(t)[:, :2]
+        self.problem.update_geometry(mesh, velocity_bcs(self.scene, self.centers))
+        self.space = self.problem.space
+        self.rigid.update(self.space, self.centers)
+        return True
+
+    @property
+    def dofs(self):
+        return self.space.n_dofs
+
+    def step(self, dt):
+        """One step to t + dt: move the bodies and the mesh, move or rebuild the problem, solve."""
+        from ..fluid.navier_stokes import solve_stokes
+        from ..mesh import transfer
+
+        cost = CostSplit()
+        t_new = self.t + dt
+        t0 = time.perf_counter()
+        ev = self.mm.update(self._poses(t_new))
+        self.last_event = ev
+        cost.add("mesh", time.perf_counter() - t0)
+        if ev.retriangulated:
+            self.sim.counters["triangulations"] += 1
+        t0 = time.perf_counter()
+        old_space = self.space
+        rebuilt = ev.retriangulated or not self._refit(t_new)
+        if rebuilt:
+            self._build(t_new)
+        cost.add("rebuild", time.perf_counter() - t0)
+        if self.stokes:
+            t0 = time.perf_counter()
+            solve0 = self.problem.timings.solve
+            self.t = t_new
+            self.x = solve_stokes(self.problem, t_new).x
+            solve = self.problem.timings.solve - solve0
+            cost.add("assembly", time.perf_counter() - t0 - solve)
+            cost.add("solve", solve)
+            self._finish(cost)
+            return
+        st = self.stepper
+        if ev.retriangulated:
+            from skfem import Basis, ElementVector, MeshTri
+
+            t0 = time.perf_counter()
+            # the old connectivity at the old positions (time t): the interpolation to the new
+            # nodes at t + dt is Eulerian, so this step has no mesh velocity
+            src = ev.prev_points if ev.prev_points is not None else ev.old_points
+            old = MeshTri(np.asarray(src, float).T.copy(), np.asarray(ev.old_triangles).T.copy())
+            ob = Basis(old, ElementVector(old_space.pair.velocity()))
+            u_p = st.previous_velocity
+            fields = st.state.u if u_p is None else np.column_stack([st.state.u, u_p])
+            u_new = transfer.interpolate(ob, fields, self.space.ub)  # one point search for both
+            u_n, u_p = (u_new, None) if u_p is None else (u_new[:, 0].copy(), u_new[:, 1].copy())
+            self.sim.counters["transfers"] = self.sim.counters.get("transfers", 0) + 1
+            w = np.zeros(self.space.n_u)
+            cost.add("rebuild", time.perf_counter() - t0)
+        else:
+            t0 = time.perf_counter()
+            u_n, u_p = st.state.u, st.previous_velocity
+            w_nodes = self.mm.node_velocity(dt)
+            t1 = time.perf_counter()
+            w = p1_at_dofs(self.space, w_nodes)
+            cost.add("mesh", t1 - t0)
+            cost.add("rebuild", time.perf_counter() - t1)
+        st.take_over(self.problem, u_n, u_p, mesh_velocity=w, renumbered=rebuilt)
+        t0 = time.perf_counter()
+        st.step()
+        wall = time.perf_counter() - t0
+        cost.add("assembly", wall - st.last_cost.solve)
+        cost.add("solve", st.last_cost.solve)
+        self.t = st.t
+        self.x = st.state.x
+        self._finish(cost)
+
+    def _finish(self, cost):
+        self.last_cost = cost
+        self.mesh_seconds = cost.mesh
+
+    def get_state(self):
+        s = {"t": self.t, "x": self.x.copy(), "mm": self.mm}
+        if self.stepper is not None:
+            s["stepper"] = self.stepper.get_state()
+        return s
+
+    def set_state(self, s):
+        self.mm = s["mm"]
+        self.t = s["t"]
+        self._build(self.t)
+        self.x = s["x"].copy()
+        if self.stepper is not None:
+            self.stepper.take_over(self.problem, self.x[: self.space.n_u], renumbered=True)
+            self.stepper.set_state(s["stepper"])

@@ -1,0 +1,309 @@
+"""The incompressible flow problem on one mesh: operators, boundary data, residuals.
+
+:class:`FlowProblem` holds the constant operators of the (Navier–)Stokes equations in
+kinematic form on a :class:`~fluidem.fluid.space.FlowSpace` — viscous ν A, mass M,
+divergence B (forms in :mod:`fluidem.fluid.forms`) — the Dirichlet DOFs of the velocity
+conditions, and the condensed free-DOF saddle-point structure
+(:class:`~fluidem.fluid.assembly.CondensedSystem`).  :meth:`FlowProblem.update_geometry`
+moves it to a mesh with the same connectivity and moved nodes (ALE): DOF numbering,
+sparsity patterns, scatter maps, condensed structure and Dirichlet lists stay; the basis
+values and the data arrays are refreshed.  :class:`FlowState` is one solution ``x = [u, p]``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import asm
+
+from ..cost import CostSplit
+from . import forms
+from .assembly import CondensedSystem, DivergencePattern, VectorAssembler
+from .solvers import DirectSolver
+from .space import FlowSpace, RigidMotion, VelocityBC
+
+__all__ = ["FlowProblem", "FlowState"]
+
+
+@dataclass
+class FlowState:
+    """A velocity/pressure solution: ``x = [u, p]`` with ``u`` (n_u,) and ``p`` (n_p,)."""
+
+    x: np.ndarray
+    n_u: int
+    t: float = 0.0
+    residual_history: list = field(default_factory=list)
+
+    @property
+    def u(self) -> np.ndarray:
+        return self.x[: self.n_u]
+
+    @property
+    def p(self) -> np.ndarray:
+        return self.x[self.n_u:]
+
+
+class FlowProblem:
+    """An incompressible flow problem on a fixed mesh.
+
+    Parameters
+    ----------
+    space : FlowSpace
+        Mesh and element pair.
+    nu : float
+        Kinematic viscosity, length²/time, > 0.
+    bcs : sequence of VelocityBC
+        Velocity conditions; boundaries not named get the do-nothing condition.
+    rho : float
+        Density, mass/length³ (2D: mass/length²); forces are ρ times the kinematic ones.
+    body_force : (2,) float
+        Body force per unit mass, length/time².
+    moving : bool
+        The mesh will move (ALE): assemble the constant forms by the same pattern refill as
+        :meth:`update_geometry` (straight meshes only), so that a problem built on a mesh
+        and one moved onto it agree bit for bit (restarts of moving-mesh runs).  Default:
+        scikit-fem assembly.
+    """
+
+    def __init__(self, space: FlowSpace, nu: float, bcs: Sequence[VelocityBC] = (), rho: float = 1.0,
+                 body_force=(0.0, 0.0), moving: bool = False):
+        if not (np.isfinite(nu) and nu > 0):
+            raise ValueError(f"viscosity nu must be a positive number, got {nu!r}")
+        if not (np.isfinite(rho) and rho > 0):
+            raise ValueError(f"density rho must be a positive number, got {rho!r}")
+        self.space = space
+        self.nu = float(nu)
+        self.rho = float(rho)
+        self.bcs = list(bcs)
+        self.body_force = np.asarray(body_force, dtype=float)
+        named = set()
+        for bc in self.bcs:
+            for name in bc.names:
+                space._check_boundary(name)
+                named.add(name)
+            for c in bc.components:
+                if c not in (0, 1):
+                    raise ValueError(f"velocity components must be 0 or 1, got {bc.components!r}")
+        self.natural_boundaries = [b for b in space.boundary_names if b not in named]
+        self._dirichlet_dofs = self._collect_dirichlet_dofs()
+        n = space.n_dofs
+        # With no natural boundary the pressure is fixed only up to a constant: pin one DOF
+        # (the pressure is shifted to zero mean afterwards).
+        self.pressure_pinned = not self.natural_boundaries
+        fixed = self._dirichlet_dofs
+        if self.pressure_pinned:
+            fixed = np.concatenate([fixed, [space.n_u]])
+        self.fixed = np.unique(fixed)
+        mask = np.ones(n, dtype=bool)
+        mask[self.fixed] = False
+        self.free = np.flatnonzero(mask)
+        self.timings = CostSplit()  # seconds in assembly and solve, accumulated
+        t0 = time.perf_counter()
+        ub, pb = space.ub, space.pb
+        self.assembler = VectorAssembler(ub)
+        self._divergence = None  # B's scatter map, built for a moving mesh
+        if moving:
+            self._refill_forms()
+        else:
+            self.A_data = self.assembler.pattern_data(self.nu * asm(forms.viscous, ub))
+            self.M_data = self.assembler.pattern_data(asm(forms.mass, ub))
+            self.A = self.assembler.matrix(self.A_data)
+            self.M = self.assembler.matrix(self.M_data)
+            self.B = asm(forms.divergence, ub, pb).tocsr()
+            self._f = self._body_force_vector()
+        self.system = CondensedSystem(self.assembler, self.B, self.free)
+        self._bv_index = None
+        self._index_boundary_values()
+        self.timings.add("assembly", time.perf_counter() - t0)
+
+    # -- moving mesh ---------------------------------------------------------------------
+    def update_geometry(self, mesh, bcs: Sequence[VelocityBC] | None = None) -> None:
+        """Move the problem to ``mesh``: the same connectivity with moved nodes (ALE).
+
+        Keeps the DOF numbering, the sparsity patterns and scatter maps, the condensed
+        free-DOF structure and the Dirichlet DOF lists; recomputes the basis values (the
+        geometry map, :meth:`FlowSpace.moved`) and refills the data of ν A, M, B and the
+        body-force vector.  Measured at 30k DOFs (Taylor–Hood, one thread): 20 ms, against
+        90 ms for a new space and problem (``moving=True``) and 160 ms with scikit-fem assembly.
+
+        Parameters
+        ----------
+        mesh : skfem.MeshTri
+            Same triangles (``mesh.t``) as the current mesh, nodes moved.
+        bcs : sequence of VelocityBC, optional
+            New velocity conditions on the same boundaries and components (e.g. rigid
+            motions about moved centres); the current ones by default.
+
+        Raises
+        ------
+        ValueError
+            If the connectivity differs (a re-triangulation needs a new FlowProblem) or
+            ``bcs`` name other boundaries or components.
+        """
+        t0 = time.perf_counter()
+        if bcs is not None:
+            bcs = list(bcs)
+            if [(b.names, tuple(b.components)) for b in bcs] != [(b.names, tuple(b.components)) for b in self.bcs]:
+                raise ValueError("update_geometry: bcs must name the same boundaries and components as before")
+            self.bcs = bcs
+        self.space = self.space.moved(mesh)
+        self.assembler.update_geometry(self.space.ub)
+        self._refill_forms()
+        if not self.system.update_divergence(self.B):
+            # B's structure changed (built by scikit-fem, which drops structural zeros): once
+            self.system = CondensedSystem(self.assembler, self.B, self.free)
+        self._index_boundary_values()
+        self.timings.add("rebuild", time.perf_counter() - t0)
+
+    def _refill_forms(self) -> None:
+        """ν A, M, B and the body-force vector from the assembler's current basis values."""
+        va, pb = self.assembler, self.space.pb
+        self.A_data = self.nu * va.viscous_data()
+        self.M_data = va.mass_data()
+        self.A = va.matrix(self.A_data)
+        self.M = va.matrix(self.M_data)
+        if self._divergence is None:
+            self._divergence = DivergencePattern(va, pb)
+        self.B = self._divergence.matrix(pb)
+        if np.any(self.body_force):
+            w = va.psi_dx.sum(axis=2)  # (nel, ns): ∫ ψ_s
+            self._f = sum(np.bincount(va.dofs_c[c].ravel(), weights=self.body_force[c] * w.ravel(), minlength=va.n)
+                          for c in range(2))
+        else:
+            self._f = np.zeros(va.n)
+
+    # -- boundary data -------------------------------------------------------------------
+    def _collect_dirichlet_dofs(self):
+        parts = []
+        for bc in self.bcs:
+            for name in bc.names:
+                for c in bc.components:
+                    parts.append(self.space.velocity_dofs(name, c))
+        return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
+
+    def _index_boundary_values(self) -> None:
+        """DOF -> condition index, built once per connectivity (later conditions win on shared DOFs).
+
+        Conditions with a :class:`RigidMotion` of constant velocity go into one table
+        (DOF, component, body) evaluated in one expression; the others (walls, inflow
+        profiles, callables) keep one evaluation per condition.
+        """
+        if getattr(self, "_bv_index", None) is None:
+            n_u = self.space.n_u
+            winner = np.full(n_u, -1)
+            per_bc = []
+            for i, bc in enumerate(self.bcs):
+                d = [self.space.velocity_dofs(name, c) for name in bc.names for c in bc.components]
+                cmp = [np.full(len(self.space.velocity_dofs(name, c)), c) for name in bc.names for c in bc.components]
+                d = np.concatenate(d) if d else np.zeros(0, np.int64)
+                cmp = np.concatenate(cmp) if cmp else np.zeros(0, np.int64)
+                winner[d] = i
+                per_bc.append((d, cmp))
+            rigid, other = [], []
+            for i, (bc, (d, cmp)) in enumerate(zip(self.bcs, per_bc)):
+                keep = winner[d] == i
+                d, cmp = d[keep], cmp[keep]
+                d, first = np.unique(d, return_index=True)  # a DOF on two names of one condition
+                cmp = cmp[first]
+                (rigid if _constant_rigid(bc.value) else other).append((i, d, cmp))
+            body = np.concatenate([np.full(len(d), k) for k, (_, d, _) in enumerate(rigid)]) if rigid else \
+                np.zeros(0, np.int64)
+            self._bv_index = {
+                "other": other, "rigid_bc": [i for i, _, _ in rigid],
+                "rigid_dofs": np.concatenate([d for _, d, _ in rigid]) if rigid else np.zeros(0, np.int64),
+                "rigid_comp": np.concatenate([c for _, _, c in rigid]) if rigid else np.zeros(0, np.int64),
+                "rigid_body": body,
+            }
+        ix = self._bv_index
+        ix["rigid_xy"] = self.space.dof_locations(ix["rigid_dofs"])
+        ix["other_xy"] = [self.space.dof_locations(d) for _, d, _ in ix["other"]]
+
+    def dirichlet_values(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(dofs, values) of all velocity conditions at time ``t`` (later ones win on corners).
+
+        Rigid-body conditions are evaluated for all their DOFs in one vectorised expression,
+        U_k + ω_k e_z × (x − X_k) through the DOF -> body index (built once per connectivity).
+        """
+        ix = self._bv_index
+        x = np.zeros(self.space.n_u)
+        for (i, d, cmp), xy in zip(ix["other"], ix["other_xy"]):
+            x[d] = self.bcs[i].evaluate(xy, t)[cmp, np.arange(len(d))]
+        if ix["rigid_bc"]:
+            rm = [self.bcs[i].value for i in ix["rigid_bc"]]
+            U = np.array([np.asarray(r.velocity, float) for r in rm]).reshape(-1, 2)
+            om = np.array([float(r.omega) for r in rm])
+            X = np.array([np.asarray(r.center, float) for r in rm]).reshape(-1, 2)
+            k, xy = ix["rigid_body"], ix["rigid_xy"]
+            x[ix["rigid_dofs"]] = np.where(ix["rigid_comp"] == 0, U[k, 0] - om[k] * (xy[1] - X[k, 1]),
+                                           U[k, 1] + om[k] * (xy[0] - X[k, 0]))
+        return self._dirichlet_dofs, x[self._dirichlet_dofs]
+
+    def _body_force_vector(self):
+        if not np.any(self.body_force):
+            return np.zeros(self.space.n_u)
+        f = self.body_force
+        return asm(forms.body_force, self.space.ub, f=f[:, None, None] * np.ones((1,) + self.space.ub.dx.shape))
+
+    # -- operators -----------------------------------------------------------------------
+    def condensed_matrix(self, uu_data: np.ndarray) -> sp.csr_matrix:
+        """Saddle-point matrix on the free DOFs for velocity-block data ``uu_data`` on the pattern."""
+        return self.system.matrix(uu_data)
+
+    def convection_data(self, b: np.ndarray) -> np.ndarray:
+        """Pattern data of ((b · ∇) u) · v for convecting velocity coefficients ``b`` (n_u,)."""
+        return self.assembler.convection(b)
+
+    def newton_data(self, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
+        """Pattern data of the convection Jacobian at ``a``: ((b·∇)δu + (δu·∇)a) · v, b = a by default."""
+        return self.assembler.convection(a if b is None else b, a)
+
+    def convection_matrix(self, b: np.ndarray) -> sp.csr_matrix:
+        """Matrix of ((b · ∇) u) · v for the convecting velocity coefficients ``b`` (n_u,)."""
+        return self.assembler.matrix(self.convection_data(b))
+
+    def convection_vector(self, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
+        """Vector ((b · ∇) a) · v (b = a when omitted)."""
+        return self.assembler.convection_vector(a, b)
+
+    def steady_residual(self, x: np.ndarray, convection: bool = True) -> np.ndarray:
+        """Residual of the (Navier–)Stokes equations at ``x`` on all DOFs, no conditions applied."""
+        u, p = x[: self.space.n_u], x[self.space.n_u:]
+        r = np.empty_like(x)
+        r[: self.space.n_u] = self.A @ u + self.B.T @ p - self._f
+        if convection:
+            r[: self.space.n_u] += self.convection_vector(u)
+        r[self.space.n_u:] = self.B @ u
+        return r
+
+    def normalise_pressure(self, x: np.ndarray) -> None:
+        """Shift the pressure to zero mean when it is defined only up to a constant."""
+        if self.pressure_pinned:
+            one = np.ones(self.space.n_p)
+            pm = self.space.pb
+            area = pm.dx.sum()
+            mean = (np.asarray(pm.interpolate(x[self.space.n_u:])) * pm.dx).sum() / area
+            x[self.space.n_u:] -= mean * one
+
+    def direct_solver(self) -> DirectSolver:
+        """The fastest reliable sparse LU for this element pair (measured on DFG systems).
+
+        Continuous pressure (th, p3, mini): SuperLU with a symmetric minimum-degree ordering
+        (2-3x faster than COLAMD, half the fill).  Discontinuous pressure (p2b): COLAMD, as that
+        ordering does not finish there.
+        """
+        return DirectSolver(backend="superlu", symmetric_mode=not self.space.pair.pressure_discontinuous)
+
+    def initial_vector(self, t: float = 0.0) -> np.ndarray:
+        x = np.zeros(self.space.n_dofs)
+        d, v = self.dirichlet_values(t)
+        x[d] = v
+        return x
+
+
+def _constant_rigid(value) -> bool:
+    """A rigid motion with constant velocity and angular velocity (vectorised boundary values)."""
+    return isinstance(value, RigidMotion) and not callable(value.velocity) and not callable(value.omega)
