@@ -46,7 +46,7 @@ REGISTRY: dict[str, Kind] = {
         "mini": "P1 + cubic bubble velocity / P1 pressure (MINI), first order",
     }),
     "solver": Kind("solver", {
-        "auto": "chosen by problem kind and size (fluidem.fluid.solvers.choose_method)",
+        "auto": "chosen by problem kind and size (fluidem.fluid.solvers.choose_solver)",
         "direct": "a fresh sparse LU every solve (bit-for-bit reproducible restarts)",
         "iterative": "block-preconditioned Krylov (FGMRES, pyamg on the velocity block)",
         "lagged": "an LU reused as a GMRES preconditioner while its iterations stay low",
@@ -103,6 +103,7 @@ REGISTRY: dict[str, Kind] = {
         "column-collapse": "granular column collapse, DEM only",
     }),
     "schur": Kind("Schur-complement approximation", {
+        "auto": "cahouet-chabard when a time step is given, mass otherwise",
         "mass": "nu M_p^-1 (Stokes)",
         "cahouet-chabard": "nu M_p^-1 + (alpha/dt) (B D_u^-1 B^T)^-1 (unsteady)",
         "lsc": "least-squares commutator",

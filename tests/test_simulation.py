@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-import fluidem.dem.simulation as dem_sim
+import fluidem.dem.system as dem_sim
 import fluidem.mesh.triangulate as tri
 from fluidem.fluid.navier_stokes import FlowProblem
 from fluidem.fluid.space import FlowSpace

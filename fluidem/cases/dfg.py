@@ -24,7 +24,8 @@ import time
 import numpy as np
 
 from ..fluid.forces import body_loads, periodic_stats
-from ..fluid.navier_stokes import BDF2Stepper, FlowProblem, make_flow_solver, solve_steady
+from ..fluid.navier_stokes import BDF2Stepper, FlowProblem, solve_steady
+from ..fluid.solvers import make_solver
 from ..fluid.space import FlowSpace, RigidMotion, VelocityBC
 from ..geometry import regular_polygon
 from ..mesh.background import GradedSize
@@ -86,7 +87,7 @@ def _coefficients(space, residual, Ubar):
 def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="auto", verbose: bool = False) -> CaseResult:
     """Steady DFG 2D-1 (U = 0.3, Re = 20): c_D, c_L, Δp by Newton's method.
 
-    ``solver`` is a name of :func:`~fluidem.fluid.navier_stokes.make_flow_solver` or a solver
+    ``solver`` is a name of :func:`~fluidem.fluid.solvers.make_solver` or a solver
     object.
     """
     t0 = time.perf_counter()
@@ -94,7 +95,7 @@ def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="au
     t_mesh = time.perf_counter() - t0
     pr = dfg_problem(mesh, element, lambda t: 0.3)
     if isinstance(solver, str):
-        solver = make_flow_solver(pr, solver)
+        solver = make_solver(solver, problem=pr)
     state = solve_steady(pr, solver=solver, verbose=verbose)
     t1 = time.perf_counter()
     cd, cl = _coefficients(pr.space, pr.steady_residual(state.x), 0.2)
@@ -110,7 +111,7 @@ def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="au
 
 def _run_unsteady(pr, dt, t_end, convection, record_dp=False, progress=None, solver="lagged"):
     """BDF2 run recording c_D, c_L (normalised with Ū = 1, as both unsteady DFG cases define them) and Δp."""
-    stepper = BDF2Stepper(pr, dt, convection=convection, solver=make_flow_solver(pr, solver, dt=dt))
+    stepper = BDF2Stepper(pr, dt, convection=convection, solver=make_solver(solver, problem=pr, dt=dt))
     n = int(round(t_end / dt))
     ts, cds, cls_, dps = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     probe = pr.space.probe_matrix([[0.15, 0.2], [0.25, 0.2]]) if record_dp else None

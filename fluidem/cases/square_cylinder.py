@@ -17,7 +17,8 @@ import time
 import numpy as np
 
 from ..fluid.forces import body_loads, periodic_stats
-from ..fluid.navier_stokes import BDF2Stepper, FlowProblem, make_flow_solver
+from ..fluid.navier_stokes import BDF2Stepper, FlowProblem
+from ..fluid.solvers import make_solver
 from ..fluid.space import FlowSpace, RigidMotion, VelocityBC
 from ..geometry import rectangle
 from ..mesh.background import GradedSize
@@ -57,7 +58,7 @@ def square_cylinder(element: str = "th", level: int = 1, dt: float = 0.05, t_end
         VelocityBC("square", kick),
     ]
     pr = FlowProblem(FlowSpace(mesh, element), 0.01, bcs)
-    stepper = BDF2Stepper(pr, dt, convection=convection, solver=make_flow_solver(pr, solver, dt=dt))
+    stepper = BDF2Stepper(pr, dt, convection=convection, solver=make_solver(solver, problem=pr, dt=dt))
     n = int(round(t_end / dt))
     ts, cd, cl = np.empty(n), np.empty(n), np.empty(n)
     for k in range(n):

@@ -35,7 +35,7 @@ class FixedMeshFlow(FlowLoads):
     def __init__(self, scene, sim):
         from ..fluid.forces import RigidModes
         from ..fluid.navier_stokes import BDF2Stepper, FlowProblem
-        from ..fluid.solvers import LaggedLUSolver
+        from ..fluid.solvers import make_solver
         from ..fluid.space import FlowSpace
         from ..mesh import triangulate as tri
         from ..mesh.background import GradedSize, UniformSize
@@ -66,19 +66,17 @@ class FixedMeshFlow(FlowLoads):
         self.centers = [b.position for b in scene.bodies]
         self.names = [b.name for b in scene.bodies]
         self.rigid = RigidModes(self.space, self.names, self.centers)
+        # scene names mean what the solver factory says (fluidem.fluid.solvers.make_solver):
+        # "auto" on a run of time steps is an LU reused as a GMRES preconditioner across steps
+        # (2-7 iterations, 5-20x cheaper per step than a fresh LU); "direct" a fresh LU every
+        # step, for runs that must restart bit for bit
         if self.stokes:
-            # the Stokes matrix of a fixed mesh never changes: one LU, reused while the values match
-            self.solver = LaggedLUSolver(direct=self.problem.direct_solver())
+            # the Stokes matrix of a fixed mesh never changes: a run of identical systems
+            self.solver = make_solver(fl.solver, problem=self.problem, kind="unsteady")
             self.stepper = None
             self.x = self.problem.initial_vector(0.0)
         else:
-            # "auto": an LU reused as a GMRES preconditioner across steps (2-7 iterations, 5-20x
-            # cheaper per step than a fresh LU); "direct": a fresh LU every step, for runs
-            # that must restart bit for bit
-            if fl.solver == "direct":
-                solver = self.problem.direct_solver()
-            else:
-                solver = LaggedLUSolver(direct=self.problem.direct_solver())
+            solver = make_solver(fl.solver, problem=self.problem, dt=scene.time.dt)
             self.stepper = BDF2Stepper(self.problem, scene.time.dt, convection=fl.convection, solver=solver)
             self.x = self.stepper.state.x
         self.t = 0.0

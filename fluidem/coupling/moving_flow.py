@@ -93,7 +93,7 @@ class MovingMeshFlow(FlowLoads):
 
     def __init__(self, scene, sim):
         from ..fluid.navier_stokes import BDF2Stepper
-        from ..fluid.solvers import LaggedLUSolver
+        from ..fluid.solvers import make_solver
         from ..mesh import MovingMesh
 
         fl, ms = scene.fluid, scene.mesh
@@ -130,9 +130,9 @@ class MovingMeshFlow(FlowLoads):
             # matrix changes more per step than on a fixed mesh (geometry and mesh velocity):
             # 9-15 iterations after a few steps, where one LU costs 40-60 GMRES iterations
             # (Taylor-Hood, 20k-80k DOFs), so refactorise only above LAGGED_REFACTOR_ITERATIONS
-            direct = self.problem.direct_solver()
-            solver = direct if fl.solver == "direct" else \
-                LaggedLUSolver(max_iterations_before_refactor=LAGGED_REFACTOR_ITERATIONS, direct=direct)
+            lagged = {"max_iterations_before_refactor": LAGGED_REFACTOR_ITERATIONS}
+            solver = make_solver(fl.solver, problem=self.problem, dt=scene.time.dt,
+                                 **(lagged if fl.solver in ("auto", "lagged") else {}))
             self.stepper = BDF2Stepper(self.problem, scene.time.dt, convection=fl.convection, solver=solver,
                                        mesh_velocity=np.zeros(self.space.n_u))
             self.x = self.stepper.state.x

@@ -28,12 +28,10 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from skfem import asm
 
 from ..cost import CostSplit
-from . import forms
 from .problem import FlowProblem, FlowState
-from .solvers import SOLVERS, AutoSolver, BlockKrylovSolver, LaggedLUSolver
+from .solvers import LaggedLUSolver, make_solver
 
 __all__ = ["FlowProblem", "FlowState", "NewtonError", "solve_stokes", "solve_steady", "BDF2Stepper", "Timings",
            "make_flow_solver"]
@@ -51,35 +49,11 @@ class NewtonError(RuntimeError):
 
 
 def make_flow_solver(problem: FlowProblem, method: str = "auto", dt: float | None = None):
-    """A linear solver for the condensed saddle-point systems of ``problem``, by name.
+    """A linear solver for the condensed systems of ``problem``: :func:`fluidem.fluid.solvers.make_solver`.
 
-    Parameters
-    ----------
-    method : {"auto", "direct", "iterative", "lagged"}
-        ``"direct"``: :meth:`FlowProblem.direct_solver` (a fresh LU per matrix);
-        ``"lagged"``: that LU reused as a GMRES preconditioner while it converges fast;
-        ``"iterative"``: block-preconditioned GMRES (pyamg on the velocity block; Schur
-        complement ν M_p⁻¹, plus the Cahouet–Chabard term when ``dt`` is given);
-        ``"auto"``: direct or iterative by system size (:func:`~fluidem.fluid.solvers.choose_method`).
-    dt : float, optional
-        Time step of the systems to be solved (time units); ``None`` for steady problems.
+    Kept for existing callers; ``make_flow_solver(pr, m, dt)`` is ``make_solver(m, problem=pr, dt=dt)``.
     """
-    if method not in SOLVERS:
-        raise ValueError(f"unknown solver {method!r}; allowed: {', '.join(SOLVERS)}")
-    if method == "direct":
-        return problem.direct_solver()
-    if method == "lagged":
-        return LaggedLUSolver(direct=problem.direct_solver())
-    n_u = problem.space.n_u
-    free_u = int(np.count_nonzero(problem.free < n_u))
-    pf = problem.free[problem.free >= n_u] - n_u
-    Mp = asm(forms.pressure_mass, problem.space.pb).tocsr()[pf][:, pf]
-    Mu = problem.M[problem.free[:free_u]][:, problem.free[:free_u]]
-    iterative = {"pressure_mass": Mp, "nu": problem.nu, "dt": dt, "velocity_mass": Mu}
-    if method == "iterative":
-        return BlockKrylovSolver(free_u, **iterative)
-    direct = {"backend": "superlu", "symmetric_mode": not problem.space.pair.pressure_discontinuous}
-    return AutoSolver(n_u=free_u, direct_options=direct, iterative_options=iterative)
+    return make_solver(method, problem=problem, dt=dt)
 
 
 def _solve_free(problem: FlowProblem, uu_data: np.ndarray, rhs_full: np.ndarray, solver,

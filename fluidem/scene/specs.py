@@ -56,7 +56,7 @@ class FluidSpec:
     solver : {"auto", "direct", "iterative", "lagged"}
         Linear solver by name (alias ``"lagged-lu"`` = ``"lagged"``); what each name, and
         ``"auto"`` in particular, means is the solver factory's
-        (:func:`fluidem.fluid.navier_stokes.make_flow_solver`), not the scene's.  ``"direct"``
+        (:func:`fluidem.fluid.solvers.make_solver`), not the scene's.  ``"direct"``
         (a fresh LU every step) makes restarts reproduce bit for bit; an LU reused as a GMRES
         preconditioner reproduces them only to the GMRES tolerance.
     """

@@ -141,8 +141,8 @@ def lsc_schur_inverse(A, B, Du_inv, Lp_inv):
 
 
 # ==========================================================================
-#: Schur names accepted by BlockKrylovSolver: "auto" and those of kind "schur" in fluidem.names.
-_SCHUR = ("auto",) + names.choices("schur")
+#: Schur names accepted by BlockKrylovSolver: those of kind "schur" in fluidem.names.
+_SCHUR = names.choices("schur")
 
 
 class BlockKrylovSolver:
@@ -160,7 +160,8 @@ class BlockKrylovSolver:
     n_u : int
         Number of velocity DOFs; ``K[:n_u, :n_u]`` is the velocity block.
     schur : {"auto", "mass", "cahouet-chabard", "lsc"}
-        A name of kind ``"schur"`` in :mod:`fluidem.names`, or ``"auto"``.
+        A name of kind ``"schur"`` in :mod:`fluidem.names` (``"auto"``: Cahouet–Chabard
+        when ``dt`` is given, the mass approximation otherwise).
         ``"mass"``: ``S~^{-1} = nu M_p^{-1}`` (steady Stokes, mildly
         convective Oseen).  ``"cahouet-chabard"``: ``S~^{-1} = nu M_p^{-1} +
         (alpha/dt) L_p^{-1}``, ``L_p = B D_u^{-1} B^T`` (unsteady, any
@@ -240,9 +241,9 @@ class BlockKrylovSolver:
                  restart: int = 100, stagnation: float = 0.999, reuse: str = "values",
                  mass_solve: str = "exact", velocity_cycles: int = 2, cycle: str = "V",
                  near_nullspace=None, amg_options=None):
+        schur = names.lookup("schur", schur, where="schur")
         if schur == "auto":
             schur = "cahouet-chabard" if dt is not None else "mass"
-        schur = names.lookup("schur", schur, where="schur")
         if schur == "cahouet-chabard" and dt is None:
             raise ValueError("schur='cahouet-chabard' needs the time step dt")
         if schur in ("mass", "cahouet-chabard") and pressure_mass is None:
