@@ -76,7 +76,7 @@ def _schedule_longest_first(items, n_workers: int) -> None:
     worker is almost idle: the order [1, 2, 4, 3, 5, ...] for two workers pairs the longest
     unit with the fourth and the second with the third.
     """
-    units = {}
+    units: dict[str, list] = {}
     for item in items:
         unit = units.setdefault(_unit(item.nodeid), [0.0, []])
         unit[0] += _seconds(item)

@@ -118,7 +118,7 @@ class OutputWriter:
     def __init__(self, out_dir: PathLike, restart_step: int | None = None):
         self.dir = Path(out_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
-        self._series = {"fields": [], "bodies": []}
+        self._series: dict[str, list[tuple[int, float, str]]] = {"fields": [], "bodies": []}
         hist = self.dir / "history.csv"
         if restart_step is None:
             self._hist = open(hist, "w", newline="")
@@ -176,6 +176,7 @@ class OutputWriter:
         contacts : (n,) int
             Number of contacts of each body.
         """
+        pos = np.asarray(pos, dtype=float).reshape(-1, 2)
         n = len(pos)
         if n == 0:
             return
@@ -226,7 +227,7 @@ class OutputWriter:
 
         pts = _points3(np.vstack(outlines)) if outlines else np.zeros((0, 3))
         offs = np.cumsum([0] + [len(o) for o in outlines])
-        groups = {}
+        groups: dict[int, list[int]] = {}
         for k, o in enumerate(outlines):  # one cell per body: small, per output step only
             groups.setdefault(len(o), []).append(k)
         cells, ids = [], []
