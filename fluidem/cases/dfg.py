@@ -24,10 +24,10 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import InputError
 from ..fluid.forces import body_loads, periodic_stats
 from ..fluid.navier_stokes import BDF2Stepper, FlowProblem, make_flow_solver, solve_steady
 from ..fluid.space import FlowSpace, RigidMotion, VelocityBC
-from ..errors import InputError
 from ..geometry import regular_polygon
 from ..mesh.background import GradedSize
 from ..mesh.triangulate import Obstacle, to_skfem, triangulate_box
