@@ -17,6 +17,21 @@ Layout of an output directory::
 XDMF would need h5py; VTU files with a PVD index are read by ParaView and meshio alike.
 ``fx, fy, torque`` are the hydrodynamic load in fluid scenes and the contact force and
 torque (without gravity) in dry scenes; ``contacts`` counts each body's contacts.
+
+Examples
+--------
+>>> import tempfile
+>>> import numpy as np
+>>> from fluidem.io import OutputWriter, read_history
+>>> d = tempfile.mkdtemp()
+>>> w = OutputWriter(d)
+>>> w.history(0, 0.0, pos=[[0.1, 0.2], [0.3, 0.4]], angle=[0.0, 0.5], vel=np.zeros((2, 2)), omega=[0.0, 1.0],
+...           force=np.zeros((2, 2)), torque=[0.0, 0.0], contacts=[0, 1])
+>>> w.event(0, 0.0, "start")
+>>> w.close()
+>>> h = read_history(d)
+>>> h["id"], h["y"], h["contacts"]
+(array([0, 1]), array([0.2, 0.4]), array([0, 1]))
 """
 
 from __future__ import annotations
@@ -26,22 +41,41 @@ import os
 import pickle
 import re
 from pathlib import Path
+from typing import Union
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from .validate import fail
 
 __all__ = ["OutputWriter", "read_history", "read_pvd", "latest_checkpoint", "load_checkpoint", "fluid_point_data",
            "HISTORY_COLUMNS"]
+
+PathLike = Union[str, os.PathLike]
 
 HISTORY_COLUMNS = ("step", "t", "id", "x", "y", "angle", "vx", "vy", "omega", "fx", "fy", "torque", "contacts")
 CHECKPOINT_VERSION = 1
 
 
-def fluid_point_data(space, x: np.ndarray) -> dict:
-    """Velocity (n_vertices, 3) and pressure (n_vertices,) at mesh vertices.
+def fluid_point_data(space, x: np.ndarray) -> dict[str, np.ndarray]:
+    """Velocity, speed and pressure at the mesh vertices, for VTU output.
 
     Velocity: the vertex DOFs (all element pairs here have nodal vertex values).  Pressure:
     the pressure basis evaluated at each element's vertices, averaged over the elements
     around a vertex (exact for a continuous pressure).
+
+    Parameters
+    ----------
+    space : fluidem.fluid.space.FlowSpace
+        Velocity/pressure spaces on the mesh (``n_u`` velocity DOFs first, then pressure).
+    x : (space.n_dofs,) float
+        Velocity (m/s) and kinematic pressure (p/ρ, m²/s²) DOFs.
+
+    Returns
+    -------
+    dict
+        ``"velocity"`` (n_vertices, 3) m/s with a zero z column, ``"speed"`` (n_vertices,) m/s,
+        ``"pressure"`` (n_vertices,) m²/s².
     """
     mesh = space.mesh
     nv = mesh.nvertices
@@ -67,20 +101,24 @@ def _points3(p2):
 
 
 class OutputWriter:
-    """Writes one run's output directory (see the module docstring).
+    """Writes one run's output directory (see the module docstring for the layout).
 
     Parameters
     ----------
     out_dir : str or Path
+        Created if missing; a fresh run overwrites ``history.csv``, ``events.log`` and
+        ``mesh_quality.csv``.
     restart_step : int or None
         When continuing from a checkpoint at this step: rows, series entries and events
         after it are dropped so the continued run appends to a consistent record.
+
+    Call :meth:`close` at the end (the history and the event log stay open in between).
     """
 
-    def __init__(self, out_dir, restart_step: int | None = None):
+    def __init__(self, out_dir: PathLike, restart_step: int | None = None):
         self.dir = Path(out_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
-        self._series = {"fields": [], "bodies": []}
+        self._series: dict[str, list[tuple[int, float, str]]] = {"fields": [], "bodies": []}
         hist = self.dir / "history.csv"
         if restart_step is None:
             self._hist = open(hist, "w", newline="")
@@ -114,9 +152,31 @@ class OutputWriter:
             f.writelines(keep)
 
     # -- history ----------------------------------------------------------------------------
-    def history(self, step: int, t: float, pos, angle, vel, omega, force, torque, contacts) -> None:
-        """Append one row per body: arrays ``pos (n, 2)``, ``angle (n,)``, ``vel (n, 2)``, ``omega (n,)``,
-        ``force (n, 2)``, ``torque (n,)``, ``contacts (n,)`` int."""
+    def history(self, step: int, t: float, pos: ArrayLike, angle: ArrayLike, vel: ArrayLike, omega: ArrayLike,
+                force: ArrayLike, torque: ArrayLike, contacts: ArrayLike) -> None:
+        """Append one row per body to history.csv (nothing for ``n = 0`` bodies).
+
+        Parameters
+        ----------
+        step : int
+        t : float
+            Time, s.
+        pos : (n, 2) float
+            Body centres, m.
+        angle : (n,) float
+            Rotation angles, rad.
+        vel : (n, 2) float
+            Centre velocities, m/s.
+        omega : (n,) float
+            Angular velocities, rad/s.
+        force : (n, 2) float
+            Force on each body (per unit depth in 2D), N/m.
+        torque : (n,) float
+            Torque about each centre, N.
+        contacts : (n,) int
+            Number of contacts of each body.
+        """
+        pos = np.asarray(pos, dtype=float).reshape(-1, 2)
         n = len(pos)
         if n == 0:
             return
@@ -144,20 +204,30 @@ class OutputWriter:
         lines += ["  </Collection>", "</VTKFile>", ""]
         (self.dir / f"{name}.pvd").write_text("\n".join(lines))
 
-    def fields(self, step: int, t: float, points, triangles, point_data: dict) -> Path:
-        """Write fluid fields on the vertex mesh: ``points (n, 2)``, ``triangles (m, 3)``."""
+    def fields(self, step: int, t: float, points: ArrayLike, triangles: ArrayLike,
+               point_data: dict[str, np.ndarray]) -> Path:
+        """Write fluid fields on the vertex mesh to ``fields/fields_<step>.vtu`` and index it.
+
+        ``points`` (n, 2) m, ``triangles`` (m, 3) int vertex indices, ``point_data`` arrays of
+        first dimension n (e.g. from :func:`fluid_point_data`).  Returns the file written.
+        """
         import meshio
 
         m = meshio.Mesh(_points3(points), [("triangle", np.asarray(triangles))], point_data=point_data)
         return self._add("fields", step, t, m)
 
-    def bodies(self, step: int, t: float, outlines, velocity, omega) -> Path:
-        """Write body outlines (list of (n_i, 2)) as polygon cells with id, velocity, omega."""
+    def bodies(self, step: int, t: float, outlines: list, velocity: ArrayLike, omega: ArrayLike) -> Path:
+        """Write body outlines to ``bodies/bodies_<step>.vtu`` and index it.
+
+        ``outlines``: one (n_i, 2) array of vertices (m) per body; ``velocity`` (n_bodies, 2)
+        m/s and ``omega`` (n_bodies,) rad/s become cell data next to the body ``id``.  Returns
+        the file written.
+        """
         import meshio
 
         pts = _points3(np.vstack(outlines)) if outlines else np.zeros((0, 3))
         offs = np.cumsum([0] + [len(o) for o in outlines])
-        groups = {}
+        groups: dict[int, list[int]] = {}
         for k, o in enumerate(outlines):  # one cell per body: small, per output step only
             groups.setdefault(len(o), []).append(k)
         cells, ids = [], []
@@ -175,11 +245,11 @@ class OutputWriter:
 
     # -- log, quality, checkpoints ----------------------------------------------------------------
     def event(self, step: int, t: float, kind: str, message: str = "") -> None:
-        """One line ``step t kind message`` in events.log."""
+        """Append one line ``step=<step> t=<t> <kind> <message>`` to events.log."""
         self._events.write(f"step={step} t={t:.10g} {kind} {message}".rstrip() + "\n")
         self._events.flush()
 
-    def mesh_quality(self, step: int, t: float, q) -> None:
+    def mesh_quality(self, step: int, t: float, q) -> None:  # q: fluidem.mesh.MeshQuality
         """Append a :class:`fluidem.mesh.MeshQuality` row to mesh_quality.csv."""
         path = self.dir / "mesh_quality.csv"
         new = not path.exists()
@@ -202,13 +272,18 @@ class OutputWriter:
         return path
 
     def close(self) -> None:
+        """Close history.csv and events.log (idempotent)."""
         for f in (self._hist, self._events):
             if not f.closed:
                 f.close()
 
 
-def read_history(path) -> dict:
-    """history.csv as a dict of column name -> array (``step``, ``id``, ``contacts`` int)."""
+def read_history(path: PathLike) -> dict[str, np.ndarray]:
+    """history.csv (or the one in a run directory) as a dict of column name -> (n_rows,) array.
+
+    Columns are :data:`HISTORY_COLUMNS`; ``step``, ``id`` and ``contacts`` are int, the
+    others float (SI units: m, rad, m/s, rad/s, N/m, N).
+    """
     path = Path(path)
     if path.is_dir():
         path = path / "history.csv"
@@ -222,8 +297,13 @@ def read_history(path) -> dict:
     return out
 
 
-def read_pvd(path, with_steps: bool = False) -> list:
-    """Entries of a PVD index: list of (t, file path) or (step, t, relative file)."""
+def read_pvd(path: PathLike, with_steps: bool = False) -> list[tuple]:
+    """Entries of a PVD index, in file order.
+
+    Returns a list of ``(t, path)`` (time in s, the data file's path), or with
+    ``with_steps`` of ``(step, t, file)`` with the file relative to the index (step -1 when
+    the index has no step attribute).
+    """
     path = Path(path)
     text = path.read_text()
     out = []
@@ -233,18 +313,26 @@ def read_pvd(path, with_steps: bool = False) -> list:
     return out
 
 
-def latest_checkpoint(out_dir) -> Path:
-    """Newest checkpoint file in ``out_dir/checkpoints``; ``ValueError`` if there is none."""
+def latest_checkpoint(out_dir: PathLike) -> Path:
+    """Newest checkpoint file in ``out_dir/checkpoints``.
+
+    Raises :class:`fluidem.errors.InputError` (a ``ValueError``) if there is none.
+    """
     d = Path(out_dir) / "checkpoints"
     files = sorted(d.glob("ckpt_*.pkl")) if d.is_dir() else []
     if not files:
-        raise ValueError(f"no checkpoint in {str(d)!r}; allowed: a directory written by 'fluidem run' "
-                         "with checkpoints (output.checkpoint_every)")
+        raise fail("checkpoint directory", str(d), "a directory holding ckpt_*.pkl files written by 'fluidem run' "
+                   "with output.checkpoint_every")
     return files[-1]
 
 
-def load_checkpoint(path) -> dict:
-    """Read a checkpoint written by :meth:`OutputWriter.checkpoint`."""
+def load_checkpoint(path: PathLike) -> dict:
+    """Read a checkpoint written by :meth:`OutputWriter.checkpoint` (a run directory: its newest).
+
+    Returns the pickled state with ``version``, ``step`` and ``t`` (s).  Raises
+    :class:`fluidem.errors.InputError` (a ``ValueError``) for a missing file or a file that is
+    not a checkpoint of this version.  Only load checkpoints you wrote: they are pickles.
+    """
     path = Path(path)
     if path.is_dir():
         path = latest_checkpoint(path)
@@ -252,7 +340,7 @@ def load_checkpoint(path) -> dict:
         with open(path, "rb") as f:
             data = pickle.load(f)
     except FileNotFoundError:
-        raise ValueError(f"checkpoint {str(path)!r} does not exist") from None
+        raise fail("checkpoint", str(path), "an existing checkpoint file") from None
     if not isinstance(data, dict) or data.get("version") != CHECKPOINT_VERSION:
-        raise ValueError(f"{str(path)!r} is not a fluidem checkpoint of version {CHECKPOINT_VERSION}")
+        raise fail("checkpoint", str(path), f"a fluidem checkpoint of version {CHECKPOINT_VERSION}")
     return data

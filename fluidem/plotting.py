@@ -8,6 +8,8 @@
 * ``pressure.png``: the pressure at the last output step (fluid scenes),
 * ``bodies.png``: the body outlines at the first and last output steps (all scenes),
 * ``trajectories.png``: the paths of the body centres from ``history.csv``.
+
+matplotlib is needed (it is in the ``test`` extra, not a dependency of fluidem).
 """
 
 from __future__ import annotations
@@ -15,6 +17,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
+from .errors import InputError
+from .io import PathLike, read_history, read_pvd
 
 __all__ = ["plot_run"]
 
@@ -37,7 +42,7 @@ def _draw_bodies(ax, outlines, **kw):
         ax.add_collection(PolyCollection(outlines, **{"facecolor": "0.6", "edgecolor": "k", "linewidth": 0.5, **kw}))
 
 
-def _box(out_dir: Path):
+def _box(out_dir: Path) -> tuple | None:
     try:  # the scene as run gives the box
         from .scene import Scene
 
@@ -46,7 +51,7 @@ def _box(out_dir: Path):
         return None
 
 
-def plot_run(out_dir, save_dir=None, dpi: int = 120) -> list:
+def plot_run(out_dir: PathLike, save_dir: PathLike | None = None, dpi: int = 120) -> list[Path]:
     """Draw the figures of a run directory to PNG files.
 
     Parameters
@@ -56,11 +61,30 @@ def plot_run(out_dir, save_dir=None, dpi: int = 120) -> list:
     save_dir : str or Path, optional
         Where to put the PNG files (default: ``out_dir/plots``).
     dpi : int
+        Resolution of the PNG files, dots per inch.
 
     Returns
     -------
     list of Path
-        The files written.
+        The files written (the fluid figures only for a fluid scene).
+
+    Raises
+    ------
+    fluidem.errors.InputError
+        ``out_dir`` holds no ``history.csv`` (also a ``ValueError``).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import fluidem
+    >>> from fluidem.plotting import plot_run
+    >>> s = fluidem.Scene.from_dict({"gravity": [0, -10], "domain": {"box": [0, 1, 0, 1]},
+    ...     "bodies": [{"shape": "disk", "radius": 0.05, "position": [0.5, 0.8]}],
+    ...     "time": {"dt": 0.01, "t_end": 0.1}})
+    >>> d = tempfile.mkdtemp()
+    >>> _ = fluidem.Simulation(s).run(out_dir=d)
+    >>> sorted(p.name for p in plot_run(d))   # a dry scene: no mesh, velocity or pressure
+    ['bodies.png', 'trajectories.png']
     """
     import matplotlib
 
@@ -69,11 +93,10 @@ def plot_run(out_dir, save_dir=None, dpi: int = 120) -> list:
     import matplotlib.tri as mtri
     import meshio
 
-    from .io import read_history, read_pvd
-
     out_dir = Path(out_dir)
     if not (out_dir / "history.csv").exists():
-        raise ValueError(f"{str(out_dir)!r} is not a fluidem run directory (no history.csv)")
+        raise InputError(f"out_dir = {str(out_dir)!r} is not a fluidem run directory: expected a directory written "
+                         "by 'fluidem run' (with a history.csv)")
     save = Path(save_dir) if save_dir is not None else out_dir / "plots"
     save.mkdir(parents=True, exist_ok=True)
     box = _box(out_dir)

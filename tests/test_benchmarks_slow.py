@@ -1,13 +1,17 @@
 """Fine-level benchmark checks against the published values (slow: run in CI, skip locally
 with ``-m "not slow"``).  Tolerances are the targets of the fluid-core specification where the
-measured errors meet them, otherwise 2x the measured error (stated next to each)."""
+measured errors meet them, otherwise 2x the measured error (stated next to each).
+
+The tests share nothing, so each may run on any worker with ``-n`` (conftest.py); ``seconds``
+is each one's wall time with one BLAS thread on a 2-core machine, which orders them longest first.
+"""
 
 import pytest
 
 from fluidem.cases.dfg import dfg_2d1
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=12)
 def test_dfg_2d1_finest_level_p3():
     """P3/P2 at level 3 (120k DOFs): measured c_D 8.8e-8, c_L 3.8e-7, Δp 1.5e-5 relative."""
     res = dfg_2d1("p3", 3)
@@ -17,7 +21,7 @@ def test_dfg_2d1_finest_level_p3():
     assert errs["dp"] < 3e-5
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=600)
 def test_dfg_2d2_reaches_the_target_accuracy():
     """P3/P2 level 2 (41.7k DOFs), BDF2 dt = 0.0025, semi-implicit, window [4, 6] (the case
     defaults): measured St +1.2e-3, c_D,max +9.7e-4, c_L,max +5.4e-3 relative; the target is
@@ -32,7 +36,7 @@ def test_dfg_2d2_reaches_the_target_accuracy():
     assert res.extra["periods_measured"] >= 5
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=80)
 def test_square_cylinder_re100_against_sohankar():
     """Taylor–Hood level 0 (15k DOFs), dt = 0.05, measured on t ∈ [50, 100] at 5 % blockage with
     free-slip walls: measured St 0.1467 (+0.5 %) and mean C_D 1.514 (+2.4 %) against Sohankar
@@ -45,17 +49,18 @@ def test_square_cylinder_re100_against_sohankar():
     assert errs["cd_mean"] < 0.03
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=800)
 def test_dfg_2d3_drag_maximum():
     """P3/P2 level 2 (41.7k DOFs), dt = 0.0025 (the case defaults), forces normalised with Ū = 1:
     measured c_D,max 2.950977 at t = 3.9375 (+1.9e-5 against John 2004: 2.950921575 at 3.93625),
     Δp(8) −0.11145 (−1.3e-3).  c_L,max is +1.5 % (0.48491 at t = 5.690 against 0.47795 at 5.693),
     outside the 1 % target (second order in dt: +5.7 % at dt = 0.005); the check holds the current
-    figure (3 %) so a regression shows."""
+    figure (3 %) so a regression shows.  c_D,max and Δp(8) are held at ~2.5x their measured errors."""
     from fluidem.cases.dfg import dfg_2d3
 
     res = dfg_2d3()
     errs = res.relative_errors()
-    assert errs["cd_max"] < 0.01
+    assert errs["cd_max"] < 5e-5  # measured 1.9e-5
+    assert errs["dp_end"] < 3e-3  # measured 1.3e-3
     assert abs(res.quantities["t_cd_max"] - 3.93625) < 0.01
     assert errs["cl_max"] < 0.03

@@ -1,4 +1,4 @@
-"""The README's Python example runs and prints what it says."""
+"""The README's Python examples run and print what they say; the install it describes ships what it should."""
 
 import pathlib
 import re
@@ -50,3 +50,21 @@ def test_cli_rejects_options_that_do_not_apply(capsys):
     with pytest.raises(SystemExit):
         main(["bench", "dfg-2d1", "--dt", "0.01"])
     assert "--dt does not apply to dfg-2d1" in capsys.readouterr().err
+
+
+def test_install_takes_the_version_from_the_package_and_ships_the_type_hints():
+    """One version (``fluidem.__version__``, read by pyproject) and the PEP 561 marker in the wheel."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+
+    import fluidem
+
+    root = README.parent
+    meta = tomllib.loads((root / "pyproject.toml").read_text())
+    assert "version" not in meta["project"] and "version" in meta["project"]["dynamic"]
+    assert meta["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "fluidem.__version__"}
+    assert "py.typed" in meta["tool"]["setuptools"]["package-data"]["fluidem"]
+    assert (root / "fluidem" / "py.typed").is_file()
+    assert re.fullmatch(r"\d+\.\d+\.\d+((a|b|rc)\d+)?(\.post\d+)?(\.dev\d+)?", fluidem.__version__)

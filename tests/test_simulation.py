@@ -207,7 +207,8 @@ def test_faxen_wall_correction_through_the_scene_path(k):
     mu = s.fluid.density * s.fluid.viscosity
     F = -sim.last_loads[0][0, 0] / (mu * s.bodies[0].velocity[0])
     assert sim.flow.curved
-    assert abs(F / faxen(k) - 1) < 5e-3
+    # measured F / Faxén − 1: +1.07e-4 (k = 0.1), +1.26e-4 (0.2), −3.9e-5 (0.3); held at ~2.5x
+    assert abs(F / faxen(k) - 1) < {0.1: 2.5e-4, 0.2: 3e-4, 0.3: 1e-4}[k]
 
 
 def test_every_example_scene_loads_and_plans():

@@ -13,9 +13,11 @@ h_max = 2 D / 2^level.
 from __future__ import annotations
 
 import time
+from typing import Callable
 
 import numpy as np
 
+from ..errors import InputError
 from ..fluid.forces import body_loads, periodic_stats
 from ..fluid.navier_stokes import BDF2Stepper, FlowProblem
 from ..fluid.solvers import make_solver
@@ -32,9 +34,26 @@ DOMAIN = (-10.0, 20.0, -10.0, 10.0)
 
 
 def square_cylinder_mesh(level: int = 1):
-    """Graded mesh around the unit square in the 5 %-blockage channel."""
+    """Graded mesh around the unit square in the 5 %-blockage channel :data:`DOMAIN`.
+
+    Parameters
+    ----------
+    level : int
+        0 to 5; the cell size at the square is 0.1 D / 2^level.
+
+    Returns
+    -------
+    skfem.MeshTri
+        With boundaries ``left`` (inflow), ``right`` (outflow), ``bottom``, ``top`` and ``square``.
+
+    Examples
+    --------
+    >>> from fluidem.cases.square_cylinder import square_cylinder_mesh
+    >>> sorted(square_cylinder_mesh(level=0).boundaries)
+    ['bottom', 'left', 'right', 'square', 'top']
+    """
     if int(level) != level or not 0 <= level <= 5:
-        raise ValueError(f"mesh level must be an integer from 0 to 5, got {level!r}")
+        raise InputError(f"mesh level must be an integer from 0 to 5, got {level!r}")
     h0 = 0.1 / 2**level
     sq = Obstacle(rectangle(1.0, 1.0), "square")
     size = GradedSize(h_min=h0, growth=1.15, h_max=2.0 / 2**level, region=[sq.vertices])
@@ -43,11 +62,37 @@ def square_cylinder_mesh(level: int = 1):
 
 @register_case("square-cylinder")
 def square_cylinder(element: str = "th", level: int = 1, dt: float = 0.05, t_end: float = 150.0,
-                    window: float = 50.0, convection: str = "semi-implicit", progress=None,
+                    window: float = 50.0, convection: str = "semi-implicit",
+                    progress: Callable[[int, int, float], None] | None = None,
                     solver: str = "lagged") -> CaseResult:
-    """Square cylinder at Re = 100, 5 % blockage: St, mean C_D and rms C_L on the last ``window``."""
+    """Square cylinder at Re = 100, 5 % blockage: St, mean C_D and rms C_L on the last ``window``.
+
+    Units are those of the case (D = U∞ = ρ = 1, ν = 0.01): times in D / U∞.  A short
+    rotation of the square (t < 2) triggers the shedding.
+
+    Parameters
+    ----------
+    element : str
+        Element pair name.
+    level : int
+        Mesh level of :func:`square_cylinder_mesh`.
+    dt, t_end, window : float
+        BDF2 time step, end time and length of the measuring window ``[t_end − window, t_end]``.
+    convection : str
+        Treatment of the convection term by :class:`~fluidem.fluid.navier_stokes.BDF2Stepper`.
+    progress : callable, optional
+        ``progress(step, n_steps, t)``, called 20 times during the run.
+    solver : str
+        A name of :func:`~fluidem.fluid.navier_stokes.make_flow_solver`.
+
+    Returns
+    -------
+    CaseResult
+        Quantities ``st``, ``cd_mean``, ``cl_rms`` against :data:`REFERENCE`, and ``cd_max``,
+        ``cl_max``.
+    """
     if not 0 < window < t_end:
-        raise ValueError(f"the measuring window ({window:g}) must be positive and shorter than t_end ({t_end:g})")
+        raise InputError(f"window = {window:g}: expected a positive window shorter than t_end ({t_end:g})")
     t0 = time.perf_counter()
     mesh = square_cylinder_mesh(level)
     t_mesh = time.perf_counter() - t0

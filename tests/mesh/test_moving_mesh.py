@@ -65,7 +65,8 @@ def test_node_velocity_is_rigid_on_outlines():
         np.testing.assert_allclose(w[on], (x - x_prev) / dt, atol=1e-12)
         r = x_prev - poses[b, :2]
         expected = vel[b, :2] + vel[b, 2] * np.column_stack([-r[:, 1], r[:, 0]])
-        np.testing.assert_allclose(w[on], expected, atol=0.05)
+        # the finite difference departs from the rigid velocity by |ω|² |r| dt / 2: measured 3.75e-4 (body 0)
+        np.testing.assert_allclose(w[on], expected, atol=1e-3)
     with pytest.raises(ValueError, match="dt"):
         mm.node_velocity(0.0)
 
