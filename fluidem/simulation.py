@@ -36,6 +36,7 @@ import numpy as np
 
 from .coupling.bodies import DEMBodies, KinematicBodies, LinearPath
 from .cost import CostSplit
+from .geometry import orient_ccw
 from .scene import Scene
 
 __all__ = ["Simulation", "RunResult", "StepTimes", "run", "LinearPath"]
@@ -181,7 +182,8 @@ class Simulation:
                 from .io import fluid_point_data
 
                 m = self.flow.mesh
-                writer.fields(self.step_index, self.t, m.p[:, :m.nvertices].T, _ccw(m), fluid_point_data(self.flow.space, self.flow.x))
+                writer.fields(self.step_index, self.t, m.p[:, :m.nvertices].T, _ccw(m),
+                              fluid_point_data(self.flow.space, self.flow.x))
         return t_loads
 
     # -- running ---------------------------------------------------------------------------------
@@ -216,13 +218,14 @@ class Simulation:
         if out_dir is not None:
             writer = OutputWriter(out_dir, restart_step=self.step_index if restart else None)
             if not restart:
-                _write_scene_toml(sc, Path(out_dir) / "scene.toml")
+                sc.to_toml(Path(out_dir) / "scene.toml")
                 for kind, msg in self.events:
                     writer.event(0, 0.0, kind, msg)
                 if self.flow is not None:
                     from .mesh.quality import mesh_quality
 
-                    writer.mesh_quality(0, 0.0, mesh_quality(self.flow.mesh.p[:, :self.flow.mesh.nvertices].T, _ccw(self.flow.mesh)))
+                    m = self.flow.mesh
+                    writer.mesh_quality(0, 0.0, mesh_quality(m.p[:, :m.nvertices].T, _ccw(m)))
             else:
                 writer.event(self.step_index, self.t, "restart", f"from {restart}")
         N = self.plan.n_steps if n_steps is None else int(n_steps)
@@ -279,41 +282,7 @@ class Simulation:
 
 def _ccw(mesh) -> np.ndarray:
     """Triangles (m, 3) of a scikit-fem mesh, counter-clockwise (scikit-fem sorts vertex indices)."""
-    p, t = mesh.p, mesh.t.T.copy()
-    a, b, c = p[:, t[:, 0]], p[:, t[:, 1]], p[:, t[:, 2]]
-    neg = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) < 0
-    t[neg] = t[neg][:, [0, 2, 1]]
-    return t
-
-
-def _toml_value(v):
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    return repr(float(v)) if isinstance(v, float) else str(v)
-
-
-def _write_scene_toml(scene: Scene, path: Path):
-    """The scene as run, as TOML (bodies inline; re-readable by Scene.from_toml)."""
-    d = scene.to_dict()
-    lines = [f"name = {_toml_value(d.pop('name'))}", f"description = {_toml_value(d.pop('description'))}",
-             f"gravity = {_toml_value(d.pop('gravity'))}"]
-    bodies = d.pop("bodies")
-    for key, tab in d.items():
-        lines.append(f"\n[{key}]")
-        for k, v in tab.items():
-            if isinstance(v, dict) and "type" in v and key == "domain":
-                v = {kk: vv for kk, vv in v.items() if not (kk == "profile" and vv is None)}
-            lines.append(f"{k} = {_toml_value(v)}")
-    for b in bodies:
-        lines.append("\n[[bodies]]")
-        lines += [f"{k} = {_toml_value(v)}" for k, v in b.items()]
-    path.write_text("\n".join(lines) + "\n")
+    return orient_ccw(mesh.p.T, mesh.t.T)
 
 
 def run(scene, out_dir="scene", restart=None, progress=None) -> RunResult:

@@ -67,7 +67,8 @@ dir = "out"
 every = 10
 """
 
-CSV = "shape,radius,segments,width,height,x,y,angle,density\ndisk,0.05,8,,,0.3,6.0,0.0,2.0\nrectangle,,,0.1,0.05,1.7,6.0,0.3,2.5\n"
+CSV = ("shape,radius,segments,width,height,x,y,angle,density\ndisk,0.05,8,,,0.3,6.0,0.0,2.0\n"
+       "rectangle,,,0.1,0.05,1.7,6.0,0.3,2.5\n")
 
 
 @pytest.fixture
@@ -283,5 +284,6 @@ def test_old_spellings_are_stored_canonically_and_plan_modules_agree():
 
     s = _fluid("navier-stokes", [], fluid={"model": "navier-stokes", "viscosity": 0.1, "solver": "lagged-lu"})
     assert s.fluid.solver == "lagged" and "solver lagged" in str(s.plan())
-    assert fluidem.scene.Plan is fluidem.plan.Plan and fluidem.scene.contact_candidates is fluidem.plan.contact_candidates
+    assert fluidem.scene.Plan is fluidem.plan.Plan
+    assert fluidem.scene.contact_candidates is fluidem.plan.contact_candidates
     assert fluidem.scene.SIDES == ("bottom", "right", "top", "left")

@@ -222,7 +222,7 @@ def dfg_2d2(element: str = "p3", level: int = 2, dt: float = 0.0025, t_end: floa
     progress : callable, optional
         ``progress(step, n_steps, t)``, called 20 times during the run.
     solver : str
-        A name of :func:`~fluidem.fluid.navier_stokes.make_flow_solver`.
+        A name of :func:`~fluidem.fluid.solvers.make_solver`.
 
     Returns
     -------

@@ -83,7 +83,7 @@ def square_cylinder(element: str = "th", level: int = 1, dt: float = 0.05, t_end
     progress : callable, optional
         ``progress(step, n_steps, t)``, called 20 times during the run.
     solver : str
-        A name of :func:`~fluidem.fluid.navier_stokes.make_flow_solver`.
+        A name of :func:`~fluidem.fluid.solvers.make_solver`.
 
     Returns
     -------

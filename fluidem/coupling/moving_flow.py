@@ -18,6 +18,7 @@ import time
 import numpy as np
 
 from ..cost import CostSplit
+from ..geometry import barycentric
 from .bodies import LinearPath
 from .boundary import velocity_bcs
 from .loads import FlowLoads
@@ -38,13 +39,8 @@ def p1_at_dofs(space, w_nodes: np.ndarray) -> np.ndarray:
     p, t = mesh.p, mesh.t
     ed = ub.element_dofs  # (Nbfun, n_elements)
     loc = ub.doflocs[:, ed]  # (2, Nbfun, n_elements)
-    a, b, c = p[:, t[0]], p[:, t[1]], p[:, t[2]]
-    d1, d2 = b - a, c - a
-    det = d1[0] * d2[1] - d1[1] * d2[0]
-    r = loc - a[:, None, :]
-    l1 = (d2[1] * r[0] - d2[0] * r[1]) / det
-    l2 = (-d1[1] * r[0] + d1[0] * r[1]) / det
-    l0 = 1.0 - l1 - l2
+    a, b, c = (p[:, t[k]][:, None, :] for k in range(3))
+    l0, l1, l2 = np.moveaxis(barycentric(loc, a, b, c, axis=0), -1, 0)  # each (Nbfun, n_elements)
     comp = np.zeros(ub.N, dtype=int)
     comp[ub.split_indices()[1]] = 1
     cd = comp[ed]

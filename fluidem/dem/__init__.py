@@ -4,7 +4,8 @@ Entry points::
 
     from fluidem.dem import Body, ContactModel, DEM
     b = Body.polygon(vertices, density=..., position=(x, y), angle=0.0, velocity=(0, 0), omega=0.0, motion="free")
-    sim = DEM(bodies, walls=(xmin, xmax, ymin, ymax), gravity=(0, -9.81), contact=ContactModel(E=..., mu=..., gamma=...))
+    sim = DEM(bodies, walls=(xmin, xmax, ymin, ymax), gravity=(0, -9.81),
+              contact=ContactModel(E=..., mu=..., gamma=...))
     sim.step(dt); sim.run(t_end, dt); sim.advance(duration)
 
 Units

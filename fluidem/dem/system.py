@@ -443,7 +443,8 @@ class DEM:
     def add_bodies(self, bodies) -> np.ndarray:
         """Append bodies (e.g. for pouring); returns their indices.
 
-        Raises :class:`~fluidem.errors.InputError` (a ``ValueError``) if a new body overlaps another beyond ``overlap_tolerance``.
+        Raises :class:`~fluidem.errors.InputError` (a ``ValueError``) if a new body overlaps another
+        beyond ``overlap_tolerance``.
         """
         new = _check_bodies("DEM.add_bodies(bodies=...)", bodies)
         n0 = self.n

@@ -37,7 +37,8 @@ def junction_triangles(triangles, owner) -> np.ndarray:
 
 
 def junction_points(points, triangles, owner, centres, polygons, h, clearance: float = 0.3,
-                    min_angle: float = 25.0, max_angle: float = 125.0, tree: shapely.STRtree | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    min_angle: float = 25.0, max_angle: float = 125.0,
+                    tree: shapely.STRtree | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Junction nodes for the junction triangles of a mesh.
 
     Parameters

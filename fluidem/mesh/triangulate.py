@@ -283,7 +283,8 @@ def _facet_lookup(m):
         e = np.sort(np.asarray(edges, dtype=np.int64), axis=1)
         k = e[:, 0] * nv + e[:, 1]
         pos = np.searchsorted(sorted_keys, k)
-        if len(k) and (np.any(pos >= len(sorted_keys)) or np.any(sorted_keys[np.minimum(pos, len(sorted_keys) - 1)] != k)):
+        beyond = np.any(pos >= len(sorted_keys))
+        if len(k) and (beyond or np.any(sorted_keys[np.minimum(pos, len(sorted_keys) - 1)] != k)):
             raise MeshError("boundary edge not found among mesh facets")
         return order[pos].astype(np.int32)
 

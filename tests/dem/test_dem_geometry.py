@@ -109,7 +109,8 @@ def test_bad_polygons_and_density_raise():
     for rho in (0.0, -3.0):
         with pytest.raises(ValueError, match=rf"Body\(density=\.\.\.\) = {rho}: expected a positive finite number"):
             Body.disk(1.0, 6, density=rho)
-    with pytest.raises(ValueError, match=r"Body\(motion=\.\.\.\) = 'wobbly': expected one of 'free', 'fixed', 'prescribed'"):
+    with pytest.raises(ValueError,
+                       match=r"Body\(motion=\.\.\.\) = 'wobbly': expected one of 'free', 'fixed', 'prescribed'"):
         Body.disk(1.0, 6, motion="wobbly")
 
 
@@ -147,15 +148,18 @@ def test_bad_model_parameters_raise():
     (lambda: Body.disk(1.0, 6, angle="up"), r"Body\(angle=\.\.\.\) = 'up': expected a finite number"),
     (lambda: Body.disk(1.0, 6, motion="prescribed"), r"Body\(path=\.\.\.\) = None: expected a callable"),
     (lambda: Body.random_convex(0.01, 2), r"random_convex_vertices\(n_vertices=\.\.\.\) = 2: expected an integer >= 3"),
-    (lambda: Body.random_convex(0.01, 5, jitter=1.0), r"random_convex_vertices\(jitter=\.\.\.\) = 1\.0: expected a number in \[0, 1\)"),
+    (lambda: Body.random_convex(0.01, 5, jitter=1.0),
+     r"random_convex_vertices\(jitter=\.\.\.\) = 1\.0: expected a number in \[0, 1\)"),
     (lambda: ContactModel(gamma_t=-1.0), r"ContactModel\(gamma_t=\.\.\.\) = -1\.0: expected a finite number >= 0"),
     (lambda: DEM([Body.disk(1.0, 6)], gravity=(0.0,)), r"DEM\(gravity=\.\.\.\) = \(0\.0,\): expected a pair"),
     (lambda: DEM([Body.disk(1.0, 6)], walls=(1, -1, 0, 1)), r"DEM\(walls=\.\.\.\) = \(1, -1, 0, 1\): expected \(xmin"),
     (lambda: DEM([Body.disk(1.0, 6)], order=7), r"DEM\(order=\.\.\.\) = 7: expected one of 2, 3, 4, 5"),
-    (lambda: DEM([Body.disk(1.0, 6), "disk"]), r"DEM\(bodies=\.\.\.\)\[1\] = <str object>: expected a fluidem\.dem\.Body"),
+    (lambda: DEM([Body.disk(1.0, 6), "disk"]),
+     r"DEM\(bodies=\.\.\.\)\[1\] = <str object>: expected a fluidem\.dem\.Body"),
     (lambda: DEM([]), r"DEM\(bodies=\.\.\.\) = \[\]: expected at least one"),
     (lambda: DEM([Body.disk(1.0, 6)]).step(0.0), r"DEM\.step\(dt=\.\.\.\) = 0\.0: expected a positive finite number"),
-    (lambda: DEM([Body.disk(1.0, 6)]).run(1.0, 1e-3, every=0), r"DEM\.run\(every=\.\.\.\) = 0: expected an integer >= 1"),
+    (lambda: DEM([Body.disk(1.0, 6)]).run(1.0, 1e-3, every=0),
+     r"DEM\.run\(every=\.\.\.\) = 0: expected an integer >= 1"),
 ])
 def test_bad_arguments_name_parameter_and_value(make, message):
     from fluidem.errors import InputError

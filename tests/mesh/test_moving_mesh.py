@@ -189,7 +189,8 @@ def test_bad_input_is_rejected_with_clear_errors():
     with pytest.raises(ValueError, match="clockwise"):
         MovingMesh(dom, [sq[::-1]], [[1.0, 1.0, 0.0]], h=0.1)
     with pytest.raises(ValueError, match="intersects itself"):
-        MovingMesh(dom, [np.array([[0, 0], [0.4, 0.4], [0.4, 0], [0.2, 0.5], [0, 0.4]]) - 0.2], [[1.0, 1.0, 0.0]], h=0.1)
+        bowtie = np.array([[0, 0], [0.4, 0.4], [0.4, 0], [0.2, 0.5], [0, 0.4]]) - 0.2
+        MovingMesh(dom, [bowtie], [[1.0, 1.0, 0.0]], h=0.1)
     for h in (0.0, -0.1, np.inf):
         with pytest.raises(ValueError, match="mesh size h"):
             MovingMesh(dom, [sq], [[1.0, 1.0, 0.0]], h=h)
