@@ -343,7 +343,7 @@ def make_plan(scene: Scene) -> Plan:
             s = "ballistic: closed-form rigid motion (no contacts, no search)"
         E.append(Effect("solver", bool(moving), s))
     elif fl.model == "stokes":
-        E.append(Effect("solver", True, "one Stokes saddle-point solve per step (direct LU)", "stokes"))
+        E.append(Effect("solver", True, f"one Stokes saddle-point solve per step, solver {fl.solver}", "stokes"))
     else:
         E.append(Effect("solver", True, f"BDF2, {fl.convection} convection, solver {fl.solver}", "bdf2"))
 
