@@ -109,7 +109,7 @@ from .adaptation import cleanup_candidates
 from .background import GradedSize, SizeField, UniformSize
 from .contact_outline import contact_outline, contact_pairs
 from .cutout import Triangulation, cut_out, triangulate
-from .drag import DragAssociation, drag_association, dragged_positions
+from .drag import DragAssociation, HarmonicDrag, drag_association, dragged_positions, harmonic_drag
 from .gaps import (
     anchored_across_gap,
     boundary_owner,
@@ -378,6 +378,12 @@ class MovingMesh:
     _drag_weight = property(lambda self: self.drag.weight)
     _relax_damping = property(lambda self: self.drag.relax_damping)
 
+    def __getstate__(self):
+        # the factorised harmonic extension (SuperLU) is rebuilt on the next drag step
+        state = dict(self.__dict__)
+        state["_harmonic"] = None
+        return state
+
     def __setstate__(self, state):
         """Unpickle; a mesh pickled before the split by stage (checkpoints) is converted."""
         if "params" not in state:
@@ -514,6 +520,7 @@ class MovingMesh:
         self._near_pairs = contact_pairs(polys, tree, self.h)
         self.drag: DragAssociation = drag_association(self.points, self.h_node, self._drag_mobility, table,
                                                       p.drag_reach, p.drag_full, p.drag_stiffness)
+        self._harmonic = None  # built by the first drag step on this connectivity
         self._set_quality_baseline(final_shape)
         info["n_junctions"] = self.n_junctions
         return info
@@ -599,7 +606,7 @@ class MovingMesh:
         xd = dragged_positions(self.points, self.triangles, self.kind, self.outline_row, self.outlines.local,
                                self.outlines.body, self._contact_idx, self._contact_local, self.body_of,
                                self._drag_mobility, self.drag, self.junction_nodes, self.junction_verts,
-                               self.junction_bary, self.poses, new, p.drag_halvings)
+                               self.junction_bary, self.poses, new, p.drag_halvings, self._harmonic_drag())
         self.poses = new
         # relaxation with the per-step iteration limit (Sec. 3.3)
         damp = self.drag.relax_damping if self._damping is None else self.drag.relax_damping * self._damping
@@ -626,6 +633,15 @@ class MovingMesh:
             ev.retriangulated, ev.reason = True, reason
             ev.n_purged, ev.n_removed, ev.n_inserted = info["n_purged"], info["n_removed"], info["n_inserted"]
             ev.n_junctions = info["n_junctions"]
+
+    def _harmonic_drag(self) -> HarmonicDrag | None:
+        """The harmonic extension of this connectivity (``drag_field="harmonic"``), factorised
+        once per triangulation; ``None`` for the ramp."""
+        if self.params.drag_field != "harmonic":
+            return None
+        if self.__dict__.get("_harmonic") is None:
+            self._harmonic = harmonic_drag(self.topo, self.kind, self._mobility, self.drag)
+        return self._harmonic
 
     def retriangulate(self, n_relax: int | None = None) -> dict:
         """Constrained Delaunay triangulation of the current nodes (cut-out, adaptation, junctions).
