@@ -11,7 +11,8 @@ Each step
    - ``drag_field="harmonic"`` (default): get the discrete harmonic extension of these
      displacements (graph Laplacian of the mesh edges, eq. ``Σ_j (d_i − d_j) = 0`` per
      free node, Laplacian mesh motion of ALE), with the box sides as sliding walls (the
-     normal component is zero, the tangential one free): the shear and compression that
+     normal component is zero, the tangential one free, also for the free nodes next to
+     a side, so that wall elements are not flattened): the shear and compression that
      follow a body's motion spread over the whole fluid region, not over a band of
      ``drag_reach − drag_full`` elements (:func:`harmonic_drag`, factorised once per
      triangulation);
@@ -50,7 +51,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from ..geometry import rotate
-from .nodes import JUNCTION, OUTLINE, world
+from .nodes import FREE, JUNCTION, OUTLINE, SIDE, world
 from .relax import MeshTopology, signed_areas
 
 __all__ = ["DragAssociation", "HarmonicDrag", "drag_association", "harmonic_drag", "rigid_displacement",
@@ -159,10 +160,19 @@ class HarmonicDrag:
 def harmonic_drag(topo: MeshTopology, kind, mobility, assoc: DragAssociation) -> HarmonicDrag:
     """The :class:`HarmonicDrag` of a mesh: constrained are the components with zero
     ``mobility (n, 2)`` (outline, contact and corner nodes, the normal one of box-side
-    nodes), junction nodes and free nodes fully dragged (``Σ w >= 1`` in ``assoc``)."""
+    nodes), junction nodes, free nodes fully dragged (``Σ w >= 1`` in ``assoc``, they get
+    their dragged displacement) and the wall-normal component of free nodes next to a
+    box-side node (zero: they slide along the wall)."""
     n = len(kind)
     full = np.bincount(assoc.node, assoc.weight, n) >= 1.0 - 1e-12
-    con = (np.asarray(mobility) == 0.0) | full[:, None] | (kind == JUNCTION)[:, None]
+    mob = np.asarray(mobility)
+    con = (mob == 0.0) | full[:, None] | (kind == JUNCTION)[:, None]
+    # free nodes next to a box side keep their distance to it: the first layer of elements
+    # on a wall slides along it instead of being flattened against it
+    for a, b in ((topo.e0, topo.e1), (topo.e1, topo.e0)):
+        on_side = (kind[a] == SIDE) & (kind[b] == FREE)
+        for c in range(2):
+            con[b[on_side & (mob[a, c] == 0.0)], c] = True
     return HarmonicDrag(topo, con)
 
 

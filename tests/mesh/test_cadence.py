@@ -37,3 +37,18 @@ def test_the_ramp_is_still_available():
     _, events = _plate_events(n_steps=12, drag_field="ramp")
     assert events and events[0][1] == "quality" and events[0][0] < 12, events
     assert np.all([r in ("quality", "periodic") for _, r in events])
+
+
+def test_harmonic_drag_slides_along_the_walls_and_survives_a_pickle():
+    import pickle
+
+    from fluidem.mesh.nodes import SIDE, classify_box
+
+    mm, _ = _plate_events(n_steps=3)
+    side = mm.kind == SIDE
+    assert (classify_box(mm.points[side], mm.box)[0] == SIDE).all()  # box-side nodes stay on their side
+    copy = pickle.loads(pickle.dumps(mm))
+    for k in range(4, 8):
+        pose = [[0.8 + 0.01 * k, 0.5, 0.005 * k]]
+        assert mm.update(pose).reason == copy.update(pose).reason
+    assert np.array_equal(mm.points, copy.points)
