@@ -15,9 +15,10 @@ Pipeline of one *triangulation* (the "cut-out", Sec. 2.1):
    body;
 5. Voronoi junction points (Sec. 3.2, :mod:`fluidem.mesh.junctions`): triangles spanning
    three bodies are split at a junction node;
-6. spring relaxation (:mod:`fluidem.mesh.relax`, eq. 1–3), then one clean-up pass: free
-   nodes of elements still outside the angle bounds (outside narrow gaps) are removed, a
-   node is added in such elements without free nodes, and steps 4–6 run once more.
+6. spring relaxation (:mod:`fluidem.mesh.relax`, eq. 1–3), then up to ``cleanup_passes``
+   (2) clean-up passes: free nodes of elements still outside the angle bounds (outside
+   narrow gaps) are removed, a node is added in such elements without free nodes, and
+   steps 4–6 run once more.
 
 Strategies (``strategy=``):
 
@@ -26,9 +27,11 @@ Strategies (``strategy=``):
     pipeline runs, with ``relax_iterations`` sweeps (default 20).
 ``"drag"``
     mesh dragging (Sec. 4.2): each step the outline nodes move rigidly with their body;
-    free nodes within ``drag_full · h`` of a body follow its rigid motion, with a weight
-    falling to zero at ``drag_reach · h`` (the body drags the mesh around it); junction
-    nodes keep their barycentric place between their three outline nodes; then
+    free nodes within ``drag_full · h`` of a body follow its rigid motion, and the other
+    free nodes the harmonic extension of these displacements over the mesh, the box sides
+    sliding (``drag_field="harmonic"``; ``"ramp"``: a weight falling to zero at
+    ``drag_reach · h``; :mod:`fluidem.mesh.drag`); junction nodes keep their barycentric
+    place between their three outline nodes; then
     ``relax_iterations`` relaxation sweeps (default 3; dragged nodes relax with a reduced
     step).  Nodes never snap back.  The current nodes are re-triangulated every
     ``retriangulate_every`` steps (K, default 30) or earlier when
@@ -44,8 +47,9 @@ Strategies (``strategy=``):
     At re-triangulation nodes swallowed by (or closer than ``purge_clearance · h`` to) a
     body are purged, an independent set of nodes is removed where the incident edges are on
     average shorter than ``coarsen_ratio`` (0.7) of their target and nodes are added in
-    triangles larger than ``refine_area`` (1.6) target areas (so vacated regions coarsen
-    again, Fig. 6), and junction points are recomputed.
+    triangles larger than ``refine_area`` (1.6) target areas (at the midpoint of an edge on
+    a box side, else at the centroid; so vacated regions coarsen again, Fig. 6), and
+    junction points are recomputed.
 ``"fixed"``
     bodies do not move: the mesh is built once; :meth:`MovingMesh.update` checks that.
 
@@ -234,8 +238,9 @@ class MovingMesh:
         them: ``retriangulate_every``, ``relax_iterations``, ``min_angle_trigger``,
         ``clearance``, ``purge_clearance``, ``min_gap``, ``junctions``, ``background``,
         ``relax_params``, ``initial_iterations``, ``drag_reach``, ``drag_full``,
-        ``drag_stiffness``, ``gap_purge``, ``cleanup_passes``, ``retriangulate_iterations``,
-        ``tow_width``, ``refine_area``, ``coarsen_ratio``, and the named constants).
+        ``drag_field``, ``drag_stiffness``, ``gap_purge``, ``cleanup_passes``,
+        ``retriangulate_iterations``, ``tow_width``, ``refine_area``, ``coarsen_ratio``, and the
+        named constants).
     **keywords
         Any :class:`MeshParams` field, overriding ``params``.
 

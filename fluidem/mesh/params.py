@@ -111,7 +111,8 @@ class MeshParams:
         (:func:`fluidem.mesh.junctions.junction_points`).
     cleanup_passes : int
         Clean-up passes after a triangulation (remove free nodes of bad elements, add a
-        node in bad elements without any), >= 0.
+        node in bad elements without any), >= 0; a pass runs only while bad elements are
+        left (one pass left a 14° element in the collapsing-step hard case).
     cleanup_clearance : float
         A node added by the clean-up must be ``cleanup_clearance · h`` away from the bodies.
     background : {"fk", "delaunay"} or None
