@@ -162,7 +162,8 @@ def harmonic_drag(topo: MeshTopology, kind, mobility, assoc: DragAssociation) ->
     ``mobility (n, 2)`` (outline, contact and corner nodes, the normal one of box-side
     nodes), junction nodes, free nodes fully dragged (``Σ w >= 1`` in ``assoc``, they get
     their dragged displacement) and the wall-normal component of free nodes next to a
-    box-side node (zero: they slide along the wall)."""
+    box-side node (it keeps its dragged value, zero away from the bodies: they slide along
+    the wall)."""
     n = len(kind)
     full = np.bincount(assoc.node, assoc.weight, n) >= 1.0 - 1e-12
     mob = np.asarray(mobility)
