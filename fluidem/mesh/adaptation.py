@@ -3,7 +3,9 @@
 * :func:`adapt`: an independent set of free nodes is removed where the incident edges are
   on average shorter than ``coarsen_ratio`` of their target, and a node is added at the
   centroid of triangles larger than ``refine_area`` target areas (``√3/4 h²``): vacated
-  regions coarsen again, regions a body moved into refine.
+  regions coarsen again, regions a body moved into refine.  A large triangle with an edge
+  on a box side gets a side node at that edge's midpoint instead (a centroid a third of
+  the way off the wall makes an element of about 140° there).
 * :func:`cleanup_candidates`: after a triangulation, free vertices of elements still
   outside the angle bounds (outside narrow gaps) are removed and a node is added in such
   elements without free vertices; the caller triangulates the new candidates once more.
@@ -24,7 +26,7 @@ import numpy as np
 import shapely
 
 from .gaps import gap_width
-from .nodes import CORNER, FREE, SIDE, UidSource
+from .nodes import CORNER, FREE, SIDE, UidSource, classify_box
 from .relax import MeshTopology, signed_areas
 from .triggers import ElementShape, element_shape
 
@@ -71,7 +73,8 @@ class Cleanup:
 
 
 def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind, candidate_row, solid_tree, target,
-          uids: UidSource, seed: int, refine_area: float, coarsen_ratio: float, clearance: float) -> Adapted:
+          uids: UidSource, seed: int, refine_area: float, coarsen_ratio: float, clearance: float,
+          box=None) -> Adapted:
     """Coarsen where edges are much shorter than the target, refine where triangles are too big.
 
     Parameters
@@ -93,6 +96,9 @@ def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind,
         Seed of the random priorities of the independent set (the step count: reproducible).
     refine_area, coarsen_ratio, clearance : float
         :class:`fluidem.mesh.params.MeshParams` fields.
+    box : (xmin, xmax, ymin, ymax) or None
+        The box: large triangles on its sides are split at the side (module docstring);
+        ``None``: at the centroid.
     """
     # coarsening: an independent set of free nodes whose incident edges are all short
     t = topo.triangles
@@ -122,16 +128,28 @@ def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind,
     area = signed_areas(old, t)
     ht = (mesh_h[topo.t0] + mesh_h[topo.t1] + mesh_h[topo.t2]) / 3.0
     big = area > refine_area * (np.sqrt(3) / 4) * ht**2
-    newp = old[t[big]].mean(axis=1)
+    tb = t[big]
+    newp = old[tb].mean(axis=1)
+    newk = np.full(len(newp), FREE, np.int8)
+    if box is not None and len(tb):
+        # an edge on a box side: both ends on the box and its midpoint on a side
+        on_box = (mesh_kind[tb] == SIDE) | (mesh_kind[tb] == CORNER)
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            sel = np.flatnonzero(on_box[:, a] & on_box[:, b] & (newk == FREE))
+            if len(sel):
+                mid = 0.5 * (old[tb[sel, a]] + old[tb[sel, b]])
+                on_side = classify_box(mid, box)[0] == SIDE
+                newp[sel[on_side]] = mid[on_side]
+                newk[sel[on_side]] = SIDE
     if solid_tree is not None and len(newp):
         hn = target(newp)
         ii, _ = solid_tree.query(shapely.points(newp), predicate="dwithin", distance=clearance * hn)
         ok = np.ones(len(newp), dtype=bool)
         ok[ii] = False
-        newp = newp[ok]
+        newp, newk = newp[ok], newk[ok]
     n_ins = len(newp)
     pts = np.vstack([points[keep], newp])
-    kind = np.concatenate([kind[keep], np.full(n_ins, FREE, np.int8)])
+    kind = np.concatenate([kind[keep], newk])
     uid = np.concatenate([uid[keep], uids.take(n_ins)])
     return Adapted(points=pts, kind=kind, uid=uid, h=target(pts), n_removed=int((~keep).sum()), n_inserted=n_ins)
 

@@ -3,17 +3,35 @@
 Each step
 
 1. outline and contact nodes move rigidly with their body;
-2. free nodes within ``drag_full · h`` of a body follow its rigid motion fully, with a
-   weight falling linearly to zero at ``drag_reach · h`` (:func:`drag_association`; the
-   weighted rigid displacements of several bodies are averaged, divided by
-   ``max(Σ w, 1)``); junction nodes keep their barycentric place between their three
-   outline nodes;
+2. free nodes within ``drag_full · h`` of a body follow its rigid motion fully (the
+   weighted rigid displacements of several bodies averaged, divided by ``max(Σ w, 1)``,
+   with the weights of :func:`drag_association`); junction nodes keep their barycentric
+   place between their three outline nodes; the other free nodes
+
+   - ``drag_field="harmonic"`` (default): get the discrete harmonic extension of these
+     displacements (graph Laplacian of the mesh edges, eq. ``Σ_j (d_i − d_j) = 0`` per
+     free node, Laplacian mesh motion of ALE), with the box sides as sliding walls (the
+     normal component is zero, the tangential one free, also for the free nodes next to
+     a side, so that wall elements are not flattened): the shear and compression that
+     follow a body's motion spread over the whole fluid region, not over a band of
+     ``drag_reach − drag_full`` elements (:func:`harmonic_drag`, factorised once per
+     triangulation);
+   - ``drag_field="ramp"``: follow with the weight falling linearly from 1 at
+     ``drag_full · h`` to zero at ``drag_reach · h``;
 3. a dragged displacement that would invert an element which the rigid motion alone keeps
    valid is halved for that element's nodes, up to ``drag_halvings`` times, then those
    nodes move rigidly only (:func:`dragged_positions`).
 
 Relaxation then spreads the rest, with a step reduced by ``1 − drag_stiffness · w_max`` for
 dragged nodes (``relax_damping``).
+
+Why the harmonic field: the association is fixed between re-triangulations, so with the
+ramp a body translating by ``s`` per step shears the band between ``drag_full · h`` and
+``drag_reach · h`` by ``s / ((drag_reach − drag_full) h)`` more every step, and an element
+of the band crosses 135° after a shear of about 0.6–1: a plate moving 0.25 h per step
+re-triangulated for ``"quality"`` every 4–8 steps (23 times in 100 steps), whatever the
+rotation and the relaxation (which keeps the connectivity and cannot undo a shear).  The
+harmonic extension spreads the same motion over the distance to the walls.
 
 Examples
 --------
@@ -29,12 +47,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
 
 from ..geometry import rotate
-from .nodes import OUTLINE, world
-from .relax import signed_areas
+from .nodes import FREE, JUNCTION, OUTLINE, SIDE, world
+from .relax import MeshTopology, signed_areas
 
-__all__ = ["DragAssociation", "drag_association", "rigid_displacement", "dragged_positions"]
+__all__ = ["DragAssociation", "HarmonicDrag", "drag_association", "harmonic_drag", "rigid_displacement",
+           "dragged_positions"]
 
 
 @dataclass(frozen=True)
@@ -78,6 +99,84 @@ def drag_association(points, h_node, drag_mobility, table, drag_reach: float, dr
     return DragAssociation(node, bb, weight, 1.0 - drag_stiffness * wmax)
 
 
+class HarmonicDrag:
+    """Factorised discrete harmonic extension of the displacements of the constrained nodes.
+
+    Per component ``c`` the free nodes ``F`` solve ``L_FF d_F = −L_FD d_D`` (``L`` the graph
+    Laplacian of the mesh edges, ``D`` the constrained nodes of that component).
+
+    Parameters
+    ----------
+    topo : MeshTopology
+        The mesh (its edges).
+    constrained : (n_nodes, 2) bool
+        Nodes whose displacement component is given (outline, contact and junction nodes,
+        fully dragged nodes, the normal component of box-side nodes, box corners).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fluidem.mesh.relax import mesh_topology
+    >>> topo = mesh_topology(np.array([[0, 1, 2], [1, 3, 2]]))   # four nodes, five edges
+    >>> con = np.array([[True, True], [False, False], [False, False], [True, True]])
+    >>> d = np.array([[0.0, 0.0], [9.0, 9.0], [9.0, 9.0], [1.0, 2.0]])
+    >>> HarmonicDrag(topo, con).extend(d).tolist()   # 1 and 2: the mean of their neighbours
+    [[0.0, 0.0], [0.5, 1.0], [0.5, 1.0], [1.0, 2.0]]
+    """
+
+    def __init__(self, topo: MeshTopology, constrained):
+        e0, e1 = topo.e0, topo.e1
+        n = len(constrained)
+        w = sp.coo_matrix((np.ones(len(e0)), (e0, e1)), shape=(n, n)).tocsr()
+        w = w + w.T
+        self._factor((sp.diags(np.asarray(w.sum(axis=1)).ravel()) - w).tocsr(), np.asarray(constrained, dtype=bool))
+
+    def _factor(self, lap, constrained):
+        self.lap, self.constrained = lap, constrained
+        self.parts = []
+        for c in range(2):
+            free = np.flatnonzero(~constrained[:, c])
+            fixed = np.flatnonzero(constrained[:, c])
+            if not len(free):
+                continue
+            rows = lap[free]
+            self.parts.append((c, free, fixed, splu(rows[:, free].tocsc()), rows[:, fixed].tocsr()))
+
+    def __getstate__(self):
+        # SuperLU objects do not pickle: the Laplacian and the constraints do, and are factorised again
+        return {"lap": self.lap, "constrained": self.constrained}
+
+    def __setstate__(self, state):
+        self._factor(state["lap"], state["constrained"])
+
+    def extend(self, disp) -> np.ndarray:
+        """``disp (n_nodes, 2)`` with the free components replaced by the harmonic extension."""
+        d = np.array(disp, dtype=float)
+        for c, free, fixed, lu, coupling in self.parts:
+            d[free, c] = lu.solve(-(coupling @ d[fixed, c]))
+        return d
+
+
+def harmonic_drag(topo: MeshTopology, kind, mobility, assoc: DragAssociation) -> HarmonicDrag:
+    """The :class:`HarmonicDrag` of a mesh: constrained are the components with zero
+    ``mobility (n, 2)`` (outline, contact and corner nodes, the normal one of box-side
+    nodes), junction nodes, free nodes fully dragged (``Σ w >= 1`` in ``assoc``, they get
+    their dragged displacement) and the wall-normal component of free nodes next to a
+    box-side node (it keeps its dragged value, zero away from the bodies: they slide along
+    the wall)."""
+    n = len(kind)
+    full = np.bincount(assoc.node, assoc.weight, n) >= 1.0 - 1e-12
+    mob = np.asarray(mobility)
+    con = (mob == 0.0) | full[:, None] | (kind == JUNCTION)[:, None]
+    # free nodes next to a box side keep their distance to it: the first layer of elements
+    # on a wall slides along it instead of being flattened against it
+    for a, b in ((topo.e0, topo.e1), (topo.e1, topo.e0)):
+        on_side = (kind[a] == SIDE) & (kind[b] == FREE)
+        for c in range(2):
+            con[b[on_side & (mob[a, c] == 0.0)], c] = True
+    return HarmonicDrag(topo, con)
+
+
 def rigid_displacement(points, pose_old, pose_new) -> np.ndarray:
     """Displacement ``(k, 2)`` of ``points (k, 2)`` under the rigid motion of their body from
     ``pose_old (k, 3)`` to ``pose_new (k, 3)``."""
@@ -87,7 +186,8 @@ def rigid_displacement(points, pose_old, pose_new) -> np.ndarray:
 
 def dragged_positions(points, triangles, kind, outline_row, outline_local, outline_body, contact_nodes,
                       contact_local, body_of, drag_mobility, assoc: DragAssociation, junction_nodes, junction_verts,
-                      junction_bary, poses_old, poses_new, max_halvings: int) -> np.ndarray:
+                      junction_bary, poses_old, poses_new, max_halvings: int,
+                      harmonic: HarmonicDrag | None = None) -> np.ndarray:
     """Node positions ``(n, 2)`` after steps 1–3 of the module docstring.
 
     Parameters
@@ -107,6 +207,8 @@ def dragged_positions(points, triangles, kind, outline_row, outline_local, outli
     poses_old, poses_new : (n_bodies, 3) float
     max_halvings : int
         ``drag_halvings``.
+    harmonic : HarmonicDrag or None
+        The harmonic extension (``drag_field="harmonic"``); ``None``: the ramp.
     """
     rigid = points.copy()
     # 1. outline and contact nodes move rigidly with their body (Sec. 4.2)
@@ -128,10 +230,17 @@ def dragged_positions(points, triangles, kind, outline_row, outline_local, outli
         dy = np.bincount(assoc.node, w * rigid_disp[:, 1], n)
         norm = np.maximum(wsum, 1.0)
         drag_disp = np.column_stack([dx / norm, dy / norm]) * drag_mobility
+    junction_at = np.einsum("kj,kjd->kd", junction_bary, rigid[junction_verts]) if len(junction_nodes) else None
+    if harmonic is not None:
+        # the other free nodes: harmonic extension of the given displacements (module docstring)
+        given = np.where(fixed[:, None], rigid - points, drag_disp)
+        if junction_at is not None:
+            given[junction_nodes] = junction_at - points[junction_nodes]
+        drag_disp = harmonic.extend(given) * (drag_mobility != 0.0)
     dragged = rigid + np.where(fixed[:, None], 0.0, drag_disp)
-    if len(junction_nodes):
+    if junction_at is not None:
         # junction nodes keep their barycentric place between their three outline nodes
-        dragged[junction_nodes] = np.einsum("kj,kjd->kd", junction_bary, rigid[junction_verts])
+        dragged[junction_nodes] = junction_at
     # 3. a dragged free node must not invert an element that rigid motion alone keeps valid
     a_rigid = signed_areas(rigid, triangles)
     bad = (signed_areas(dragged, triangles) <= 0) & (a_rigid > 0)

@@ -15,9 +15,10 @@ Pipeline of one *triangulation* (the "cut-out", Sec. 2.1):
    body;
 5. Voronoi junction points (Sec. 3.2, :mod:`fluidem.mesh.junctions`): triangles spanning
    three bodies are split at a junction node;
-6. spring relaxation (:mod:`fluidem.mesh.relax`, eq. 1–3), then one clean-up pass: free
-   nodes of elements still outside the angle bounds (outside narrow gaps) are removed, a
-   node is added in such elements without free nodes, and steps 4–6 run once more.
+6. spring relaxation (:mod:`fluidem.mesh.relax`, eq. 1–3), then up to ``cleanup_passes``
+   (2) clean-up passes: free nodes of elements still outside the angle bounds (outside
+   narrow gaps) are removed, a node is added in such elements without free nodes, and
+   steps 4–6 run once more.
 
 Strategies (``strategy=``):
 
@@ -26,9 +27,11 @@ Strategies (``strategy=``):
     pipeline runs, with ``relax_iterations`` sweeps (default 20).
 ``"drag"``
     mesh dragging (Sec. 4.2): each step the outline nodes move rigidly with their body;
-    free nodes within ``drag_full · h`` of a body follow its rigid motion, with a weight
-    falling to zero at ``drag_reach · h`` (the body drags the mesh around it); junction
-    nodes keep their barycentric place between their three outline nodes; then
+    free nodes within ``drag_full · h`` of a body follow its rigid motion, and the other
+    free nodes the harmonic extension of these displacements over the mesh, the box sides
+    sliding (``drag_field="harmonic"``; ``"ramp"``: a weight falling to zero at
+    ``drag_reach · h``; :mod:`fluidem.mesh.drag`); junction nodes keep their barycentric
+    place between their three outline nodes; then
     ``relax_iterations`` relaxation sweeps (default 3; dragged nodes relax with a reduced
     step).  Nodes never snap back.  The current nodes are re-triangulated every
     ``retriangulate_every`` steps (K, default 30) or earlier when
@@ -44,8 +47,9 @@ Strategies (``strategy=``):
     At re-triangulation nodes swallowed by (or closer than ``purge_clearance · h`` to) a
     body are purged, an independent set of nodes is removed where the incident edges are on
     average shorter than ``coarsen_ratio`` (0.7) of their target and nodes are added in
-    triangles larger than ``refine_area`` (1.6) target areas (so vacated regions coarsen
-    again, Fig. 6), and junction points are recomputed.
+    triangles larger than ``refine_area`` (1.6) target areas (at the midpoint of an edge on
+    a box side, else at the centroid; so vacated regions coarsen again, Fig. 6), and
+    junction points are recomputed.
 ``"fixed"``
     bodies do not move: the mesh is built once; :meth:`MovingMesh.update` checks that.
 
@@ -109,7 +113,7 @@ from .adaptation import cleanup_candidates
 from .background import GradedSize, SizeField, UniformSize
 from .contact_outline import contact_outline, contact_pairs
 from .cutout import Triangulation, cut_out, triangulate
-from .drag import DragAssociation, drag_association, dragged_positions
+from .drag import DragAssociation, HarmonicDrag, drag_association, dragged_positions, harmonic_drag
 from .gaps import (
     anchored_across_gap,
     boundary_owner,
@@ -234,8 +238,9 @@ class MovingMesh:
         them: ``retriangulate_every``, ``relax_iterations``, ``min_angle_trigger``,
         ``clearance``, ``purge_clearance``, ``min_gap``, ``junctions``, ``background``,
         ``relax_params``, ``initial_iterations``, ``drag_reach``, ``drag_full``,
-        ``drag_stiffness``, ``gap_purge``, ``cleanup_passes``, ``retriangulate_iterations``,
-        ``tow_width``, ``refine_area``, ``coarsen_ratio``, and the named constants).
+        ``drag_field``, ``drag_stiffness``, ``gap_purge``, ``cleanup_passes``,
+        ``retriangulate_iterations``, ``tow_width``, ``refine_area``, ``coarsen_ratio``, and the
+        named constants).
     **keywords
         Any :class:`MeshParams` field, overriding ``params``.
 
@@ -378,6 +383,12 @@ class MovingMesh:
     _drag_weight = property(lambda self: self.drag.weight)
     _relax_damping = property(lambda self: self.drag.relax_damping)
 
+    def __getstate__(self):
+        # the factorised harmonic extension (SuperLU) is rebuilt on the next drag step
+        state = dict(self.__dict__)
+        state["_harmonic"] = None
+        return state
+
     def __setstate__(self, state):
         """Unpickle; a mesh pickled before the split by stage (checkpoints) is converted."""
         if "params" not in state:
@@ -488,7 +499,7 @@ class MovingMesh:
             solid_tree = shapely.STRtree(np.asarray(contact.solids, dtype=object)) if self.n_bodies else None
             ad = adapt_nodes(kept_points, kept_kind, kept_uid, self.points, self.topo, self.h_node, self.kind,
                              np.where(keep, np.cumsum(keep) - 1, -1), solid_tree, target, self._uids,
-                             self.step_count, p.refine_area, p.coarsen_ratio, p.clearance)
+                             self.step_count, p.refine_area, p.coarsen_ratio, p.clearance, box=self.box)
             kept_points, kept_kind, kept_uid = ad.points, ad.kind, ad.uid
             info["n_removed"], info["n_inserted"] = ad.n_removed, ad.n_inserted
 
@@ -514,6 +525,7 @@ class MovingMesh:
         self._near_pairs = contact_pairs(polys, tree, self.h)
         self.drag: DragAssociation = drag_association(self.points, self.h_node, self._drag_mobility, table,
                                                       p.drag_reach, p.drag_full, p.drag_stiffness)
+        self._harmonic = None  # built by the first drag step on this connectivity
         self._set_quality_baseline(final_shape)
         info["n_junctions"] = self.n_junctions
         return info
@@ -599,7 +611,7 @@ class MovingMesh:
         xd = dragged_positions(self.points, self.triangles, self.kind, self.outline_row, self.outlines.local,
                                self.outlines.body, self._contact_idx, self._contact_local, self.body_of,
                                self._drag_mobility, self.drag, self.junction_nodes, self.junction_verts,
-                               self.junction_bary, self.poses, new, p.drag_halvings)
+                               self.junction_bary, self.poses, new, p.drag_halvings, self._harmonic_drag())
         self.poses = new
         # relaxation with the per-step iteration limit (Sec. 3.3)
         damp = self.drag.relax_damping if self._damping is None else self.drag.relax_damping * self._damping
@@ -626,6 +638,15 @@ class MovingMesh:
             ev.retriangulated, ev.reason = True, reason
             ev.n_purged, ev.n_removed, ev.n_inserted = info["n_purged"], info["n_removed"], info["n_inserted"]
             ev.n_junctions = info["n_junctions"]
+
+    def _harmonic_drag(self) -> HarmonicDrag | None:
+        """The harmonic extension of this connectivity (``drag_field="harmonic"``), factorised
+        once per triangulation; ``None`` for the ramp."""
+        if self.params.drag_field != "harmonic":
+            return None
+        if self.__dict__.get("_harmonic") is None:
+            self._harmonic = harmonic_drag(self.topo, self.kind, self._mobility, self.drag)
+        return self._harmonic
 
     def retriangulate(self, n_relax: int | None = None) -> dict:
         """Constrained Delaunay triangulation of the current nodes (cut-out, adaptation, junctions).

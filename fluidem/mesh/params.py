@@ -111,7 +111,8 @@ class MeshParams:
         (:func:`fluidem.mesh.junctions.junction_points`).
     cleanup_passes : int
         Clean-up passes after a triangulation (remove free nodes of bad elements, add a
-        node in bad elements without any), >= 0.
+        node in bad elements without any), >= 0; a pass runs only while bad elements are
+        left (one pass left a 14° element in the collapsing-step hard case).
     cleanup_clearance : float
         A node added by the clean-up must be ``cleanup_clearance · h`` away from the bodies.
     background : {"fk", "delaunay"} or None
@@ -122,6 +123,11 @@ class MeshParams:
     drag_reach, drag_full : float
         Free nodes within ``drag_full · h`` of a body follow its rigid motion fully, with a
         weight falling linearly to zero at ``drag_reach · h``; ``0 <= drag_full < drag_reach``.
+    drag_field : {"harmonic", "ramp"}
+        How the free nodes not fully dragged follow (:mod:`fluidem.mesh.drag`): the harmonic
+        extension of the displacements of the outline and fully dragged nodes over the
+        whole mesh (box sides slide), or the linear ramp of the drag weight between
+        ``drag_full`` and ``drag_reach``.
     drag_stiffness : float
         Dragged nodes relax with the step reduced by ``1 − drag_stiffness · weight``; in [0, 1].
     drag_halvings : int
@@ -156,12 +162,13 @@ class MeshParams:
     mitre_limit: float = 20.0
     junctions: bool = True
     junction_clearance: float = 0.3
-    cleanup_passes: int = 1
+    cleanup_passes: int = 2
     cleanup_clearance: float = 0.3
     background: str | None = None
     relax_params: RelaxParams = RelaxParams()
     drag_reach: float = 3.0
     drag_full: float = 1.0
+    drag_field: str = "harmonic"
     drag_stiffness: float = 0.8
     drag_halvings: int = 6
     tow_width: float = 2.0
@@ -197,6 +204,7 @@ class MeshParams:
         s(self, "junctions", bool(self.junctions))
         if self.background is not None:
             v.choice(_key("background"), self.background, ("fk", "delaunay"))
+        v.choice(_key("drag_field"), self.drag_field, ("harmonic", "ramp"))
         if not isinstance(self.relax_params, RelaxParams):
             raise v.fail(_key("relax_params"), self.relax_params, "a RelaxParams")
         s(self, "drag_full", v.number(_key("drag_full"), self.drag_full,

@@ -108,21 +108,23 @@ def quality_baseline(shape: ElementShape, narrow, min_angle: float, max_angle: f
     """Thresholds of the quality trigger for the mesh just triangulated.
 
     An element may lose ``margin`` degrees from where it starts if it starts outside the
-    bounds: thresholds ``min(min_angle, angle − margin)`` and ``max(max_angle, angle + margin)``;
-    ``arccos`` only where the angle is within ``margin`` of a bound (the other elements get
-    the bound itself).  Narrow-gap elements ``narrow (n_triangles,)`` are left out here and
+    bounds: thresholds ``angle − margin`` below ``min_angle`` and ``angle + margin`` above
+    ``max_angle``; every other element gets the bounds themselves (``arccos`` only for the
+    elements outside).  Narrow-gap elements ``narrow (n_triangles,)`` are left out here and
     watched by :func:`quality_dropped` instead.
+
+    (An element just inside a bound once got ``min(min_angle, angle − margin)`` too, so one
+    at 17° could drift to 14° without a trigger.)
     """
     cmax, cmin = shape.cos_max, shape.cos_min
-    trig = float(min_angle)
-    cos_lo = np.full(len(cmax), np.cos(np.radians(trig)))
-    near = np.flatnonzero(cmax > np.cos(np.radians(trig + margin)))
-    lo = np.minimum(trig, np.degrees(np.arccos(np.clip(cmax[near], -1, 1))) - margin)
-    cos_lo[near] = np.cos(np.radians(np.clip(lo, 0, 180)))
+    cos_lo = np.full(len(cmax), np.cos(np.radians(min_angle)))
+    out = np.flatnonzero(cmax > cos_lo[0])  # smallest angle below min_angle
+    lo = np.degrees(np.arccos(np.clip(cmax[out], -1, 1))) - margin
+    cos_lo[out] = np.cos(np.radians(np.clip(lo, 0, 180)))
     cos_hi = np.full(len(cmin), np.cos(np.radians(max_angle)))
-    near = np.flatnonzero(cmin < np.cos(np.radians(max_angle - margin)))
-    hi = np.maximum(max_angle, np.degrees(np.arccos(np.clip(cmin[near], -1, 1))) + margin)
-    cos_hi[near] = np.cos(np.radians(np.clip(hi, 0, 180)))
+    out = np.flatnonzero(cmin < cos_hi[0])  # largest angle above max_angle
+    hi = np.degrees(np.arccos(np.clip(cmin[out], -1, 1))) + margin
+    cos_hi[out] = np.cos(np.radians(np.clip(hi, 0, 180)))
     cos_lo[narrow] = 2.0
     cos_hi[narrow] = -2.0
     return QualityBaseline(cos_lo=cos_lo, cos_hi=cos_hi, area=shape.area, narrow=narrow, cos_max=cmax,

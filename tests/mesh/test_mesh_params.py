@@ -20,7 +20,8 @@ def test_defaults_are_the_former_keyword_defaults():
             p.purge_clearance, p.min_gap, p.junctions, p.background, p.initial_iterations, p.drag_reach,
             p.drag_full, p.drag_stiffness, p.gap_purge, p.cleanup_passes, p.retriangulate_iterations,
             p.tow_width, p.refine_area, p.coarsen_ratio) == (
-        "drag", 30, None, 15.0, 0.5, 0.3, None, True, None, 60, 3.0, 1.0, 0.8, 1.1, 1, 20, 2.0, 1.6, 0.7)
+        "drag", 30, None, 15.0, 0.5, 0.3, None, True, None, 60, 3.0, 1.0, 0.8, 1.1, 2, 20, 2.0, 1.6, 0.7)
+    assert p.drag_field == "harmonic"  # two clean-up passes and the harmonic drag: the re-triangulation cadence
     assert p.step_iterations == 3 and MeshParams(strategy="regenerate").step_iterations == 20
     assert p.min_gap_for(0.1) == 1e-3 * 0.1 and MeshParams(min_gap=0.01).min_gap_for(0.1) == 0.01
     assert STRATEGIES == ("drag", "regenerate", "fixed")
