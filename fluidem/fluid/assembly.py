@@ -26,6 +26,39 @@ import scipy.sparse as sp
 __all__ = ["VectorAssembler", "CondensedSystem", "DivergencePattern"]
 
 
+def csr_pattern(row_dofs: np.ndarray, col_dofs: np.ndarray, n_rows: int, n_cols: int):
+    """CSR structure of an element matrix family and the map from element entries to it.
+
+    Parameters
+    ----------
+    row_dofs : (n_row_local, n_elements) int
+        Global row DOFs per element (scikit-fem's ``element_dofs`` layout).
+    col_dofs : (n_col_local, n_elements) int
+        Global column DOFs per element.
+    n_rows, n_cols : int
+        Matrix shape.
+
+    Returns
+    -------
+    indptr : (n_rows + 1,) int32
+    indices : (nnz,) int32
+    scatter : (n_elements * n_row_local * n_col_local,) int
+        Position in the CSR data of each element entry, element-major (``np.bincount(scatter,
+        weights=local.ravel())`` sums element matrices ``local (n_elements, n_row_local,
+        n_col_local)`` into the data array).
+    """
+    nr, nel = row_dofs.shape
+    nc = col_dofs.shape[0]
+    rows = np.broadcast_to(row_dofs.T[:, :, None], (nel, nr, nc)).ravel()
+    cols = np.broadcast_to(col_dofs.T[:, None, :], (nel, nr, nc)).ravel()
+    keys = rows.astype(np.int64) * n_cols + cols
+    uniq, scatter = np.unique(keys, return_inverse=True)
+    r, c = np.divmod(uniq, n_cols)
+    indices = c.astype(np.int32)
+    indptr = np.searchsorted(r, np.arange(n_rows + 1)).astype(np.int32)
+    return indptr, indices, scatter
+
+
 class VectorAssembler:
     """Element data of a vector basis and the CSR pattern of its velocity–velocity block.
 
@@ -53,15 +86,8 @@ class VectorAssembler:
         if self.n % 2 == 0 and np.all(dofs[0::2] % 2 == 0) and np.array_equal(dofs[1::2], dofs[0::2] + 1):
             self._interleaved_pattern(dofs)
         else:
-            nel = dofs.shape[1]
-            rows = np.broadcast_to(dofs.T[:, :, None], (nel, nb, nb)).ravel()
-            cols = np.broadcast_to(dofs.T[:, None, :], (nel, nb, nb)).ravel()
-            keys = rows.astype(np.int64) * self.n + cols
-            uniq, self._scatter = np.unique(keys, return_inverse=True)
-            self.nnz = len(uniq)
-            r, c = np.divmod(uniq, self.n)
-            self.indices = c.astype(np.int32)
-            self.indptr = np.searchsorted(r, np.arange(self.n + 1)).astype(np.int32)
+            self.indptr, self.indices, self._scatter = csr_pattern(dofs, dofs, self.n, self.n)
+            self.nnz = len(self.indices)
         self._comp = np.arange(nb) % 2
         self._scal = np.arange(nb) // 2
 
@@ -284,17 +310,9 @@ class DivergencePattern:
         self.n_p = pb.N
         pd = pb.element_dofs  # (npl, nel)
         ud = assembler._element_dofs  # (nb, nel)
-        npl, nel = pd.shape
-        nb = ud.shape[0]
-        rows = np.broadcast_to(pd.T[:, :, None], (nel, npl, nb)).ravel()
-        cols = np.broadcast_to(ud.T[:, None, :], (nel, npl, nb)).ravel()
-        keys = rows.astype(np.int64) * assembler.n + cols
-        uniq, self._scatter = np.unique(keys, return_inverse=True)
-        self.nnz = len(uniq)
-        r, c = np.divmod(uniq, assembler.n)
-        self.indices = c.astype(np.int32)
-        self.indptr = np.searchsorted(r, np.arange(self.n_p + 1)).astype(np.int32)
-        self._npl = npl
+        self.indptr, self.indices, self._scatter = csr_pattern(pd, ud, self.n_p, assembler.n)
+        self.nnz = len(self.indices)
+        self._npl = pd.shape[0]
 
     def matrix(self, pb) -> sp.csr_matrix:
         """B on the current geometry: B[i, 2s+c] = −∫ q_i ∂ψ_s/∂x_c, (n_p, n_u) CSR."""
