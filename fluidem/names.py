@@ -97,7 +97,7 @@ REGISTRY: dict[str, Kind] = {
         "square-cylinder": "square cylinder at Re = 100 (Sohankar et al. 1998)",
     }),
     "example": Kind("example scene", {
-        "dfg-cylinder": "DFG 2D-2 channel as a scene",
+        "dfg-cylinder": "DFG 2D-1 channel as a scene: Navier-Stokes past a fixed cylinder, Re = 20",
         "wall-correction": "Stokes drag of a disk between two walls (Faxen)",
         "dry-heap": "granular heap, DEM only",
         "column-collapse": "granular column collapse, DEM only",
