@@ -185,7 +185,7 @@ def test_moving_stokes_cylinder_matches_faxen_at_every_step(tmp_path):
     h = read_history(tmp_path)
     err = -h["fx"][1:] / faxen(0.2) - 1
     assert sim.counters["triangulations"] >= 2
-    assert np.abs(err).max() < 5e-3, err
+    assert np.abs(err).max() < 2e-3, err  # measured -8.0e-4 to -7.7e-4 (64-gon disk, h = 0.03)
 
 
 def faxen(k):
