@@ -501,3 +501,21 @@ def test_fluid_package_exports_its_entry_points():
         home = next(m for m in (space, elements, navier_stokes, solvers, forces) if hasattr(m, name))
         assert getattr(fluid, name) is getattr(home, name), name
     assert fluid.FlowProblem is navier_stokes.FlowProblem and fluid.make_solver is make_solver
+
+
+def test_auto_solver_passes_a_forced_refactorisation_to_its_lagged_lu():
+    """After a renumbering (same shape, other DOF order) the lagged LU inside "auto" refactorises
+    when told to, as a bare LaggedLUSolver does; without the flag it keeps the old LU."""
+    from fluidem.fluid.solvers import AutoSolver
+
+    K1 = (sp.random(40, 40, density=0.2, random_state=1) + 10 * sp.identity(40)).tocsr()
+    perm = np.random.default_rng(2).permutation(40)
+    K2 = K1[perm][:, perm].tocsr()
+    auto = AutoSolver(kind="unsteady").factorize(K1)
+    assert auto.chosen == "lagged" and auto.factorizations == 1
+    auto.factorize(K2)
+    assert auto.factorizations == 1  # same shape: the old LU preconditions
+    auto.factorize(K2, force=True)
+    assert auto.factorizations == 2
+    b = np.ones(40)
+    assert np.abs(K2 @ auto.solve(b) - b).max() < 1e-10

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..cost import CostSplit
 from .problem import FlowProblem, FlowState
-from .solvers import LaggedLUSolver, make_solver
+from .solvers import AutoSolver, LaggedLUSolver, make_solver
 
 __all__ = ["FlowProblem", "FlowState", "NewtonError", "solve_stokes", "solve_steady", "BDF2Stepper", "Timings",
            "make_flow_solver"]
@@ -64,7 +64,7 @@ def _solve_free(problem: FlowProblem, uu_data: np.ndarray, rhs_full: np.ndarray,
     """
     f = problem.free
     K = problem.condensed_matrix(uu_data)
-    if refactorize and isinstance(solver, LaggedLUSolver):
+    if refactorize and isinstance(solver, (LaggedLUSolver, AutoSolver)):
         solver.factorize(K, force=True)
     else:
         solver.factorize(K)

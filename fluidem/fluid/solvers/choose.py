@@ -252,8 +252,12 @@ class AutoSolver:
             return LaggedLUSolver(direct=DirectSolver(**self.direct_options), **self.lagged_options)
         return BlockKrylovSolver(self.n_u, **self.iterative_options)
 
-    def factorize(self, K) -> "AutoSolver":
-        """Choose a method for ``K`` (shape (n, n)) and set it up; returns self."""
+    def factorize(self, K, force: bool = False) -> "AutoSolver":
+        """Choose a method for ``K`` (shape (n, n)) and set it up; returns self.
+
+        ``force``: a lagged LU factorises ``K`` now (e.g. after a renumbering of the DOFs,
+        which keeps the shape but makes the old LU a poor preconditioner).
+        """
         K = _as_csr(K)
         opts = self.iterative_options
         kind = self._kind(K)
@@ -271,6 +275,8 @@ class AutoSolver:
         self.K = K
         if method == "direct":
             self.solver.refactorize_if_changed(K)
+        elif method == "lagged":
+            self.solver.factorize(K, force=force)
         else:
             self.solver.factorize(K)
         return self
