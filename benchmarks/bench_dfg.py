@@ -18,15 +18,12 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
-import json  # noqa: E402
-import pathlib  # noqa: E402
-import platform  # noqa: E402
 
 import pytest  # noqa: E402
+from results_io import RESULTS, machine_description, write_json  # noqa: E402
 
 from fluidem.cases.dfg import dfg_2d1, dfg_2d2  # noqa: E402
 
-RESULTS = pathlib.Path(__file__).parent / "results"
 MATRIX_2D1 = [(e, lv) for e in ("mini", "th", "p2b", "p3") for lv in (0, 1, 2, 3)]
 MATRIX_2D2 = [("th", 1, 0.01), ("th", 2, 0.005), ("th", 2, 0.0025)]
 
@@ -41,12 +38,8 @@ class _Report:
     def write(self):
         if not self.rows:
             return
-        RESULTS.mkdir(exist_ok=True)
-        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-        machine = (f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-                   f"load average {load:.1f} when written")
-        (RESULTS / f"{self.name}.json").write_text(json.dumps({"machine": machine, "rows": self.rows}, indent=1,
-                                                                 default=lambda o: o.item()))
+        machine = machine_description()
+        write_json(self.name, machine, self.rows)
         lines = [f"| {' | '.join(self.columns)} |", "|" + "---|" * len(self.columns)]
         for r in sorted(self.rows, key=lambda r: (r["element"], r["level"], r.get("dt") or 0)):
             cells = []

@@ -33,17 +33,14 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import json  # noqa: E402
-import pathlib  # noqa: E402
-import platform  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from results_io import RESULTS, machine_description, write_json  # noqa: E402
 
 from fluidem.scene import Scene  # noqa: E402
 from fluidem.simulation import Simulation  # noqa: E402
 
-RESULTS = pathlib.Path(__file__).parent / "results"
 PARTS = ("mesh", "rebuild", "assembly", "solve", "loads")
 # mesh size of the moving and of the fixed mesh (the fixed one refines along the plate, so it
 # needs a larger h for the same DOFs: about 20.3k / 19.9k and 80.2k / 79.4k), time step, steps.
@@ -93,12 +90,8 @@ class _Report:
     def write(self):
         if not self.rows:
             return
-        RESULTS.mkdir(exist_ok=True)
-        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-        machine = (f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-                   f"load average {load:.1f} when written")
-        (RESULTS / "moving_flow.json").write_text(json.dumps({"machine": machine, "rows": self.rows}, indent=1,
-                                                                    default=lambda o: o.item()))
+        machine = machine_description()
+        write_json("moving_flow", machine, self.rows)
         cols = ["size", "flow", "dofs", "dt", "steps", "median_s", "mean_s"] + [f"{p}_mean_s" for p in PARTS] + \
             ["factorizations", "krylov_iterations", "triangulations"]
         lines = [f"| {' | '.join(cols)} |", "|" + "---|" * len(cols)]

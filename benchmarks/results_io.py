@@ -1,0 +1,24 @@
+"""Writing benchmark results: the machine line and the JSON rows shared by the benchmark suites."""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import platform
+
+RESULTS = pathlib.Path(__file__).parent / "results"
+
+
+def machine_description() -> str:
+    """Architecture, cores, Python version and the load average at the time of writing."""
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    return (f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+            f"load average {load:.1f} when written")
+
+
+def write_json(name: str, machine: str, rows: list) -> None:
+    """``benchmarks/results/{name}.json`` with the machine line and the result rows."""
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{name}.json").write_text(json.dumps({"machine": machine, "rows": rows}, indent=1,
+                                                     default=lambda o: o.item()))
