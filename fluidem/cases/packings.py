@@ -34,7 +34,7 @@ from ..errors import InputError
 from ..geometry import rectangle, regular_polygon
 
 __all__ = ["random_convex", "world_polygons", "packing", "RandomMotion", "sliding_pair", "crossing_body",
-           "collapsing_step"]
+           "collapsing_step", "pore_ring"]
 
 
 def random_convex(size: float, n_vertices: int, rng) -> np.ndarray:
@@ -275,3 +275,15 @@ def collapsing_step():
         return np.column_stack([x, y, np.zeros(len(x))])
 
     return bodies, poses_at(0, 1), box, grading, poses_at
+
+
+def pore_ring(n: int = 6, radius: float = 0.5, center=(1.25, 1.25)):
+    """``n`` touching 0.52 × 0.2 bars on a circle of ``radius`` around ``center``, enclosing a fluid pore.
+
+    Returns ``(bodies, poses)``: outlines ``(4, 2)`` in body coordinates and poses ``(n, 3)``
+    (x, y, angle), each bar tangent to the circle; in a 2.5 × 2.5 box at ``h = 0.05`` the
+    moving mesh merges them into one closed outline with one pore.
+    """
+    a = 2 * np.pi * np.arange(n) / n
+    poses = np.column_stack([center[0] + radius * np.cos(a), center[1] + radius * np.sin(a), a + np.pi / 2])
+    return [rectangle(0.52, 0.2) for _ in range(n)], poses

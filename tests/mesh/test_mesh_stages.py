@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import shapely
 
+from fluidem.cases.packings import pore_ring
 from fluidem.geometry import rectangle
 from fluidem.mesh.contact_outline import contact_outline
 from fluidem.mesh.cutout import cut_out
@@ -78,13 +79,7 @@ def test_contact_outline_separate_bodies_keep_their_outlines():
 
 
 def test_contact_outline_ring_of_touching_bodies_encloses_a_pore():
-    n, R = 6, 0.5
-    bodies, poses = [], []
-    for i in range(n):
-        a = 2 * np.pi * i / n
-        bodies.append(rectangle(0.52, 0.2))
-        poses.append([1.25 + R * np.cos(a), 1.25 + R * np.sin(a), a + np.pi / 2])
-    poses = np.array(poses)
+    bodies, poses = pore_ring()
     polys = shapely.polygons([world(v, np.zeros(len(v), dtype=np.int64), poses[i:i + 1])
                               for i, v in enumerate(bodies)])
     ol = outline_nodes(bodies, poses, lambda p: np.full(len(p), 0.05), 0.05)
@@ -94,7 +89,7 @@ def test_contact_outline_ring_of_touching_bodies_encloses_a_pore():
     # one hole point for the closed cluster (no body is meshed on its own)
     assert len(co.holes) == 1 and not co.keep_outline.all()
     # the contact nodes move with one of the bodies they touch
-    assert len(co.contact_body) == len(co.contact_points) and set(co.contact_body) <= set(range(n))
+    assert len(co.contact_body) == len(co.contact_points) and set(co.contact_body) <= set(range(len(bodies)))
 
 
 def test_cut_out_purges_free_nodes_near_bodies_and_drops_rebuilt_kinds():

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from fluidem.cases.packings import pore_ring
 from fluidem.geometry import rectangle, regular_polygon
 from fluidem.mesh import MovingMesh
 
@@ -161,13 +162,8 @@ def test_touching_and_overlapping_bodies_mesh_cleanly(gap):
 
 
 def test_enclosed_pore_is_detected_and_meshed():
-    n, R = 6, 0.5
-    bodies, poses = [], []
-    for i in range(n):
-        a = 2 * np.pi * i / n
-        bodies.append(rectangle(0.52, 0.2))
-        poses.append([1.25 + R * np.cos(a), 1.25 + R * np.sin(a), a + np.pi / 2])
-    mm = MovingMesh((0, 2.5, 0, 2.5), bodies, np.array(poses), h=0.05)
+    bodies, poses = pore_ring()
+    mm = MovingMesh((0, 2.5, 0, 2.5), bodies, poses, h=0.05)
     check_invariants(mm)
     assert len(mm.pore_areas) == 1
     # the pore is the hexagon inside the ring minus nothing: area between 0.4 and 0.7
