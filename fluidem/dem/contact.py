@@ -305,6 +305,8 @@ def clip_convex(subj: np.ndarray, n_subj: np.ndarray, edge_a: np.ndarray, edge_d
     q = np.arange(W)[None, :]
     if n_edges is None:
         n_edges = np.full(P, K)
+    # round-off length of each row: 1e-12 of its coordinates' magnitude
+    eps_len = 1e-12 * (np.abs(subj).max(axis=(1, 2)) + np.abs(edge_a).max(axis=(1, 2)))[:, None]
     for k in range(K):
         rows = np.flatnonzero(n_edges > k)
         if len(rows) == 0:
@@ -313,6 +315,10 @@ def clip_convex(subj: np.ndarray, n_subj: np.ndarray, edge_a: np.ndarray, edge_d
         ax, ay = edge_a[rows, k, 0][:, None], edge_a[rows, k, 1][:, None]
         ex, ey = edge_d[rows, k, 0][:, None], edge_d[rows, k, 1][:, None]
         d = ex * (Y - ay) - ey * (X - ax)
+        # a vertex within round-off of the clip line lies on it: collinear faces (stacked
+        # equal squares) then give the same intersection points on both sides instead of
+        # points anywhere along the shared line, whose tilted chord pushed sideways
+        d = np.where(np.abs(d) <= (np.abs(ex) + np.abs(ey)) * eps_len[rows], 0.0, d)
         valid = q < nr[:, None]
         ins = (d >= 0.0) & valid
         r = ins.sum(axis=1)
