@@ -62,7 +62,7 @@ class Plan:
     ----------
     effects : list of Effect
         In order: fluid, inertia, moving-bodies, mesh, ale, contacts, gravity, buoyancy,
-        rotation, remeshing, solver.
+        rotation, remeshing, periodic, solver.
     mesh : {"none", "once", "moving"}
         No mesh (dry), a mesh built once, or a moving mesh.
     contact_pairs : int
@@ -333,6 +333,20 @@ def make_plan(scene: Scene) -> Plan:
                         f"{scene.mesh.retriangulate_every} steps or when quality drops", st))
     else:
         E.append(Effect("remeshing", False, "no moving mesh: never re-triangulated"))
+    # periodic sides
+    if not periodic:
+        E.append(Effect("periodic", False, "no periodic sides"))
+    else:
+        x0, x1, y0, y1 = scene.domain.box
+        pairs = [f"{a}/{b} (period {p:g} in {ax})" for a, b, p, ax in
+                 (("left", "right", x1 - x0, "x"), ("bottom", "top", y1 - y0, "y")) if a in periodic]
+        drive = ""
+        if fl is not None:
+            drive = (f"; driven by body_force = {list(fl.body_force)}" if any(fl.body_force) else
+                     "; no body_force (driven by moving walls or bodies only)")
+        E.append(Effect("periodic", True, "periodic pairs " + ", ".join(pairs) + ": matching mesh nodes, "
+                        "identified velocity (and continuous pressure) DOFs" + drive,
+                        "+".join(ax for a, ax in (("left", "x"), ("bottom", "y")) if a in periodic)))
     # solver
     if fl is None:
         if not moving:
@@ -352,9 +366,9 @@ def make_plan(scene: Scene) -> Plan:
         notes.append("prescribed motion brings " + "; ".join(hit[:3]) + (" ..." if len(hit) > 3 else "")
                      + " before t_end (prescribed bodies feel no contact forces)")
     # what this version cannot do (the plan still says what would be needed)
-    if periodic:
-        unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the "
-                           + ("fluid solver" if fl else "DEM") + "; use 'wall' or 'outflow'")
+    if periodic and fl is None:
+        unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the DEM "
+                           "(a dry scene); use 'wall' or 'outflow'")
     if fl is not None:
         if free:
             unsupported.append(f"free bodies in a fluid ({len(free)}: {', '.join(b.name for b in free[:5])}"
