@@ -268,3 +268,75 @@ def test_moving_disk_scene_in_a_periodic_channel_writes_history_and_fields(tmp_p
     assert any(f.endswith(".vtu") for f in os.listdir(tmp_path / "fields"))
     rows = open(tmp_path / "history.csv").read().splitlines()
     assert len(rows) >= 6 and "nan" not in rows[-1]
+
+
+# -- Galilean check -------------------------------------------------------------------------
+
+def _galilean_pair(omega, h=0.05, n=100, U=1.0, dt=0.01):
+    """Drag, lift and torque histories (n, 3) of a disk (R = 0.15, 48 sides) translating at U
+    along a periodic channel [0, 4] x [0, 1] between walls at rest (moving mesh, lab frame),
+    and of the same disk held at its start on a fixed mesh with both walls moving at −U and
+    the fluid starting at −U (body frame); ν = 0.01 (Re = 30), Taylor–Hood."""
+    from fluidem.coupling.fixed_flow import FixedMeshFlow
+
+    def scene(lab):
+        wall = {"type": "moving-wall", "velocity": [-U, 0.0]}
+        dom = {"box": [0.0, 4.0, 0.0, 1.0], "left": "periodic", "right": "periodic"}
+        if not lab:
+            dom.update(top=wall, bottom=wall)
+        body = {"shape": "disk", "radius": 0.15, "position": [1.0, 0.5], "segments": 48, "omega": omega,
+                "motion": "prescribed" if (lab or omega) else "fixed", "velocity": [U if lab else 0.0, 0.0]}
+        return Scene.from_dict({"fluid": {"model": "navier-stokes", "viscosity": 0.01, "element": "th",
+                                          "solver": "direct"},
+                                "domain": dom, "bodies": [body], "mesh": {"h": h},
+                                "time": {"dt": dt, "t_end": n * dt}})
+
+    lab, sim = _moving_flow(scene(True))
+    body = FixedMeshFlow(scene(False), types.SimpleNamespace(counters=collections.Counter()))
+    sp = body.space
+    u0 = np.zeros(sp.n_u)
+    u0[sp.ub.dofs.element_dofs[0::2].ravel()] = -U
+    d, v = body.problem.dirichlet_values(0.0)
+    u0[d] = v
+    body.stepper.take_over(body.problem, u0)
+    out, re = [], []
+    for _ in range(n):
+        lab.step(dt)
+        body.step(dt)
+        (Fl, Tl), (Fb, Tb) = lab.loads(), body.loads()
+        out.append([[Fl[0, 0], Fl[0, 1], Tl[0]], [Fb[0, 0], Fb[0, 1], Tb[0]]])
+        re.append(lab.last_event.retriangulated)
+    return np.array(out), np.flatnonzero(re)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("omega, first, settled_tol, lift_tol", [(0.0, 5e-3, 1.3e-2, 1.6e-2),
+                                                                 (2.0, 1.1e-2, 1.6e-2, 0.14)])
+def test_galilean_check_translating_disk_in_a_periodic_channel(omega, first, settled_tol, lift_tol):
+    """Lab frame (moving mesh) against body frame (fixed mesh): the forces agree to the
+    discretisation error between re-triangulations, and each re-triangulation injects a
+    transient that decays in about ten steps (the field transfer; a separate item).
+
+    Measured (h = 0.05, dt = 0.01, 100 steps, 17.6k / 26.4k DOFs; tolerances 2.5x these):
+
+    * ω = 0 (5 re-triangulations, 50 s): drag differs ≤ 0.21 % from step 6 to the first
+      re-triangulation, ≤ 0.52 % ten or more steps after any, 18.4 % at the worst
+      re-triangulation step; lift difference ≤ 0.64 % of the drag.
+    * ω = 2 rad/time (17 re-triangulations, 100 s): drag ≤ 0.42 % before the first
+      re-triangulation, ≤ 0.61 % ten or more steps after any, 18.2 % at the worst; torque
+      ≤ 0.65 % before the first; lift (Magnus, 0.15) difference ≤ 5.3 % of the drag.
+    """
+    F, re = _galilean_pair(omega)
+    lab, body = F[:, 0], F[:, 1]
+    rel = np.abs(lab[:, 0] - body[:, 0]) / np.abs(body[:, 0])
+    assert len(re) >= 3 and re[0] > 10
+    assert rel[5:re[0]].max() < first
+    settled = np.ones(len(rel), dtype=bool)
+    settled[:5] = False
+    for k in re:
+        settled[k:k + 10] = False
+    assert rel[settled].max() < settled_tol
+    assert rel[5:].max() < 0.46
+    assert (np.abs(lab[5:, 1] - body[5:, 1]) / np.abs(body[5:, 0])).max() < lift_tol
+    if omega:
+        assert (np.abs(lab[3:re[0], 2] - body[3:re[0], 2]) / np.abs(body[3:re[0], 2])).max() < 1.6e-2
