@@ -89,7 +89,13 @@ class SideSpec:
     Parameters
     ----------
     type : {"wall", "inflow", "outflow", "periodic", "moving-wall"}
-        ``names.meaning("side type", type)`` says what each is.
+        ``names.meaning("side type", type)`` says what each is.  ``"periodic"`` sides come in
+        pairs (``left`` with ``right``, ``bottom`` with ``top``): the mesh has matching nodes
+        on both and the fluid DOFs there are identified (:mod:`fluidem.mesh.periodic`,
+        :mod:`fluidem.fluid.periodic`); ``fluid.body_force`` (a mean pressure gradient G is
+        ``body_force = −G / density``) or moving walls drive the flow.  Bodies must be narrower
+        than the period and must not overlap a periodic side (on a moving mesh: stay at least
+        ``mesh.h`` away from it).
     velocity : (2,) float
         Wall velocity of a ``"moving-wall"`` side, length/time (zero on every other type).
     profile : dict or None
