@@ -201,7 +201,13 @@ def prescribed_collisions(scene: Scene) -> list:
     x0, x1, y0, y1 = scene.domain.box
     out = []
     for k in idx:  # prescribed bodies: a handful
-        if lo[k, 0] <= x0 or hi[k, 0] >= x1 or lo[k, 1] <= y0 or hi[k, 1] >= y1:
+        reach = [s for s, hit in (("left", lo[k, 0] <= x0), ("right", hi[k, 0] >= x1), ("bottom", lo[k, 1] <= y0),
+                                  ("top", hi[k, 1] >= y1)) if hit]
+        periodic = [s for s in reach if scene.domain.side(s).type == "periodic"]
+        if periodic:
+            out.append(f"{B[k].name} to the periodic side {periodic[0]!r} (crossing a periodic side is not "
+                       "supported: the run stops when the body comes closer than mesh.h to it)")
+        elif reach:
             out.append(f"{B[k].name} to a side of the box")
         others = [j for j, b in enumerate(B) if j != k and b.motion != "free"]
         if others:

@@ -193,6 +193,16 @@ def test_plan_states_the_periodic_pairs():
     assert any("periodic sides" in u for u in dry.plan().unsupported)
 
 
+def test_plan_notes_a_prescribed_body_that_would_reach_a_periodic_side():
+    body = {"shape": "disk", "radius": 0.1, "position": [1.0, 0.5], "motion": "prescribed", "velocity": [1.0, 0.0]}
+    p = _scene(model="navier-stokes", bodies=[body]).plan()  # t_end = 0.5: stays clear
+    assert not any("periodic side" in n for n in p.notes)
+    d = _scene(model="navier-stokes", bodies=[body]).to_dict()
+    d["time"]["t_end"] = 1.0
+    p = Scene.from_dict(d).plan()
+    assert any("body0 to the periodic side 'right'" in n for n in p.notes), p.notes
+
+
 @pytest.mark.parametrize("bodies, match", [
     ([{"shape": "rectangle", "width": 2.5, "height": 0.2, "position": [1.0, 0.5]}],
      r"bodies\[0\] has width 2.5 in x across the periodic sides left/right: allowed: narrower than the period 2"),
