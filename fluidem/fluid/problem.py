@@ -99,6 +99,8 @@ class FlowProblem:
 
         self.periodic = periodic_axes(periodic)
         periodic_sides = {s for a in self.periodic for s in SIDE_PAIRS[a]}
+        for name in sorted(periodic_sides):
+            space._check_boundary(name)
         named = set()
         for bc in self.bcs:
             for name in bc.names:
