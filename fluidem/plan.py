@@ -62,7 +62,7 @@ class Plan:
     ----------
     effects : list of Effect
         In order: fluid, inertia, moving-bodies, mesh, ale, contacts, gravity, buoyancy,
-        rotation, remeshing, solver.
+        rotation, remeshing, periodic, solver.
     mesh : {"none", "once", "moving"}
         No mesh (dry), a mesh built once, or a moving mesh.
     contact_pairs : int
@@ -201,7 +201,13 @@ def prescribed_collisions(scene: Scene) -> list:
     x0, x1, y0, y1 = scene.domain.box
     out = []
     for k in idx:  # prescribed bodies: a handful
-        if lo[k, 0] <= x0 or hi[k, 0] >= x1 or lo[k, 1] <= y0 or hi[k, 1] >= y1:
+        reach = [s for s, hit in (("left", lo[k, 0] <= x0), ("right", hi[k, 0] >= x1), ("bottom", lo[k, 1] <= y0),
+                                  ("top", hi[k, 1] >= y1)) if hit]
+        periodic = [s for s in reach if scene.domain.side(s).type == "periodic"]
+        if periodic:
+            out.append(f"{B[k].name} to the periodic side {periodic[0]!r} (crossing a periodic side is not "
+                       "supported: the run stops when the body comes closer than mesh.h to it)")
+        elif reach:
             out.append(f"{B[k].name} to a side of the box")
         others = [j for j, b in enumerate(B) if j != k and b.motion != "free"]
         if others:
@@ -333,6 +339,20 @@ def make_plan(scene: Scene) -> Plan:
                         f"{scene.mesh.retriangulate_every} steps or when quality drops", st))
     else:
         E.append(Effect("remeshing", False, "no moving mesh: never re-triangulated"))
+    # periodic sides
+    if not periodic:
+        E.append(Effect("periodic", False, "no periodic sides"))
+    else:
+        x0, x1, y0, y1 = scene.domain.box
+        pairs = [f"{a}/{b} (period {p:g} in {ax})" for a, b, p, ax in
+                 (("left", "right", x1 - x0, "x"), ("bottom", "top", y1 - y0, "y")) if a in periodic]
+        drive = ""
+        if fl is not None:
+            drive = (f"; driven by body_force = {list(fl.body_force)}" if any(fl.body_force) else
+                     "; no body_force (driven by moving walls or bodies only)")
+        E.append(Effect("periodic", True, "periodic pairs " + ", ".join(pairs) + ": matching mesh nodes, "
+                        "identified velocity (and continuous pressure) DOFs" + drive,
+                        "+".join(ax for a, ax in (("left", "x"), ("bottom", "y")) if a in periodic)))
     # solver
     if fl is None:
         if not moving:
@@ -352,9 +372,9 @@ def make_plan(scene: Scene) -> Plan:
         notes.append("prescribed motion brings " + "; ".join(hit[:3]) + (" ..." if len(hit) > 3 else "")
                      + " before t_end (prescribed bodies feel no contact forces)")
     # what this version cannot do (the plan still says what would be needed)
-    if periodic:
-        unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the "
-                           + ("fluid solver" if fl else "DEM") + "; use 'wall' or 'outflow'")
+    if periodic and fl is None:
+        unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the DEM "
+                           "(a dry scene); use 'wall' or 'outflow'")
     if fl is not None:
         if free:
             unsupported.append(f"free bodies in a fluid ({len(free)}: {', '.join(b.name for b in free[:5])}"

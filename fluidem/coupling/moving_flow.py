@@ -20,7 +20,7 @@ import numpy as np
 from ..cost import CostSplit
 from ..geometry import barycentric
 from .bodies import LinearPath
-from .boundary import velocity_bcs
+from .boundary import periodic_axes_of, velocity_bcs
 from .loads import FlowLoads
 
 __all__ = ["LAGGED_REFACTOR_ITERATIONS", "MovingMeshFlow", "Outline", "p1_at_dofs"]
@@ -104,7 +104,8 @@ class MovingMeshFlow(FlowLoads):
             region = g["region"] if g["region"] != "bodies" else scene.world_outlines()
             grading = {"region": region, "growth": g["growth"], "h_max": g["h_max"]}
         self.mm = MovingMesh(scene.domain.box, outlines, self._poses(0.0), ms.h, grading=grading,
-                             strategy=ms.strategy, retriangulate_every=ms.retriangulate_every)
+                             strategy=ms.strategy, retriangulate_every=ms.retriangulate_every,
+                             periodic=periodic_axes_of(scene))
         sim.counters["triangulations"] += 1
         self.sim = sim
         self.mesh_time = time.perf_counter() - t0
@@ -150,7 +151,7 @@ class MovingMeshFlow(FlowLoads):
         self.space = FlowSpace(self.mesh, fl.element)
         self.centers = self._poses(t)[:, :2]
         self.problem = FlowProblem(self.space, fl.viscosity, velocity_bcs(self.scene, self.centers), rho=fl.density,
-                                   body_force=fl.body_force, moving=True)
+                                   body_force=fl.body_force, moving=True, periodic=self.mm.periodic)
         self.rigid = RigidModes(self.space, self.names, self.centers)
 
     def _refit(self, t) -> bool:

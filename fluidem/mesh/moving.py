@@ -107,7 +107,7 @@ import shapely
 from scipy.spatial import cKDTree
 
 from .. import validate
-from ..errors import InputError
+from ..errors import InputError, MeshError
 from .adaptation import adapt as adapt_nodes
 from .adaptation import cleanup_candidates
 from .background import GradedSize, SizeField, UniformSize
@@ -135,6 +135,7 @@ from .nodes import (
     outline_nodes,
     world,
 )
+from .periodic import check_clearance, freeze_periodic_sides, match_side_nodes, periodic_axes
 from .params import PARAM_NAMES, STRATEGIES, MeshParams, mesh_params
 from .proximity import PolygonTable
 from .quality import MeshQuality, OscillationDetector, mesh_quality
@@ -233,6 +234,11 @@ class MovingMesh:
         the zone towed by the bodies; else 1.2).
     strategy : {"drag", "regenerate", "fixed"} or None
         Overrides ``params.strategy`` (default ``"drag"``).
+    periodic : sequence of {"x", "y"}
+        Periodic axes (``"x"``: the sides ``left`` and ``right`` are one; ``"y"``: ``bottom``
+        and ``top``; :mod:`fluidem.mesh.periodic`).  Their nodes match in every
+        triangulation and do not slide; a body closer than ``h`` to a periodic side raises
+        :class:`~fluidem.errors.MeshError` (``InputError`` at the start).
     params : MeshParams or None
         Every other parameter (:class:`fluidem.mesh.params.MeshParams`, which documents
         them: ``retriangulate_every``, ``relax_iterations``, ``min_angle_trigger``,
@@ -299,13 +305,14 @@ class MovingMesh:
     """
 
     def __init__(self, domain, bodies, poses, h: float, grading=None, strategy: str | None = None, *,
-                 params: MeshParams | None = None, **keywords):
+                 params: MeshParams | None = None, periodic=(), **keywords):
         if strategy is not None:
             keywords["strategy"] = strategy
         self.params = p = mesh_params(params, **keywords)
         self.domain = BoxDomain.from_any(domain)
         self.box = (self.domain.xmin, self.domain.xmax, self.domain.ymin, self.domain.ymax)
         self.h = validate.positive("mesh size h", h)
+        self.periodic = periodic_axes(periodic)
 
         # size field
         self._size, self._growth, self._graded = self._make_size(grading)
@@ -328,7 +335,8 @@ class MovingMesh:
         self.poses = self._check_poses(poses)
 
         self.outlines: BodyOutlines = outline_nodes(verts, self.poses, self._size, self.h)
-        self.background_candidates = background_nodes(self.box, self.h, self._size, self.background_kind)
+        self.background_candidates = background_nodes(self.box, self.h, self._size, self.background_kind,
+                                                     periodic=self.periodic)
         self.step_count = 0
         self._steps_since = 0
         self._osc = OscillationDetector()
@@ -393,6 +401,7 @@ class MovingMesh:
         """Unpickle; a mesh pickled before the split by stage (checkpoints) is converted."""
         if "params" not in state:
             state = _state_before_split(state)
+        state.setdefault("periodic", ())
         self.__dict__.update(state)
 
     # ------------------------------------------------------------------ set-up
@@ -435,6 +444,8 @@ class MovingMesh:
                 f"body {b} ({self.body_names[b]}) is not inside the domain {self.box} with the minimum gap "
                 f"{g:.3g}: vertex {w[k].tolist()} at pose {p[b].tolist()}"
             )
+        check_clearance(w, self._vbody, self.body_names, p, self.box, self.periodic, self.h,
+                        error=InputError if self.__dict__.get("step_count") is None else MeshError)
         return p
 
     def _target(self, pts, outline_world=None) -> np.ndarray:
@@ -505,6 +516,8 @@ class MovingMesh:
 
         final_shape = None
         for attempt in range(p.cleanup_passes + 1):
+            kept_points, kept_kind, kept_uid = match_side_nodes(kept_points, kept_kind, kept_uid, self.box,
+                                                                self.periodic, self._uids)
             tri = triangulate(kept_points, kept_kind, kept_uid, outline_world, self.outlines, contact, poses, polys,
                               tree, self.box, self._uids, p.junctions, p.junction_clearance, target)
             self._install(tri, outline_world)
@@ -548,7 +561,8 @@ class MovingMesh:
         self._contact_local = tri.contact_local
         self._contact_idx = np.flatnonzero(tri.kind == CONTACT)
         self.h_node = self._target(tri.points, outline_world)
-        self._mobility = mobility(tri.kind, tri.points, self.box)
+        self._mobility = freeze_periodic_sides(mobility(tri.kind, tri.points, self.box), tri.points, tri.kind,
+                                               self.box, self.periodic)
         # junction nodes are dragged (they are not relaxed)
         self._drag_mobility = self._mobility.copy()
         self._drag_mobility[tri.kind == JUNCTION] = 1.0

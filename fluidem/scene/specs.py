@@ -89,7 +89,13 @@ class SideSpec:
     Parameters
     ----------
     type : {"wall", "inflow", "outflow", "periodic", "moving-wall"}
-        ``names.meaning("side type", type)`` says what each is.
+        ``names.meaning("side type", type)`` says what each is.  ``"periodic"`` sides come in
+        pairs (``left`` with ``right``, ``bottom`` with ``top``): the mesh has matching nodes
+        on both and the fluid DOFs there are identified (:mod:`fluidem.mesh.periodic`,
+        :mod:`fluidem.fluid.periodic`); ``fluid.body_force`` (a mean pressure gradient G is
+        ``body_force = −G / density``) or moving walls drive the flow.  Bodies must be narrower
+        than the period and must not overlap a periodic side (on a moving mesh: stay at least
+        ``mesh.h`` away from it).
     velocity : (2,) float
         Wall velocity of a ``"moving-wall"`` side, length/time (zero on every other type).
     profile : dict or None
@@ -562,6 +568,23 @@ class Scene:
         polys = self.world_outlines()
         lo = np.array([p.min(axis=0) for p in polys])
         hi = np.array([p.max(axis=0) for p in polys])
+        for c, (s0, s1), (b0, b1) in ((0, ("left", "right"), (x0, x1)), (1, ("bottom", "top"), (y0, y1))):
+            if self.domain.side(s0).type != "periodic":
+                continue
+            width = hi[:, c] - lo[:, c]
+            wide = np.flatnonzero(width >= b1 - b0)
+            if len(wide):
+                i = int(wide[0])
+                raise SceneError(f"bodies[{i}] has width {width[i]:.4g} in {'xy'[c]} across the periodic sides "
+                                 f"{s0}/{s1}: allowed: narrower than the period {b1 - b0:.4g}")
+            cross = np.flatnonzero((lo[:, c] <= b0) | (hi[:, c] >= b1))
+            if len(cross):
+                i = int(cross[0])
+                side = s0 if lo[i, c] <= b0 else s1
+                raise SceneError(f"bodies[{i}].position = {list(self.bodies[i].position)}: the body (extent "
+                                 f"{'xy'[c]} {lo[i, c]:.4g}..{hi[i, c]:.4g}) overlaps the periodic side {side!r} "
+                                 f"at {'xy'[c]} = {b0 if side == s0 else b1:g}; allowed: every vertex strictly "
+                                 "inside the box (bodies crossing a periodic side are not supported)")
         out = np.flatnonzero((lo[:, 0] <= x0) | (hi[:, 0] >= x1) | (lo[:, 1] <= y0) | (hi[:, 1] >= y1))
         if len(out):
             i = int(out[0])
