@@ -52,6 +52,26 @@ def _positive_float(text):
     return v
 
 
+def _positive_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return v
+
+
+def _nonnegative_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return v
+
+
 def _name(kind: str):
     """An argparse ``type`` that turns a registry name or alias of ``kind`` into its canonical name.
 
@@ -78,7 +98,10 @@ def _add_debug(parser, default=False) -> None:
 
 
 def _build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
     p = argparse.ArgumentParser(prog="fluidem", description="Resolved particle-laden flow: FEM fluid + polygonal DEM.")
+    p.add_argument("--version", action="version", version=f"fluidem {__version__}")
     _add_debug(p)
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
@@ -88,7 +111,7 @@ def _build_parser() -> argparse.ArgumentParser:
                                    "errors, DOFs and the wall-time split. Defaults are each case's own.")
     b.add_argument("name", help="benchmark case", **_named("case"))
     b.add_argument("--element", help="velocity/pressure element pair", **_named("element"))
-    b.add_argument("--level", type=int, help="mesh level (each level halves the cell size), 0-6")
+    b.add_argument("--level", type=_nonnegative_int, help="mesh level (each level halves the cell size), 0-6")
     b.add_argument("--dt", type=_positive_float, help="time step (unsteady cases)")
     b.add_argument("--t-end", type=_positive_float, dest="t_end", help="end time (periodic cases)")
     b.add_argument("--convection", **_named("convection"),
@@ -119,7 +142,7 @@ def _add_scene_commands(sub) -> None:
     r.add_argument("--out", metavar="DIR", help="output directory (default: the scene's [output] dir)")
     r.add_argument("--restart", nargs="?", const=True, metavar="CHECKPOINT",
                    help="continue from a checkpoint file, or from the newest one in the output directory")
-    r.add_argument("--steps", type=int, metavar="N", help="stop after N steps in total")
+    r.add_argument("--steps", type=_positive_int, metavar="N", help="stop after N steps in total (N >= 1)")
     r.add_argument("--plot", action="store_true", help="draw the PNG figures at the end")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     pl = sub.add_parser("plan", help="print the effects a scene needs and why",
@@ -249,9 +272,11 @@ def main(argv=None) -> int:
     """Run the command line ``argv`` (default: ``sys.argv[1:]``); returns the exit status.
 
     Errors fluidem raises on purpose (:class:`~fluidem.errors.FluidemError`, and the
-    ``ValueError`` of validation) print ``fluidem: error: <message>`` on one line to stderr
-    and return 2; with ``--debug`` they propagate with their traceback.  Usage errors exit
-    through argparse (status 2).
+    ``ValueError`` of validation) and a path the system cannot read or write print
+    ``fluidem: error: <message>`` on one line to stderr and return 2 (a run stopped by an
+    interrupt or by a bad state returns its own status, see :mod:`fluidem.simulation`); with
+    ``--debug`` they propagate with their traceback.  Usage errors exit through argparse
+    (status 2).
     """
     parser = _build_parser()
     args = parser.parse_args(argv)
@@ -260,9 +285,24 @@ def main(argv=None) -> int:
     except (FluidemError, ValueError) as exc:
         if args.debug:
             raise
-        message = " ".join(str(exc).splitlines()) or type(exc).__name__
-        print(f"fluidem: error: {message}", file=sys.stderr)
+        status = getattr(exc, "exit_status", 2)
+        print(f"fluidem: error: {_one_line(exc)}", file=sys.stderr)
+        return status
+    except OSError as exc:  # a path that cannot be read or written: the system's reason and the path
+        if args.debug:
+            raise
+        where = f": {exc.filename!r}" if getattr(exc, "filename", None) else ""
+        print(f"fluidem: error: {exc.strerror or exc}{where}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        if args.debug:
+            raise
+        print("fluidem: interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line(exc) -> str:
+    return " ".join(str(exc).splitlines()) or type(exc).__name__
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -368,9 +368,18 @@ def make_plan(scene: Scene) -> Plan:
                 notes.append("prescribed translating bodies use fluidem.mesh.MovingMesh (ALE)")
         if fl.model == "stokes" and n_steps == 1 and outline_moving:
             notes.append("quasi-steady Stokes at t = 0 only: forces are those of the initial geometry")
+        if mesh == "moving" and scene.mesh.strategy == "fixed":
+            unsupported.append(f"mesh.strategy = 'fixed' keeps the mesh still, but {len(outline_moving)} body "
+                               f"outline(s) move ({', '.join(b.name for b in outline_moving[:3])}); use strategy "
+                               "'drag' or 'regenerate'")
     else:
         bad = [s for s in names.choices("side") if scene.domain.side(s).type in ("inflow", "moving-wall")]
         if bad:
             unsupported.append(f"domain sides {', '.join(bad)} are fluid conditions; a dry scene allows "
                                "'wall' and 'outflow' (open)")
+    defaulted = getattr(scene, "defaulted", ())
+    if "time" in defaulted:
+        notes.append(f"no [time] table: default dt = {scene.time.dt:g}, t_end = {scene.time.t_end:g}")
+    if "mesh.h" in defaulted and fl is not None:
+        notes.append(f"no mesh.h: default h = {scene.mesh.h:g}")
     return Plan(scene.name, E, mesh, nb + nw, n_steps, unsupported, notes)

@@ -396,6 +396,11 @@ class TimeSpec:
         self.t_end = positive(f"{where}.t_end", self.t_end, error=SceneError)
         if self.t_end < self.dt * (1 - 1e-9):
             raise fail(f"{where}.t_end", self.t_end, f"a number >= dt = {self.dt}", SceneError)
+        n = self.t_end / self.dt
+        if abs(n - round(n)) > 1e-6 * max(1.0, n):  # the last step lands on t_end: t_end = n dt
+            lo, hi = math.floor(n) * self.dt, math.ceil(n) * self.dt
+            raise fail(f"{where}.t_end", self.t_end, f"a whole number of steps dt = {self.dt:g} (e.g. {lo:.10g} or "
+                       f"{hi:.10g}), so that the last step lands on t_end", SceneError)
 
     @property
     def n_steps(self) -> int:
@@ -474,6 +479,8 @@ class Scene:
     name: str = "scene"
     description: str = ""
     source: str | None = None
+    #: tables or keys the scene did not give and that took their defaults ("time", "mesh.h"); the plan names them
+    defaulted: list = field(default_factory=list, compare=False, repr=False)
 
     # -- loading ------------------------------------------------------------------------
     @classmethod
@@ -515,6 +522,9 @@ class Scene:
         if "bodies_table" in data:
             bodies.extend(BodySpec(**rec) for rec in files.read_bodies_table(data["bodies_table"], base_dir))
         kw["bodies"] = bodies
+        kw["defaulted"] = [k for k in ("time",) if k not in data]
+        if "fluid" in data and "h" not in (data.get("mesh") or {}):
+            kw["defaulted"].append("mesh.h")
         scene = cls(**kw)
         scene.validate()
         return scene
@@ -581,7 +591,14 @@ class Scene:
                 a, b = int(i[bad[0]]), int(j[bad[0]])
                 raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
                                  f"{list(self.bodies[b].position)}) overlap at start by {area[bad[0]]:.3g} "
-                                 f"(length²); allowed: bodies that do not overlap (touching is fine)")
+                                 f"(length²); allowed: bodies that do not overlap"
+                                 + (" or touch" if self.fluid is None else ""))
+            if self.fluid is not None:  # touching outlines leave no fluid between them: no mesh can be built
+                a, b = int(i[0]), int(j[0])
+                raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
+                                 f"{list(self.bodies[b].position)}) touch at start; in a fluid scene bodies need "
+                                 f"fluid between them: move them apart (a gap of at least mesh.h = {self.mesh.h:g}) "
+                                 "or make them one polygon body")
 
     def world_outlines(self) -> list:
         """Initial outlines in world coordinates, list of (n_i, 2) arrays."""
