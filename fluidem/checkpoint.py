@@ -20,7 +20,7 @@ Examples
 >>> import numpy as np
 >>> from fluidem.checkpoint import save, load
 >>> path = pathlib.Path(tempfile.mkdtemp()) / "ckpt_0000003.npz"
->>> save(path, {"step": 3, "t": 0.3}, {"x": np.arange(3.0), "n": 2, "pair": (1, "a")})
+>>> _ = save(path, {"step": 3, "t": 0.3}, {"x": np.arange(3.0), "n": 2, "pair": (1, "a")})
 >>> header, state = load(path)
 >>> header["step"], state["x"], state["pair"]
 (3, array([0., 1., 2.]), (1, 'a'))
@@ -65,8 +65,8 @@ def encode(obj, arrays: list, copy: bool = False):
     ----------
     obj : object
         Plain values (None, bool, int, float, str, bytes), lists, tuples, dicts, sets, numpy
-        arrays and scalars, and instances of classes of the ``fluidem`` package (their
-        ``__getstate__`` or ``__dict__``).  Shared objects and arrays stay shared.
+        arrays and scalars, shapely geometries (as well-known binary), and instances of
+        classes of the ``fluidem`` package (their ``__getstate__`` or ``__dict__``).  Shared objects and arrays stay shared.
     arrays : list
         Receives the arrays; the tree refers to them by index.
     copy : bool
@@ -114,6 +114,11 @@ def encode(obj, arrays: list, copy: bool = False):
             return {"__complex__": [enc(o.real, where), enc(o.imag, where)]}
         cls = type(o)
         name = f"{cls.__module__}:{cls.__qualname__}"
+        if cls.__module__.startswith("shapely."):
+            import shapely
+
+            if isinstance(o, shapely.Geometry):  # as well-known binary: plain data
+                return {"__shapely__": base64.b64encode(shapely.to_wkb(o)).decode("ascii")}
         if not (cls.__module__ == "fluidem" or cls.__module__.startswith("fluidem.")):
             raise TypeError(f"{where}: a {name} cannot be checkpointed (only fluidem's own classes)")
         if isinstance(o, enum.Enum):
@@ -184,6 +189,10 @@ def decode(tree, arrays):
         if "__complex__" in t:
             re, im = t["__complex__"]
             return complex(dec(re), dec(im))
+        if "__shapely__" in t:
+            import shapely
+
+            return shapely.from_wkb(base64.b64decode(t["__shapely__"]))
         if "__enum__" in t:
             return _class(t["__enum__"])(dec(t["value"]))
         if "__objref__" in t:

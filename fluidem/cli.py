@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 
 from . import names
 from .errors import FluidemError
@@ -142,6 +143,8 @@ def _add_scene_commands(sub) -> None:
     r.add_argument("--out", metavar="DIR", help="output directory (default: the scene's [output] dir)")
     r.add_argument("--restart", nargs="?", const=True, metavar="CHECKPOINT",
                    help="continue from a checkpoint file, or from the newest one in the output directory")
+    r.add_argument("--overwrite", action="store_true",
+                   help="clear the output of an earlier run in the output directory first")
     r.add_argument("--steps", type=_positive_int, metavar="N", help="stop after N steps in total (N >= 1)")
     r.add_argument("--plot", action="store_true", help="draw the PNG figures at the end")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -222,7 +225,7 @@ def _scene_main(args) -> int:
     out = args.out or scene.output.dir
     if not args.quiet:
         print(sim.plan, file=sys.stderr)
-    result = sim.run(out_dir=out, restart=args.restart, n_steps=args.steps,
+    result = sim.run(out_dir=out, restart=args.restart, n_steps=args.steps, overwrite=args.overwrite,
                      progress=None if args.quiet else _ProgressBar())
     print(result)
     if args.plot:
@@ -281,7 +284,10 @@ def main(argv=None) -> int:
     parser = _build_parser()
     args = parser.parse_args(argv)
     try:
-        return _dispatch(args, parser)
+        with warnings.catch_warnings():
+            if not args.debug:
+                warnings.showwarning = _show_warning
+            return _dispatch(args, parser)
     except (FluidemError, ValueError) as exc:
         if args.debug:
             raise
@@ -299,6 +305,14 @@ def main(argv=None) -> int:
             raise
         print("fluidem: interrupted", file=sys.stderr)
         return 130
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """fluidem's own warnings as ``fluidem: warning: <message>`` (others as Python prints them)."""
+    if category.__module__.startswith("fluidem"):
+        print(f"fluidem: warning: {_one_line(message)}", file=sys.stderr)
+    else:
+        print(warnings.formatwarning(message, category, filename, lineno, line), end="", file=sys.stderr)
 
 
 def _one_line(exc) -> str:

@@ -410,23 +410,30 @@ class TimeSpec:
 @dataclass
 class OutputSpec:
     """Output: directory ``dir``; fields and body outlines every ``every`` steps; history every
-    ``history_every`` steps; a checkpoint every ``checkpoint_every`` steps (0: only at the end);
-    ``fields = false`` writes no fluid fields."""
+    ``history_every`` steps; ``fields = false`` writes no fluid fields.
+
+    Checkpoints: every ``checkpoint_every`` steps (0: only at the end; not given: about ten a
+    run, the newest three kept) and in any case every ``checkpoint_seconds`` of wall-clock
+    time (default 600; 0: off), and at the end."""
 
     dir: str = "out"
     every: int = 10
     history_every: int = 1
-    checkpoint_every: int = 0
+    checkpoint_every: int | None = None
     fields: bool = True
+    checkpoint_seconds: float = 600.0
 
-    KEYS = ("dir", "every", "history_every", "checkpoint_every", "fields")
+    KEYS = ("dir", "every", "history_every", "checkpoint_every", "fields", "checkpoint_seconds")
 
     def validate(self, where="output"):
         if not isinstance(self.dir, str) or not self.dir:
             raise fail(f"{where}.dir", self.dir, "a non-empty path string", SceneError)
         self.every = integer(f"{where}.every", self.every, error=SceneError)
         self.history_every = integer(f"{where}.history_every", self.history_every, error=SceneError)
-        self.checkpoint_every = integer(f"{where}.checkpoint_every", self.checkpoint_every, lo=0, error=SceneError)
+        if self.checkpoint_every is not None:
+            self.checkpoint_every = integer(f"{where}.checkpoint_every", self.checkpoint_every, lo=0,
+                                            error=SceneError)
+        self.checkpoint_seconds = nonnegative(f"{where}.checkpoint_seconds", self.checkpoint_seconds, error=SceneError)
         self.fields = boolean(f"{where}.fields", self.fields, error=SceneError)
 
 
