@@ -265,6 +265,7 @@ class Simulation:
                 b.step(dt)
         check.bodies(b.positions, b.angles, b.velocities, b.omegas, t_new)
         if isinstance(b, DEMBodies):
+            check.walls(b.dem.world_vertices(), b.dem.walls, t_new)
             check.overlaps(b.dem.contacts, t_new)
         if self.flow is not None:
             self.flow.step(dt)

@@ -5,9 +5,10 @@ alone, fixed-mesh flow, moving-mesh flow).  It raises :class:`StateError` naming
 (or the place in the fluid), the quantity and the likely cause when
 
 * a body's position, angle, velocity or angular velocity is not finite;
-* a body overlaps another body or a wall by more than :data:`MAX_OVERLAP` of its size
-  (the overlap depth, estimated as overlap area / chord length, against the diameter of the
-  disk of the body's area) — a contact too soft for the load or a time step too large;
+* a body reaches through a wall (its outline beyond the wall), or overlaps another body,
+  by more than :data:`MAX_OVERLAP` of its size (the diameter of the disk of its area; the
+  overlap depth with another body estimated as overlap area / chord length) — a contact too
+  soft for the load or a time step too large;
 * the flow velocity is not finite, or exceeds :data:`MAX_SPEEDUP` times the largest speed
   the scene imposes (inflow, moving walls, prescribed bodies, body-force scale) — a
   diverging time integration;
@@ -140,10 +141,32 @@ class StateCheck:
                 raise StateError(f"body {self.names[k]!r}: {q} is not finite ({_fmt(a[k])}) at t = {t:.6g}; "
                                  f"likely cause: {self.cause_dem}", self.names[k], q)
 
+    def walls(self, vertices, walls, t: float) -> None:
+        """Raise :class:`StateError` when a body reaches through a wall deeper than :data:`MAX_OVERLAP` of its size.
+
+        ``vertices``: (n, K, 2) world outlines (padded by repetition), length; ``walls``:
+        ``(xmin, xmax, ymin, ymax)``, infinite for an open side.
+        """
+        if walls is None or not len(vertices):
+            return
+        V = np.asarray(vertices, float)
+        lo, hi = V.min(axis=1), V.max(axis=1)
+        x0, x1, y0, y1 = walls
+        with np.errstate(invalid="ignore"):
+            depth = np.stack([x0 - lo[:, 0], hi[:, 0] - x1, y0 - lo[:, 1], hi[:, 1] - y1], axis=1).max(axis=1)
+        frac = depth / self.sizes
+        bad = frac > MAX_OVERLAP
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise StateError(f"body {self.names[k]!r}: overlap with a wall is {frac[k]:.0%} of its size "
+                             f"({depth[k]:.3g} of {self.sizes[k]:.3g}; allowed {MAX_OVERLAP:.0%}) at t = {t:.6g}; "
+                             f"likely cause: {self.cause_dem}", self.names[k], "overlap")
+
     def overlaps(self, contacts, t: float) -> None:
         """Raise :class:`StateError` when a contact overlap is deeper than :data:`MAX_OVERLAP` of a body's size.
 
-        ``contacts``: a :class:`fluidem.dem.contact.Contacts` (``i``, ``j``, ``area``, ``chord``).
+        ``contacts``: a :class:`fluidem.dem.contact.Contacts` (``i``, ``j``, ``area``, ``chord``)
+        of the last force evaluation.
         """
         if contacts is None or not len(contacts.i):
             return
