@@ -358,9 +358,10 @@ class Simulation:
                 if out_dir is None:
                     raise InputError("restart = True needs an output directory with checkpoints")
                 restart = out_dir
+            n_events = len(self.events)
+            ck_used = self.restore(restart, allow_pickle=allow_pickle)  # lists any change of the scene
             if out_dir is not None and Path(out_dir).is_dir():
-                self._check_owner(out_dir)
-            ck_used = self.restore(restart, allow_pickle=allow_pickle)
+                self._check_owner(out_dir)  # a checkpoint from elsewhere: the folder must be this scene's
         N = self.plan.n_steps if n_steps is None else n_steps
         writer = None
         if out_dir is not None:
@@ -377,7 +378,7 @@ class Simulation:
                     writer.mesh_quality(0, 0.0, mesh_quality(m.p[:, :m.nvertices].T, _ccw(m)))
             else:
                 writer.event(self.step_index, self.t, "restart", f"from {ck_used}")
-                for kind, msg in self.events[2:]:
+                for kind, msg in self.events[n_events:]:
                     writer.event(self.step_index, self.t, kind, msg)
             self._run_record(out_dir, "running", N)
         dt = sc.time.dt
