@@ -47,6 +47,9 @@ from .validate import integer
 __all__ = ["Simulation", "RunResult", "StepTimes", "run", "LinearPath", "RunStopped", "RunWarning", "StateError",
            "scene_changes", "RESTART_MAY_CHANGE"]
 
+#: smallest triangle angle (degrees) of a freshly built mesh before a warning
+MIN_ANGLE = 5.0
+
 #: Former name of the per-step cost record (now :class:`fluidem.cost.CostSplit`; parts read as attributes).
 StepTimes = CostSplit
 
@@ -143,6 +146,22 @@ class Simulation:
             self.events.append(("mesh", ("moving, initial: " if self.plan.mesh == "moving" else "built once: ")
                                 + f"{self.flow.mesh.t.shape[1]} triangles, "
                                         f"{self.flow.dofs} DOFs, {'curved' if self.flow.curved else 'polygonal'}"))
+            self._warn_degenerate()
+        for w in self.plan.warnings:
+            self.events.append(("warning", w))
+            warnings.warn(w, RunWarning, stacklevel=2)
+
+    def _warn_degenerate(self) -> None:
+        """A warning (and an event) when the mesh just built has triangles with angles below :data:`MIN_ANGLE`."""
+        from .mesh.quality import mesh_quality
+
+        m = self.flow.mesh
+        q = mesh_quality(m.p[:, :m.nvertices].T, _ccw(m))
+        if q.min_angle < MIN_ANGLE:
+            w = (f"the mesh has degenerate triangles: smallest angle {q.min_angle:.2g}° (warned below {MIN_ANGLE:g}°) "
+                 f"among {q.n_triangles} triangles; a body thinner than mesh.h = {self.scene.mesh.h:g} or a narrow "
+                 "gap: refine there (mesh.grading) or thicken the body")
+            self.plan.warnings.append(w)
 
     # -- state ------------------------------------------------------------------------------
     def _state(self) -> dict:

@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..plan import Plan
 
 __all__ = ["Scene", "FluidSpec", "DomainSpec", "SideSpec", "BodySpec", "ContactSpec", "MeshSpec", "TimeSpec",
-           "OutputSpec"]
+           "OutputSpec", "default_h"]
 
 
 @dataclass
@@ -345,6 +345,10 @@ class ContactSpec:
 class MeshSpec:
     """Fluid mesh: target edge length ``h`` (length) and optional grading.
 
+    ``h`` not given: from the scene's scale, ``min(L / 20, d / 4)`` with ``L`` the box's
+    shorter side and ``d`` the smallest body's bounding diameter (:func:`default_h`; 0.05 for
+    a 2 × 1 box with a disk of radius 0.1); the plan names it.
+
     ``grading = {region = [xmin, xmax, ymin, ymax] | "bodies", growth = g, h_max = H}``: size
     ``h`` in the region, growing by ``g`` per cell away from it up to ``H`` (default 8h).
     ``strategy`` (``"drag"``, ``"regenerate"`` or ``"fixed"``, see ``names.meaning("strategy",
@@ -352,7 +356,7 @@ class MeshSpec:
     as circles.
     """
 
-    h: float = 0.05
+    h: float | None = None
     grading: dict | None = None
     strategy: str = "drag"
     retriangulate_every: int = 30
@@ -552,8 +556,7 @@ class Scene:
         if self.fluid is not None:
             self.fluid.validate()
         self.domain.validate()
-        for spec, key in ((self.contact, "contact"), (self.mesh, "mesh"), (self.time, "time"),
-                          (self.output, "output")):
+        for spec, key in ((self.contact, "contact"), (self.time, "time"), (self.output, "output")):
             if spec is not None:
                 spec.validate(key)
         sides = names.choices("side")
@@ -566,6 +569,11 @@ class Scene:
             if not isinstance(b.name, str) or b.name in taken or b.name in sides:
                 raise fail(f"bodies[{i}].name", b.name, f"a unique string other than {', '.join(sides)}", SceneError)
             taken.add(b.name)
+        if self.mesh.h is None:  # from the scene's scale (before anything uses h: outlines, grading)
+            self.mesh.h = default_h(self)
+            if "mesh.h" not in self.defaulted and self.fluid is not None:
+                self.defaulted.append("mesh.h")
+        self.mesh.validate("mesh")
         self._check_geometry()
         return self
 
@@ -647,6 +655,28 @@ class Scene:
         from ..plan import make_plan
 
         return make_plan(self)
+
+
+def default_h(scene) -> float:
+    """The default mesh size of ``scene``: ``min(L / 20, d / 4)``, length.
+
+    ``L``: the shorter side of the domain box; ``d``: the smallest bounding diameter of a body
+    (no bodies: ``L / 20``).  So the mesh resolves the box and every body whatever the units.
+
+    Examples
+    --------
+    >>> from fluidem.scene import Scene
+    >>> Scene.from_dict({"domain": {"box": [0, 2, 0, 1]}, "fluid": {},
+    ...                  "bodies": [{"shape": "disk", "radius": 0.1, "position": [0.5, 0.5]}]}).mesh.h
+    0.05
+    >>> Scene.from_dict({"domain": {"box": [0, 1e-3, 0, 2e-4]}, "fluid": {}}).mesh.h
+    1e-05
+    """
+    x0, x1, y0, y1 = (float(v) for v in scene.domain.box)
+    h = min(x1 - x0, y1 - y0) / 20.0
+    if scene.bodies:
+        h = min(h, min(2.0 * b.bounding_radius for b in scene.bodies) / 4.0)
+    return float(f"{h:.3g}")
 
 
 def _plain(obj):
