@@ -7,7 +7,10 @@ scenes) comes from :mod:`fluidem.names`, the table scene files and the Python fa
 read too; old spellings are accepted as aliases.  An error fluidem raises on purpose
 (:class:`fluidem.errors.FluidemError`, or a ``ValueError`` from validation) prints one line
 ``fluidem: error: <message>`` to stderr and exits with status 2; ``--debug`` shows the
-traceback instead.
+traceback instead.  A run stopped by Ctrl-C or SIGTERM exits with 130 or 143, a run whose
+step failed with 3, each after a one-line message saying where its last checkpoint is and
+how to continue (``fluidem run SCENE --out DIR --restart``).  ``--overwrite`` clears an
+earlier run's output in the directory (a fresh run into it is refused otherwise).
 """
 
 from __future__ import annotations

@@ -496,11 +496,13 @@ def _mesh_warnings(scene, est) -> tuple[list, list]:
                     f"{_default_h(scene):g})")
     if scene.bodies:
         area, perim = _outline_stats(scene)
-        edges = perim / h
+        nodes = np.array([scene.default_segments(b) if b.shape in ("disk", "ellipse") else len(b.local_vertices())
+                          for b in scene.bodies])  # the outline's own vertices stay in the mesh
+        edges = np.maximum(perim / h, nodes)
         thick = 2.0 * area / np.maximum(perim, 1e-300)
         for k in np.flatnonzero(edges < MIN_EDGES_PER_BODY)[:3]:
             b = scene.bodies[k]
-            warn.append(f"body {b.name!r}: about {edges[k]:.1f} mesh edges along its outline (perimeter "
+            warn.append(f"body {b.name!r}: about {edges[k]:.0f} mesh edges along its outline (perimeter "
                         f"{perim[k]:.3g}, mesh.h = {h:g}); at least {MIN_EDGES_PER_BODY} resolve it (mesh.h <= "
                         f"{perim[k] / MIN_EDGES_PER_BODY:.3g})")
         for k in np.flatnonzero(thick / h < MIN_THICKNESS_PER_H)[:3]:

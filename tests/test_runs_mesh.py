@@ -58,12 +58,15 @@ def test_a_mesh_beyond_the_machines_memory_is_refused_before_anything_is_built(m
 
 
 def test_a_coarse_mesh_warns_with_the_numbers():
-    s = Scene.from_dict(_channel(mesh={"h": 5.0}))
-    w = s.plan().warnings
-    assert any("mesh.h = 5 is coarse for the box (2 × 1)" in x and "default is min(box / 20, body / 4) = 0.05" in x
+    d = _channel(mesh={"h": 5.0})
+    d["bodies"].append({"shape": "rectangle", "width": 0.1, "height": 0.1, "position": [1.5, 0.5], "motion": "fixed",
+                        "name": "sq"})
+    w = Scene.from_dict(d).plan().warnings
+    assert any("mesh.h = 5 is coarse for the box (2 × 1)" in x and "default is min(box / 20, body / 4) = 0.0354" in x
                for x in w)
-    assert any("body 'cyl': about 0.1 mesh edges along its outline (perimeter 0.624, mesh.h = 5); at least 8" in x
-               for x in w)
+    assert any("body 'sq': about 4 mesh edges along its outline (perimeter 0.4, mesh.h = 5); at least 8 resolve it "
+               "(mesh.h <= 0.05)" in x for x in w)
+    assert not any("body 'cyl': about" in x for x in w)  # a disk keeps at least 16 outline nodes
 
 
 def test_a_thin_plate_warns_before_and_after_the_mesh_is_built():
