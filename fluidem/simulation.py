@@ -63,6 +63,11 @@ from .validate import integer
 __all__ = ["Simulation", "RunResult", "StepTimes", "run", "LinearPath", "RunStopped", "RunWarning", "StateError",
            "scene_changes", "RESTART_MAY_CHANGE"]
 
+#: a snapshot of the state (to checkpoint if a later step fails) is taken once the steps since the
+#: last one took this many times the snapshot's own time: every step for fluid runs, every few
+#: steps for cheap DEM steps of many bodies
+SNAPSHOT_RATIO = 20.0
+
 #: smallest triangle angle (degrees) of a freshly built mesh before a warning
 MIN_ANGLE = 5.0
 
@@ -436,10 +441,12 @@ class Simulation:
                     self._record(writer, fields=True)
                 if writer is not None:
                     snap = self._snapshot()
+                snap_s, since = 0.0, 0.0  # seconds of the last snapshot, of the steps since
                 while self.step_index < N:
                     if guard.signal:
                         stop = ("interrupt", guard.signal, None)
                         break
+                    t_step = time.perf_counter()
                     try:
                         st = self._advance(dt, writer, check)
                     except KeyboardInterrupt:
@@ -450,7 +457,7 @@ class Simulation:
                     except Exception as exc:
                         if writer is None:
                             raise
-                        stop = ("error", None, exc)
+                        stop = ("error", None, exc, self.step_index + 1)
                         break
                     self.step_index += 1
                     self.counters["steps"] += 1
@@ -461,9 +468,13 @@ class Simulation:
                     if writer is not None and self.plan.mesh == "moving" and (self.step_index % ev == 0 or last):
                         writer.mesh_quality(self.step_index, self.t, self.flow.mm.quality())
                     if writer is not None:
-                        snap = self._snapshot()
                         now = time.perf_counter()
-                        if (ck and self.step_index % ck == 0) or last or (ck_wall and now - last_ck_wall >= ck_wall):
+                        since += now - t_step
+                        due = (ck and self.step_index % ck == 0) or last or (ck_wall and now - last_ck_wall >= ck_wall)
+                        if due or since >= SNAPSHOT_RATIO * snap_s:  # snapshots cost at most ~5 % of the steps
+                            snap = self._snapshot()
+                            snap_s, since = time.perf_counter() - now, 0.0
+                        if due:
                             last_ck = writer.checkpoint(self.step_index, self.t, header=self._header(),
                                                         snapshot=snap[2], keep=keep)
                             last_ck_wall = now
@@ -475,6 +486,8 @@ class Simulation:
                         progress(self.step_index, N, self.t, st)
             if guard.signal and stop is None and self.step_index < N:
                 stop = ("interrupt", guard.signal, None)
+            if stop is not None and stop[0] == "interrupt" and writer is not None and snap[0] != self.step_index:
+                snap = self._snapshot()  # stopped between steps: the state now is good
             if stop is not None and writer is None:
                 raise KeyboardInterrupt
         except BaseException as exc:  # outside a step (recording, output, progress)
@@ -482,7 +495,8 @@ class Simulation:
                 if writer is not None:
                     writer.close()
                 raise
-            stop = ("interrupt", "SIGINT", None) if isinstance(exc, KeyboardInterrupt) else ("error", None, exc)
+            stop = ("interrupt", "SIGINT", None) if isinstance(exc, KeyboardInterrupt) else \
+                ("error", None, exc, max(self.step_index, 1))  # recording the step failed
         if writer is not None:
             if stop is None:
                 writer.event(self.step_index, self.t, "end", f"{self.counters['steps']} steps this run")
@@ -499,9 +513,9 @@ class Simulation:
 
     def _stop(self, writer, out_dir, n_steps, stop, snap, keep):
         """Close the outputs at the last good step, checkpoint it and raise :class:`RunStopped`."""
-        kind, sig, exc = stop
+        kind, sig, exc = stop[:3]
         step, t, snapshot = snap if snap is not None else (self.step_index, self.t, None)
-        failed_at = self.step_index + 1 if step == self.step_index else self.step_index
+        failed_at = stop[3] if kind == "error" else self.step_index + 1
         path = None
         try:
             if snapshot is not None:
@@ -518,7 +532,8 @@ class Simulation:
         else:
             what = _one_line(exc)
             msg = (f"step {failed_at} (t = {failed_at * sc.time.dt:.6g}) failed: {what}; the output holds steps 0 to "
-                   f"{step}, the last good state is in {where}")
+                   f"{failed_at - 1}, the last good state "
+                   + (f"saved (step {step}) " if step != failed_at - 1 else "") + f"is in {where}")
             if not isinstance(exc, StateError):
                 msg += f"; continue with: {how}"
             status, code = "failed", 3

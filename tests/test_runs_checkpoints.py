@@ -104,7 +104,10 @@ def test_signals_through_the_command_line(tmp_path, capsys, monkeypatch, sig, co
 
 
 def test_an_error_inside_a_step_checkpoints_the_step_before(tmp_path, monkeypatch):
+    import fluidem.simulation as simulation
     from fluidem.coupling.bodies import DEMBodies
+
+    monkeypatch.setattr(simulation, "SNAPSHOT_RATIO", 0.0)  # a snapshot after every step
 
     full, part = tmp_path / "full", tmp_path / "part"
     Simulation(Scene.from_dict(DRY)).run(out_dir=full)

@@ -16,8 +16,16 @@ def _disk_on_floor(E):
             "contact": {"E": E}, "time": {"dt": 0.01, "t_end": 1.0}}
 
 
+@pytest.fixture
+def every_step(monkeypatch):
+    """A snapshot of the state after every step (cheap steps otherwise take one every few steps)."""
+    import fluidem.simulation as simulation
+
+    monkeypatch.setattr(simulation, "SNAPSHOT_RATIO", 0.0)
+
+
 @pytest.mark.parametrize("E", [1.0, 10.0])
-def test_too_soft_a_contact_stops_the_dem_run_naming_body_quantity_and_cause(E, tmp_path):
+def test_too_soft_a_contact_stops_the_dem_run_naming_body_quantity_and_cause(E, tmp_path, every_step):
     with pytest.raises(RunStopped) as err:
         Simulation(Scene.from_dict(_disk_on_floor(E))).run(out_dir=tmp_path)
     msg = str(err.value)
@@ -51,7 +59,7 @@ def test_a_non_finite_dem_state_is_caught_before_it_is_recorded(tmp_path, monkey
     assert h["step"].tolist() == [0, 1, 2, 3, 4] and np.isfinite(h["vx"]).all()
 
 
-def test_explicit_convection_blowup_leaves_only_good_rows(tmp_path):
+def test_explicit_convection_blowup_leaves_only_good_rows(tmp_path, every_step):
     d = {"fluid": {"model": "navier-stokes", "viscosity": 0.001, "element": "th", "convection": "explicit"},
          "domain": {"box": [0.0, 2.0, 0.0, 1.0], "left": "inflow", "right": "outflow",
                     "inflow_profile": {"type": "parabolic", "umax": 1.5}},
@@ -85,6 +93,14 @@ def test_a_non_finite_moving_mesh_flow_stops_the_run(tmp_path, monkeypatch):
                                          r"is not finite at 1 DOFs"):
         Simulation(Scene.from_dict(d)).run(out_dir=tmp_path)
     assert read_history(tmp_path)["step"].tolist() == [0, 1, 2]
+
+
+def test_cheap_steps_snapshot_every_few_steps_and_say_which_state_is_saved(tmp_path):
+    with pytest.raises(RunStopped, match=r"the output holds steps 0 to (\d+), the last good state (saved \(step "
+                                         r"\d+\) )?is in checkpoint") as err:
+        Simulation(Scene.from_dict(_disk_on_floor(1.0))).run(out_dir=tmp_path)
+    h = read_history(tmp_path)
+    assert int(err.value.checkpoint.name[5:12]) <= int(h["step"][-1])
 
 
 def test_without_output_the_state_error_itself_propagates():
