@@ -66,7 +66,8 @@ def encode(obj, arrays: list, copy: bool = False):
     obj : object
         Plain values (None, bool, int, float, str, bytes), lists, tuples, dicts, sets, numpy
         arrays and scalars, shapely geometries (as well-known binary), and instances of
-        classes of the ``fluidem`` package (their ``__getstate__`` or ``__dict__``).  Shared objects and arrays stay shared.
+        classes of the ``fluidem`` package (their ``__getstate__`` or ``__dict__``).  Shared
+        objects and arrays stay shared.
     arrays : list
         Receives the arrays; the tree refers to them by index.
     copy : bool

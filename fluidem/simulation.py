@@ -337,8 +337,8 @@ class Simulation:
             "n_steps": n_steps, "dt": sc.time.dt, "t_end": sc.time.t_end,
             "checkpoint": None if checkpoint is None else str(Path(checkpoint).relative_to(out_dir)),
             "message": message, "units": HISTORY_UNITS,
-            "pressure": "VTU 'pressure' is dynamic (fluid density x kinematic pressure), 'kinematic_pressure' beside it;"
-                        " history loads are dynamic too"})
+            "pressure": "VTU 'pressure' is dynamic (fluid density x kinematic pressure), 'kinematic_pressure' "
+                        "beside it; history loads are dynamic too"})
 
     def _check_owner(self, out_dir) -> None:
         """Refuse to continue, in ``out_dir``, a run of another scene."""
