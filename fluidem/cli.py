@@ -139,13 +139,16 @@ def _add_scene_commands(sub) -> None:
     """``run``, ``plan``, ``examples`` and ``plot``: the scene path."""
     r = sub.add_parser("run", help="run a scene file (or a built-in example) and write its output",
                        description="Run a scene: history.csv, fields and body outlines (VTU + PVD), mesh "
-                                   "quality, events.log and checkpoints in the output directory.")
+                                   "quality, events.log, checkpoints and run.json in the output directory. "
+                                   "A directory holding another run's output is refused unless --overwrite or "
+                                   "--restart. Ctrl-C or SIGTERM stops after the step in progress with a checkpoint.")
     r.add_argument("scene", nargs="?", help="scene TOML file")
     r.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file: "
                    + ", ".join(names.choices("example")) + " (see 'fluidem examples')")
     r.add_argument("--out", metavar="DIR", help="output directory (default: the scene's [output] dir)")
     r.add_argument("--restart", nargs="?", const=True, metavar="CHECKPOINT",
-                   help="continue from a checkpoint file, or from the newest one in the output directory")
+                   help="continue from a checkpoint file, or from the newest valid one in the output directory "
+                        "(only time.t_end and [output] may differ from the run's scene)")
     r.add_argument("--overwrite", action="store_true",
                    help="clear the output of an earlier run in the output directory first")
     r.add_argument("--steps", type=_positive_int, metavar="N", help="stop after N steps in total (N >= 1)")

@@ -207,8 +207,9 @@ class OutputWriter:
     Parameters
     ----------
     out_dir : str or Path
-        Created if missing; a fresh run overwrites ``history.csv``, ``events.log`` and
-        ``mesh_quality.csv``.
+        Created if missing; a fresh writer starts ``history.csv``, ``events.log`` and
+        ``mesh_quality.csv`` anew (whether the directory may be used is for
+        :func:`prepare_output_dir` to say, before).
     restart_step : int or None
         When continuing from a checkpoint at this step: rows, series entries and events
         after it are dropped so the continued run appends to a consistent record.
