@@ -203,3 +203,19 @@ def test_a_restart_before_the_checkpoint_time_is_refused(tmp_path):
     Simulation(Scene.from_dict(_falling(0.1))).run(out_dir=out)
     with pytest.raises(ValueError, match=r"time.t_end = 0.05: the checkpoint .* is at t = 0.1 \(step 10\)"):
         Simulation(Scene.from_dict(_falling(0.05))).run(out_dir=out, restart=True)
+
+
+def test_a_pickle_checkpoint_of_an_earlier_version_loads_only_when_allowed(tmp_path, capsys):
+    import pickle
+
+    out = tmp_path / "o"
+    Simulation(Scene.from_dict(DRY)).run(out_dir=out, n_steps=6)
+    data = load_checkpoint(out / "checkpoints" / "ckpt_0000006.npz")
+    legacy = tmp_path / "ckpt_0000006.pkl"
+    legacy.write_bytes(pickle.dumps({**data, "version": 1}))
+    with pytest.raises(CheckpointError, match="pass allow_pickle=True only for a file you wrote"):
+        Simulation(Scene.from_dict(DRY)).run(out_dir=out, restart=legacy)
+    Simulation(Scene.from_dict(DRY)).run(out_dir=out, restart=legacy, allow_pickle=True)
+    full = tmp_path / "full"
+    Simulation(Scene.from_dict(DRY)).run(out_dir=full)
+    assert _same_history(full, out) == 0.0
