@@ -283,9 +283,9 @@ def main(argv=None) -> int:
     Errors fluidem raises on purpose (:class:`~fluidem.errors.FluidemError`, and the
     ``ValueError`` of validation) and a path the system cannot read or write print
     ``fluidem: error: <message>`` on one line to stderr and return 2 (a run stopped by an
-    interrupt or by a bad state returns its own status, see :mod:`fluidem.simulation`); with
-    ``--debug`` they propagate with their traceback.  Usage errors exit through argparse
-    (status 2).
+    interrupt or by a bad state returns its own status, see :mod:`fluidem.simulation`); any
+    other exception prints one line too and returns 1; with ``--debug`` they propagate with
+    their traceback.  Usage errors exit through argparse (status 2).
     """
     parser = _build_parser()
     args = parser.parse_args(argv)
@@ -311,6 +311,12 @@ def main(argv=None) -> int:
             raise
         print("fluidem: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # not raised on purpose: still one line, the traceback with --debug
+        if args.debug:
+            raise
+        print(f"fluidem: error: {type(exc).__name__}: {_one_line(exc)} (an unexpected error: run again with --debug "
+              "for the traceback)", file=sys.stderr)
+        return 1
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

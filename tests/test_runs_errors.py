@@ -129,3 +129,16 @@ def test_an_unexpected_error_inside_a_run_is_one_line(dry, tmp_path, capsys, mon
     line = _err(capsys)
     assert "step 1 (t = 0.01) failed: index 7 is out of bounds" in line and "--restart" in line
     assert np.array_equal(read_history(tmp_path / "o")["step"], [0])
+
+
+def test_an_unexpected_error_outside_a_run_is_one_line_and_debug_shows_it(dry, tmp_path, capsys, monkeypatch):
+    import fluidem.simulation as simulation
+
+    def broken(self, scene):
+        raise RuntimeError("Triangulation failed")
+
+    monkeypatch.setattr(simulation.Simulation, "__init__", broken)
+    assert main(["run", str(dry), "--out", str(tmp_path / "o"), "--quiet"]) == 1
+    assert "RuntimeError: Triangulation failed (an unexpected error: run again with --debug" in _err(capsys)
+    with pytest.raises(RuntimeError):
+        main(["run", str(dry), "--out", str(tmp_path / "o2"), "--quiet", "--debug"])
