@@ -31,7 +31,7 @@ Runs that never lose or silently corrupt a result:
   run into another run's output is refused unless ``overwrite`` or ``restart``; ``run.json``
   records the scene and how far the run got;
 * after every step :class:`fluidem.state_checks.StateCheck` checks the state (non-finite
-  values, overlaps deeper than a quarter of a body's size, a runaway flow); a bad step is
+  values, overlaps deeper than half a body's size, a runaway flow); a bad step is
   never recorded;
 * checkpoints (:mod:`fluidem.checkpoint`: npz + JSON, loading never executes code) are
   written atomically at ``output.checkpoint_every`` steps (default: about ten a run) and

@@ -37,7 +37,7 @@ from .errors import FluidemError
 __all__ = ["StateError", "StateCheck", "MAX_OVERLAP", "MAX_SPEEDUP", "scene_speed", "body_sizes"]
 
 #: largest overlap depth allowed, as a fraction of a body's size (diameter of the disk of its area)
-MAX_OVERLAP = 0.25
+MAX_OVERLAP = 0.5
 #: largest flow speed allowed, as a multiple of the largest speed the scene imposes
 MAX_SPEEDUP = 1000.0
 

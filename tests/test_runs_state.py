@@ -11,7 +11,7 @@ from fluidem.state_checks import StateError
 
 def _disk_on_floor(E):
     return {"gravity": [0, -9.81], "domain": {"box": [0, 1, 0, 1]},
-            "bodies": [{"shape": "disk", "radius": 0.05, "segments": 16, "density": 1.0, "position": [0.5, 0.06],
+            "bodies": [{"shape": "disk", "radius": 0.05, "segments": 16, "density": 5.0, "position": [0.5, 0.06],
                         "name": "puck"}],
             "contact": {"E": E}, "time": {"dt": 0.01, "t_end": 1.0}}
 
@@ -29,13 +29,13 @@ def test_too_soft_a_contact_stops_the_dem_run_naming_body_quantity_and_cause(E, 
     with pytest.raises(RunStopped) as err:
         Simulation(Scene.from_dict(_disk_on_floor(E))).run(out_dir=tmp_path)
     msg = str(err.value)
-    assert "body 'puck': overlap with a wall is" in msg and "allowed 25%" in msg
+    assert "body 'puck': overlap with a wall is" in msg and "allowed 50%" in msg
     assert f"too soft a contact for the load (contact.E = {E:g}: raise it)" in msg
     assert isinstance(err.value.__cause__, StateError) and err.value.exit_status == 3
     h = read_history(tmp_path)
     assert np.isfinite(np.column_stack(list(h.values()))).all()
     size = 2 * np.sqrt(16 * 0.5 * 0.05**2 * np.sin(2 * np.pi / 16) / np.pi)  # disk of the 16-gon's area
-    assert (0.05 - h["y"]).max() <= 0.25 * size  # no row beyond the allowed overlap (a vertex points down)
+    assert (0.05 - h["y"]).max() <= 0.5 * size  # no row beyond the allowed overlap (a vertex points down)
     last = int(h["step"][-1])
     assert err.value.checkpoint.name == f"ckpt_{last:07d}.npz"
     assert read_run_record(tmp_path)["status"] == "failed"
