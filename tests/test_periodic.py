@@ -295,7 +295,7 @@ def test_restart_of_a_periodic_moving_mesh_run_is_bit_for_bit(tmp_path):
     full, part = tmp_path / "full", tmp_path / "part"
     Simulation(Scene.from_dict(d)).run(out_dir=full)
     Simulation(Scene.from_dict(d)).run(out_dir=part, n_steps=4)
-    Simulation(Scene.from_dict(d)).run(out_dir=part, restart=part / "checkpoints" / "ckpt_0000004.pkl")
+    Simulation(Scene.from_dict(d)).run(out_dir=part, restart=part / "checkpoints" / "ckpt_0000004.npz")
     a, b = read_history(full), read_history(part)
     assert np.array_equal(a["step"], b["step"]) and max(float(np.abs(a[k] - b[k]).max()) for k in a) == 0.0
 
