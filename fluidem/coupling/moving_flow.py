@@ -61,11 +61,11 @@ def transfer_change(basis_old, u_old: np.ndarray, basis_new, u_new: np.ndarray) 
     """
     from ..mesh import transfer
 
-    x = basis_new.global_coordinates().value  # (2, n_elements, n_qp)
+    x = np.asarray(basis_new.global_coordinates())  # (2, n_elements, n_qp)
     pts = x.reshape(2, -1)
     P = transfer.probe_matrix(basis_old, pts)  # rows component-major
     old = (P @ u_old).reshape(2, *x.shape[1:])
-    new = np.asarray(basis_new.interpolate(u_new).value)
+    new = np.asarray(basis_new.interpolate(u_new))
     dx = basis_new.dx
     den = float(np.sqrt((dx * (old ** 2).sum(axis=0)).sum()))
     num = float(np.sqrt((dx * ((new - old) ** 2).sum(axis=0)).sum()))

@@ -780,7 +780,7 @@ class MovingMesh:
                 return np.zeros_like(self.points)
             if x_nm1 is None:
                 return (self.points - x_n) / dt
-            return (3.0 * self.points - 4.0 * x_n + x_nm1) / (2.0 * dt)
+            return (3.0 * (self.points - x_n) - (x_n - x_nm1)) / (2.0 * dt)  # differences first: round-off
         if order != 1:
             raise InputError(f"order = {order!r}: expected 1 or 2")
         order = np.argsort(self._prev_uid)
