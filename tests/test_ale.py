@@ -135,3 +135,23 @@ def test_drag_continues_smoothly_through_retriangulations():
     assert at / ordinary < 2.5 * 3.5
     assert rel.mean() < 2.5 * 0.0098
     assert np.all(noise < 2.5 * 0.0062)
+
+
+def test_locate_tries_few_candidates_first_with_the_same_answer():
+    """The two-stage search of transfer.locate finds the containing triangle of every point inside
+    the mesh (brute force over all triangles agrees) and clamps the points outside."""
+    from skfem import MeshTri
+
+    from fluidem.mesh import transfer
+
+    m = MeshTri.init_symmetric().refined(4)
+    m = MeshTri(m.p + 0.01 * np.sin(17 * m.p[::-1]) * (m.p * (1 - m.p) > 0), m.t)
+    rng = np.random.default_rng(1)
+    x = np.hstack([rng.random((2, 3000)), rng.random((2, 200)) * 1.4 - 0.2, m.p])
+    cells, bary = transfer.locate(m, x)
+    _, _, score_all = transfer._best_candidate(m, x, m.t.shape[1])
+    inside = score_all >= -1e-12
+    assert inside.sum() > 3000 and (~inside).sum() > 50
+    back = (m.p[:, m.t[:, cells]] * bary.T[None]).sum(axis=1)
+    np.testing.assert_allclose(back[:, inside], x[:, inside], atol=1e-12)
+    assert np.all(bary >= 0) and np.allclose(bary.sum(axis=1), 1.0)
