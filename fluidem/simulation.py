@@ -310,16 +310,6 @@ class Simulation:
         if self.flow is not None:
             self.flow.step(dt)
             st += self.flow.last_cost
-            ev_mesh = getattr(self.flow, "last_event", None)
-            if ev_mesh is not None and writer is not None:
-                if ev_mesh.retriangulated:
-                    writer.event(self.step_index + 1, t_new, "retriangulation",
-                                 f"reason={ev_mesh.reason} nodes={ev_mesh.n_nodes} "
-                                 f"triangles={ev_mesh.n_triangles}; fields transferred by interpolation"
-                                 if self.scene.fluid.model != "stokes" else f"reason={ev_mesh.reason}")
-                if len(ev_mesh.oscillating):
-                    writer.event(self.step_index + 1, t_new, "oscillation",
-                                 f"{len(ev_mesh.oscillating)} oscillating nodes")
             x, nd = self.flow.x, self.flow.space.ub.nodal_dofs
             if not np.isfinite(x).all():
                 x = np.where(np.isfinite(x), x, np.nan)
@@ -349,6 +339,24 @@ class Simulation:
             raise OutputDirError(f"output directory {str(out_dir)!r} holds a run of another scene "
                                  f"({rec.get('scene')!r}); continue it with its own scene ({str(out_dir)}/scene.toml) "
                                  "or give another --out")
+
+    def _log_mesh_event(self, writer, ev_mesh) -> None:
+        """Event-log lines of this step's mesh update: re-triangulation (reason, size, field
+        transfer, interpolation noise and force change) and oscillating nodes."""
+        if ev_mesh.retriangulated:
+            msg = f"reason={ev_mesh.reason} nodes={ev_mesh.n_nodes} triangles={ev_mesh.n_triangles}"
+            if self.scene.fluid.model != "stokes":
+                how = ("ALE interpolation through the old mesh motion" if ev_mesh.history == "ale" else
+                       "interpolation, Eulerian step (old mesh not valid at the new positions)"
+                       if ev_mesh.history == "eulerian" else "interpolation")
+                msg += f"; fields transferred by {how}"
+                if ev_mesh.transfer_change is not None:
+                    msg += f"; interpolation noise {100 * ev_mesh.transfer_change:.3g} %"
+                if ev_mesh.force_change is not None:
+                    msg += f"; force change {100 * ev_mesh.force_change:.3g} %"
+            writer.event(self.step_index, self.t, "retriangulation", msg)
+        if len(ev_mesh.oscillating):
+            writer.event(self.step_index, self.t, "oscillation", f"{len(ev_mesh.oscillating)} oscillating nodes")
 
     # -- running ---------------------------------------------------------------------------------
     def run(self, out_dir="scene", restart=None, progress=None, n_steps: int | None = None,
@@ -465,6 +473,9 @@ class Simulation:
                     t0 = time.perf_counter()
                     last = self.step_index == N
                     t_loads = self._record(writer, fields=(self.step_index % ev == 0 or last), last=last)
+                    ev_mesh = getattr(self.flow, "last_event", None) if self.flow is not None else None
+                    if ev_mesh is not None and writer is not None:  # after the loads: the force change is known
+                        self._log_mesh_event(writer, ev_mesh)
                     if writer is not None and self.plan.mesh == "moving" and (self.step_index % ev == 0 or last):
                         writer.mesh_quality(self.step_index, self.t, self.flow.mm.quality())
                     if writer is not None:
