@@ -77,8 +77,18 @@ added, the outline cuts straight across the contact notch, which lies in the flu
 element overlaps a body, at the price of a fluid sliver below ``0.3 h`` at each contact.
 Fluid enclosed by a ring of touching bodies (a hole of the closed union) is a *pore*: it is
 meshed, detected and reported (``pore_areas``; it needs its own pressure reference).
-Bodies must stay at least ``min_gap`` inside the box; a body outside raises
-:class:`~fluidem.errors.InputError` (a ``ValueError``).
+Walls join the contact policy: a body closer than ``min_gap`` to a box side (touching it,
+or overlapping it by up to ``wall_overlap · h``, as the DEM's soft wall contact allows) is
+meshed with that wall as one closed outline; the fluid between them narrower than
+``min_gap`` is filled, the box sides under the body are no boundary (the ``bottom``/...
+facets end where the body's facets begin), and *wall nodes* where the outline leaves the
+side slide along it with the body (:mod:`fluidem.mesh.contact_outline`).  Fluid conditions
+on the merged outline: every facet keeps its owner, the body facets get the body's rigid
+motion and the wall facets the wall's condition; the node where they meet is a body (wall)
+node, so it moves with the body: the body condition applied after the wall one wins there,
+as at a corner of a lid-driven cavity.  A body overlapping a side by more than
+``wall_overlap · h`` or lying outside the box raises :class:`~fluidem.errors.InputError`
+(a ``ValueError``).
 
 Narrow gaps: see :mod:`fluidem.mesh.quality`; an element counts as narrow-gap when the gap
 at its centroid is narrower than ``h/2`` or when one of its edges joins two different
@@ -111,7 +121,7 @@ from ..errors import InputError
 from .adaptation import adapt as adapt_nodes
 from .adaptation import cleanup_candidates
 from .background import GradedSize, SizeField, UniformSize
-from .contact_outline import contact_outline, contact_pairs
+from .contact_outline import contact_outline, contact_pairs, wall_contacts, wall_depths
 from .cutout import Triangulation, cut_out, triangulate
 from .drag import DragAssociation, HarmonicDrag, drag_association, dragged_positions, harmonic_drag
 from .gaps import (
@@ -179,6 +189,9 @@ class MeshEvent:
         Relaxation moves dropped because they would have inverted an element.
     contacts : (k, 2) int
         Body pairs closer than ``min_gap`` (meshed as one outline).
+    walls : (k, 2) int
+        ``(body, side)`` pairs closer than ``min_gap`` (side 0 bottom, 1 right, 2 top, 3 left),
+        meshed with the wall as one outline.
     pore_areas : (k,) float
         Areas of fluid pores fully enclosed by touching bodies, units².
     old_points, old_triangles : arrays or None
@@ -204,6 +217,7 @@ class MeshEvent:
     n_blocked: int = 0
     contacts: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     pore_areas: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    walls: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     old_points: np.ndarray | None = field(default=None, repr=False)
     old_triangles: np.ndarray | None = field(default=None, repr=False)
     prev_points: np.ndarray | None = field(default=None, repr=False)
@@ -265,6 +279,8 @@ class MovingMesh:
         Target edge length carried by every node.
     contacts : (k, 2) int
         Body pairs meshed as one outline (closer than ``min_gap``).
+    walls : (k, 2) int
+        ``(body, side)`` pairs meshed as one outline with the wall (closer than ``min_gap``).
     pore_areas : (k,) float
         Areas of fluid pores enclosed by touching bodies.
     outlines : BodyOutlines
@@ -336,6 +352,7 @@ class MovingMesh:
         self._uids = UidSource()
         self.pore_areas = np.zeros(0)
         self.contacts = np.zeros((0, 2), dtype=np.int64)
+        self.walls = np.zeros((0, 2), dtype=np.int64)
         self._prev_points = None
         self._prev_uid = None
         bg = self.background_candidates
@@ -425,17 +442,24 @@ class MovingMesh:
         if p.shape != (self.n_bodies, 3) or not np.all(np.isfinite(p)):
             raise InputError(f"poses must be a finite ({self.n_bodies}, 3) array of x, y, angle; got shape {p.shape}")
         w = world(self._vcat, self._vbody, p)
-        xmin, xmax, ymin, ymax = self.box
-        g = self.min_gap
-        out = (w[:, 0] < xmin + g) | (w[:, 0] > xmax - g) | (w[:, 1] < ymin + g) | (w[:, 1] > ymax - g)
-        if out.any():
-            k = int(np.flatnonzero(out)[0])
-            b = int(self._vbody[k])
+        # a body may touch a wall or overlap it slightly (it is meshed with the wall as one outline)
+        depth = -wall_depths(w, self._vbody, self.n_bodies, self.box)  # (n_bodies, 4): > 0 outside
+        allowed = self.params.wall_overlap * self.h
+        bad = np.flatnonzero(depth.max(axis=1) > allowed)
+        if len(bad):
+            b = int(bad[0])
+            side = int(np.argmax(depth[b]))
+            what = ("lies outside the box" if self._outside(p[b]) else
+                    f"overlaps the {SIDE_NAMES[side]} wall by {depth[b, side]:.3g}")
             raise InputError(
-                f"body {b} ({self.body_names[b]}) is not inside the domain {self.box} with the minimum gap "
-                f"{g:.3g}: vertex {w[k].tolist()} at pose {p[b].tolist()}"
-            )
+                f"body {b} ({self.body_names[b]}) at pose {p[b].tolist()} {what}: expected inside the box "
+                f"{tuple(float(c) for c in self.box)}, overlapping a wall by at most wall_overlap · h = {allowed:.3g}")
         return p
+
+    def _outside(self, pose) -> bool:
+        """The reference point of a body at ``pose`` lies outside the box."""
+        xmin, xmax, ymin, ymax = self.box
+        return not (xmin <= pose[0] <= xmax and ymin <= pose[1] <= ymax)
 
     def _target(self, pts, outline_world=None) -> np.ndarray:
         """Target edge length at ``pts`` (size field, and the zone the bodies carry)."""
@@ -482,8 +506,9 @@ class MovingMesh:
         def target(q):
             return self._target(q, outline_world)
 
-        contact = contact_outline(polys, tree, outline_world, self.outlines, self.h, self.min_gap, p)
+        contact = contact_outline(polys, tree, outline_world, self.outlines, self.h, self.min_gap, p, box=self.box)
         self.contacts = contact.contacts
+        self.walls = contact.walls
         self.pore_areas = contact.pore_areas
 
         cand = np.asarray(cand, dtype=float)
@@ -547,6 +572,8 @@ class MovingMesh:
         self.n_junctions = int(len(tri.junction_nodes))
         self._contact_local = tri.contact_local
         self._contact_idx = np.flatnonzero(tri.kind == CONTACT)
+        self._contact_wall = (np.full(len(self._contact_idx), -1, dtype=np.int64) if tri.contact_wall is None
+                              else tri.contact_wall)
         self.h_node = self._target(tri.points, outline_world)
         self._mobility = mobility(tri.kind, tri.points, self.box)
         # junction nodes are dragged (they are not relaxed)
@@ -600,6 +627,7 @@ class MovingMesh:
         else:
             self._drag_step(new, ev)
         ev.contacts = self.contacts
+        ev.walls = self.__dict__.get("walls", ev.walls)
         ev.pore_areas = self.pore_areas
         ev.n_nodes, ev.n_triangles = len(self.points), len(self.triangles)
         ev.seconds = time.perf_counter() - t0
@@ -611,7 +639,8 @@ class MovingMesh:
         xd = dragged_positions(self.points, self.triangles, self.kind, self.outline_row, self.outlines.local,
                                self.outlines.body, self._contact_idx, self._contact_local, self.body_of,
                                self._drag_mobility, self.drag, self.junction_nodes, self.junction_verts,
-                               self.junction_bary, self.poses, new, p.drag_halvings, self._harmonic_drag())
+                               self.junction_bary, self.poses, new, p.drag_halvings, self._harmonic_drag(),
+                               wall_side=self.__dict__.get("_contact_wall"), box=self.box)
         self.poses = new
         # relaxation with the per-step iteration limit (Sec. 3.3)
         damp = self.drag.relax_damping if self._damping is None else self.drag.relax_damping * self._damping
@@ -659,7 +688,14 @@ class MovingMesh:
 
     # ------------------------------------------------------------------ gaps and triggers on the current mesh
     def _contacts_changed(self) -> bool:
-        """:func:`fluidem.mesh.triggers.contacts_changed` at the current poses."""
+        """:func:`fluidem.mesh.triggers.contacts_changed` at the current poses, or a body
+        came within ``min_gap`` of a wall or left it (:func:`wall_contacts`)."""
+        if self.n_bodies:
+            now = wall_contacts(world(self._vcat, self._vbody, self.poses), self._vbody, self.n_bodies, self.box,
+                                self.min_gap)
+            before = self.__dict__.get("walls", np.zeros((0, 2), dtype=np.int64))
+            if now.shape != before.shape or not np.array_equal(now, before):
+                return True
         return contacts_changed(self._polygons(), self._near_pairs, self.contacts, self.min_gap, self.points,
                                 self.body_of)
 

@@ -102,6 +102,10 @@ class MeshParams:
     contact_node_spacing : float
         A vertex of a closed contact outline farther than ``contact_node_spacing · h``
         from every kept outline node becomes a contact node.
+    wall_overlap : float
+        A body may overlap a box side by up to ``wall_overlap · h`` (the small overlaps of
+        the DEM's soft wall contact); it is meshed with the wall as one closed outline
+        (:mod:`fluidem.mesh.contact_outline`).  A deeper overlap raises ``InputError``; >= 0.
     mitre_limit : float
         Mitre limit of the closing buffer of a contact cluster (shapely ``buffer``).
     junctions : bool
@@ -159,6 +163,7 @@ class MeshParams:
     on_outline_factor: float = 1.01
     contact_merge: float = 0.1
     contact_node_spacing: float = 0.3
+    wall_overlap: float = 0.1
     mitre_limit: float = 20.0
     junctions: bool = True
     junction_clearance: float = 0.3
@@ -193,7 +198,7 @@ class MeshParams:
             s(self, name, v.number(_key(name), getattr(self, name), "a number in [0, 2) (multiple of h)",
                                    lo=0.0, hi=2.0, hi_open=True))
         for name in ("gap_purge", "tow_width", "drag_reach", "contact_merge", "contact_node_spacing",
-                     "junction_clearance", "cleanup_clearance"):
+                     "junction_clearance", "cleanup_clearance", "wall_overlap"):
             s(self, name, v.number(_key(name), getattr(self, name), "a number >= 0 (multiple of h)", lo=0.0))
         if self.min_gap is not None:
             s(self, "min_gap", v.positive(_key("min_gap"), self.min_gap))
