@@ -449,11 +449,12 @@ class MovingMesh:
         if len(bad):
             b = int(bad[0])
             side = int(np.argmax(depth[b]))
-            what = ("lies outside the box" if self._outside(p[b]) else
-                    f"overlaps the {SIDE_NAMES[side]} wall by {depth[b, side]:.3g}")
+            what = ("it lies outside" if self._outside(p[b]) else
+                    f"it overlaps the {SIDE_NAMES[side]} wall by {depth[b, side]:.3g}")
             raise InputError(
-                f"body {b} ({self.body_names[b]}) at pose {p[b].tolist()} {what}: expected inside the box "
-                f"{tuple(float(c) for c in self.box)}, overlapping a wall by at most wall_overlap · h = {allowed:.3g}")
+                f"body {b} ({self.body_names[b]}) at pose {p[b].tolist()} is not inside the domain "
+                f"{tuple(float(c) for c in self.box)}: {what}; expected an overlap of at most "
+                f"wall_overlap · h = {allowed:.3g}")
         return p
 
     def _outside(self, pose) -> bool:
