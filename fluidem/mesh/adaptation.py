@@ -74,7 +74,8 @@ class Cleanup:
 
 def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind, candidate_row, solid_tree, target,
           uids: UidSource, seed: int, refine_area: float, coarsen_ratio: float, clearance: float,
-          box=None) -> Adapted:
+          box=None, coarsen_area: float = 0.0, budget: float | None = None,
+          budget_tolerance: float = 0.02) -> Adapted:
     """Coarsen where edges are much shorter than the target, refine where triangles are too big.
 
     Parameters
@@ -94,7 +95,7 @@ def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind,
     uids : UidSource
     seed : int
         Seed of the random priorities of the independent set (the step count: reproducible).
-    refine_area, coarsen_ratio, clearance : float
+    refine_area, coarsen_ratio, clearance, coarsen_area : float
         :class:`fluidem.mesh.params.MeshParams` fields.
     box : (xmin, xmax, ymin, ymax) or None
         The box: large triangles on its sides are split at the side (module docstring);
@@ -113,6 +114,16 @@ def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind,
     deg = np.bincount(e0, minlength=n_old) + np.bincount(e1, minlength=n_old)
     mean_ratio = (np.bincount(e0, ratio, n_old) + np.bincount(e1, ratio, n_old)) / np.maximum(deg, 1)
     has_long = mean_ratio >= coarsen_ratio
+    area = signed_areas(old, t)
+    ht = (mesh_h[topo.t0] + mesh_h[topo.t1] + mesh_h[topo.t2]) / 3.0
+    area_ratio = area / ((np.sqrt(3) / 4) * ht**2)
+    n_tri = np.bincount(t.ravel(), minlength=n_old)
+    mean_area = np.bincount(t.ravel(), np.repeat(area_ratio, 3), n_old) / np.maximum(n_tri, 1)
+    if coarsen_area > 0.0:
+        # ... or its elements are on average smaller than coarsen_area target areas: the node
+        # density is too high even where the elements are not short in every direction (a mesh
+        # compressed along one axis, as the harmonic drag leaves it ahead of a body)
+        has_long &= mean_area >= coarsen_area
     row = candidate_row
     present = row >= 0
     cand = present & (mesh_kind == FREE) & ~has_long
@@ -125,11 +136,53 @@ def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind,
     keep = np.ones(len(points), dtype=bool)
     keep[row[remove_old]] = False
     # refinement: centroids of triangles much larger than the target
-    area = signed_areas(old, t)
-    ht = (mesh_h[topo.t0] + mesh_h[topo.t1] + mesh_h[topo.t2]) / 3.0
-    big = area > refine_area * (np.sqrt(3) / 4) * ht**2
-    tb = t[big]
-    newp = old[tb].mean(axis=1)
+    big = area_ratio > refine_area
+    if budget is not None:
+        # one new node per pair of neighbouring large elements: of two large elements across an
+        # edge only the larger is split (after the Delaunay triangulation and relaxation the new
+        # node serves both; splitting every one of a stretched region overshoots its density)
+        ea, eb = topo.edge_tris[:, 0], topo.edge_tris[:, 1]
+        both = big[ea] & big[eb] & (ea != eb)
+        lose = np.where(area_ratio[ea] < area_ratio[eb], ea, eb)[both]
+        big[lose] = False
+    newp, newk = _split_points(t[big], old, mesh_kind, box, solid_tree, target, clearance)
+    if budget is not None:
+        # hold the node count: the most compressed free nodes go (an independent set, not next
+        # to a removed node or a refined element, only where removing them cannot make an
+        # element above refine_area) while the count is above the budget, the largest elements
+        # are split while it is below
+        n_proj = int(keep.sum()) + len(newp)
+        hi, lo = budget * (1.0 + budget_tolerance), budget * (1.0 - budget_tolerance)
+        if n_proj > hi:
+            blocked = remove_old.copy()
+            blocked[t[big].ravel()] = True
+            nb_removed = np.zeros(n_old, dtype=bool)
+            nb_removed[e0[remove_old[e1]]] = True
+            nb_removed[e1[remove_old[e0]]] = True
+            extra = present & (mesh_kind == FREE) & ~blocked & ~nb_removed & (mean_area * 1.5 < refine_area)
+            prio2 = np.where(extra, -mean_area, -np.inf)
+            nb2 = np.full(n_old, -np.inf)
+            np.maximum.at(nb2, e0, prio2[e1])
+            np.maximum.at(nb2, e1, prio2[e0])
+            sel = np.flatnonzero(extra & (prio2 > nb2))
+            sel = sel[np.argsort(mean_area[sel], kind="stable")[: int(np.ceil(n_proj - hi))]]
+            keep[row[sel]] = False
+        elif n_proj < lo:
+            order = np.argsort(-area_ratio, kind="stable")
+            order = order[~big[order] & (area_ratio[order] > 1.0)][: int(np.ceil(lo - n_proj))]
+            p2, k2 = _split_points(t[order], old, mesh_kind, box, solid_tree, target, clearance)
+            newp, newk = np.vstack([newp, p2]), np.concatenate([newk, k2])
+    n_ins = len(newp)
+    pts = np.vstack([points[keep], newp])
+    kind = np.concatenate([kind[keep], newk])
+    uid = np.concatenate([uid[keep], uids.take(n_ins)])
+    return Adapted(points=pts, kind=kind, uid=uid, h=target(pts), n_removed=int((~keep).sum()), n_inserted=n_ins)
+
+
+def _split_points(tb, old, mesh_kind, box, solid_tree, target, clearance):
+    """New nodes ``(k, 2)`` and kinds splitting triangles ``tb (m, 3)``: centroids, or the
+    midpoint of an edge on a box side; those closer than ``clearance · h`` to a solid dropped."""
+    newp = old[tb].mean(axis=1) if len(tb) else np.zeros((0, 2))
     newk = np.full(len(newp), FREE, np.int8)
     if box is not None and len(tb):
         # an edge on a box side: both ends on the box and its midpoint on a side
@@ -147,11 +200,7 @@ def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind,
         ok = np.ones(len(newp), dtype=bool)
         ok[ii] = False
         newp, newk = newp[ok], newk[ok]
-    n_ins = len(newp)
-    pts = np.vstack([points[keep], newp])
-    kind = np.concatenate([kind[keep], newk])
-    uid = np.concatenate([uid[keep], uids.take(n_ins)])
-    return Adapted(points=pts, kind=kind, uid=uid, h=target(pts), n_removed=int((~keep).sum()), n_inserted=n_ins)
+    return newp, newk
 
 
 def cleanup_candidates(points, topo: MeshTopology, kind, uid, h_node, table, body_tree, box, target, uids: UidSource,

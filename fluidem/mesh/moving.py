@@ -134,8 +134,11 @@ from .gaps import (
 )
 from .nodes import (
     CONTACT,
+    CORNER,
     FIRST_BODY_MARKER,
+    FREE,
     JUNCTION,
+    SIDE,
     BackgroundNodes,
     BodyOutlines,
     UidSource,
@@ -148,7 +151,7 @@ from .nodes import (
 from .params import PARAM_NAMES, STRATEGIES, MeshParams, mesh_params
 from .proximity import PolygonTable
 from .quality import MeshQuality, OscillationDetector, mesh_quality
-from .relax import relax
+from .relax import relax, signed_areas
 from .triangulate import SIDE_NAMES, BoxDomain, _facet_lookup
 from .triggers import (
     QualityBaseline,
@@ -358,6 +361,8 @@ class MovingMesh:
         bg = self.background_candidates
         self._triangulate_from(bg.points, bg.kind, bg.uid, purge=p.clearance, adapt=False,
                                n_relax=p.initial_iterations)
+        # free and box nodes per unit of ∫ h⁻² dA: the node budget of the re-triangulations
+        self._node_density = self._movable_count() / self._size_integral()
         self._prev_points = self.points.copy()
         self._prev_uid = self.uid.copy()
 
@@ -462,6 +467,23 @@ class MovingMesh:
         xmin, xmax, ymin, ymax = self.box
         return not (xmin <= pose[0] <= xmax and ymin <= pose[1] <= ymax)
 
+    def _movable_count(self) -> int:
+        """Free and box nodes of the current mesh (what the adaptation adds and removes)."""
+        return int(((self.kind == FREE) | (self.kind == SIDE) | (self.kind == CORNER)).sum())
+
+    def _size_integral(self) -> float:
+        """``∫ h⁻² dA`` over the current mesh (elements, mean per-node target), dimensionless."""
+        t = self.triangles
+        h_t = self.h_node[t].mean(axis=1)
+        return float((np.abs(signed_areas(self.points, t)) / h_t**2).sum())
+
+    def _node_budget(self) -> float | None:
+        """Free and box nodes the adaptation aims at (``hold_node_count``), ``None``: no aim."""
+        density = self.__dict__.get("_node_density")
+        if not self.params.hold_node_count or density is None:
+            return None
+        return density * self._size_integral()
+
     def _target(self, pts, outline_world=None) -> np.ndarray:
         """Target edge length at ``pts`` (size field, and the zone the bodies carry)."""
         hs = np.asarray(self._size(pts), dtype=float)
@@ -525,7 +547,9 @@ class MovingMesh:
             solid_tree = shapely.STRtree(np.asarray(contact.solids, dtype=object)) if self.n_bodies else None
             ad = adapt_nodes(kept_points, kept_kind, kept_uid, self.points, self.topo, self.h_node, self.kind,
                              np.where(keep, np.cumsum(keep) - 1, -1), solid_tree, target, self._uids,
-                             self.step_count, p.refine_area, p.coarsen_ratio, p.clearance, box=self.box)
+                             self.step_count, p.refine_area, p.coarsen_ratio, p.clearance, box=self.box,
+                             coarsen_area=p.coarsen_area, budget=self._node_budget(),
+                             budget_tolerance=p.node_count_tolerance)
             kept_points, kept_kind, kept_uid = ad.points, ad.kind, ad.uid
             info["n_removed"], info["n_inserted"] = ad.n_removed, ad.n_inserted
 

@@ -144,6 +144,20 @@ class MeshParams:
     coarsen_ratio : float
         Re-triangulation removes free nodes whose incident edges average below
         ``coarsen_ratio`` of their target; in (0, 1).
+    coarsen_area : float
+        ... and free nodes whose elements average below ``coarsen_area`` target areas
+        (``√3/4 h²``); 0 (default): off; in [0, 1).
+    hold_node_count : bool
+        Re-triangulation keeps the number of free and box nodes within
+        ``node_count_tolerance`` of its budget, the count of the first triangulation per
+        unit of ``∫ h⁻² dA`` over the fluid (so it changes only with the geometry and the
+        size field): above it the most compressed free nodes are removed, below it the
+        largest elements are split (:func:`fluidem.mesh.adaptation.adapt`).  Without it the
+        harmonic drag's gentle compression ahead of a body is never coarsened while the
+        stretched region behind it is refined, and the count drifts up (+25 % in 300 steps
+        of the plate case).
+    node_count_tolerance : float
+        Dead band of ``hold_node_count``, a fraction in (0, 1).
     """
 
     strategy: str = "drag"
@@ -179,6 +193,9 @@ class MeshParams:
     tow_width: float = 2.0
     refine_area: float = 1.6
     coarsen_ratio: float = 0.7
+    coarsen_area: float = 0.0
+    hold_node_count: bool = True
+    node_count_tolerance: float = 0.02
 
     def __post_init__(self):
         s = object.__setattr__
@@ -220,6 +237,10 @@ class MeshParams:
                                         lo_open=True))
         s(self, "coarsen_ratio", v.fraction(_key("coarsen_ratio"), self.coarsen_ratio, lo_open=True,
                                             hi_open=True))
+        s(self, "coarsen_area", v.fraction(_key("coarsen_area"), self.coarsen_area, hi_open=True))
+        s(self, "hold_node_count", v.boolean(_key("hold_node_count"), self.hold_node_count))
+        s(self, "node_count_tolerance", v.fraction(_key("node_count_tolerance"), self.node_count_tolerance,
+                                                   lo_open=True, hi_open=True))
 
     @property
     def step_iterations(self) -> int:
