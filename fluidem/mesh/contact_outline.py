@@ -138,7 +138,15 @@ def wall_depths(vertices, vertex_body, n_bodies: int, box) -> np.ndarray:
 
 
 def wall_contacts(vertices, vertex_body, n_bodies: int, box, min_gap: float) -> np.ndarray:
-    """``(body, side)`` pairs ``(w, 2)`` closer than ``min_gap`` (:func:`wall_depths`)."""
+    """``(body, side)`` pairs ``(w, 2)`` closer than ``min_gap`` (:func:`wall_depths`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> square = np.array([[0.1, 0.0], [0.3, 0.0], [0.3, 0.2], [0.1, 0.2]])   # on the floor
+    >>> wall_contacts(square, np.zeros(4, dtype=int), 1, (0.0, 1.0, 0.0, 1.0), 1e-4).tolist()
+    [[0, 0]]
+    """
     b, c = np.nonzero(wall_depths(vertices, vertex_body, n_bodies, box) < min_gap)
     return np.column_stack([b, c]).astype(np.int64)
 
@@ -269,7 +277,7 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
                 wall_solids.extend(comps)
             else:
                 comps = list(getattr(closed, "geoms", [closed]))
-            rings, fluid_lines = [], []
+            rings = []
             for comp in comps:
                 solids.append(comp)
                 holes.append(np.array(shapely.get_coordinates(shapely.point_on_surface(comp))[0]))

@@ -49,7 +49,12 @@ Strategies (``strategy=``):
     average shorter than ``coarsen_ratio`` (0.7) of their target and nodes are added in
     triangles larger than ``refine_area`` (1.6) target areas (at the midpoint of an edge on
     a box side, else at the centroid; so vacated regions coarsen again, Fig. 6), and
-    junction points are recomputed.
+    junction points are recomputed.  The number of free and box nodes is held within
+    ``node_count_tolerance`` (2 %) of a budget, the first mesh's count per unit of
+    ``∫ h⁻² dA`` (``hold_node_count``): of two large neighbours only the larger is split, and
+    above the budget the most compressed free nodes are removed as well (the harmonic drag
+    compresses the whole region ahead of a body only mildly, below the coarsening
+    threshold, while it stretches the region behind it beyond the refinement one).
 ``"fixed"``
     bodies do not move: the mesh is built once; :meth:`MovingMesh.update` checks that.
 

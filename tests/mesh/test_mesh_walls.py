@@ -13,7 +13,7 @@ import shapely
 
 from fluidem.geometry import rectangle
 from fluidem.mesh import MovingMesh
-from fluidem.mesh.nodes import CONTACT, SIDE, CORNER
+from fluidem.mesh.nodes import CONTACT, CORNER
 
 BOX = (0.0, 2.0, 0.0, 1.0)
 H = 0.05
