@@ -1,7 +1,8 @@
 """Adaptation and clean-up of the moving mesh at re-triangulation (paper Sec. 4.2, Fig. 6).
 
 * :func:`adapt`: an independent set of free nodes is removed where the incident edges are
-  on average shorter than ``coarsen_ratio`` of their target, and a node is added at the
+  on average shorter than ``coarsen_ratio`` of their target (and of box-side nodes closer
+  than ``SIDE_MERGE`` of their target to a neighbour along their side), and a node is added at the
   centroid of triangles larger than ``refine_area`` target areas (``√3/4 h²``): vacated
   regions coarsen again, regions a body moved into refine.  A large triangle with an edge
   on a box side gets a side node at that edge's midpoint instead (a centroid a third of
@@ -30,7 +31,10 @@ from .nodes import CORNER, FREE, SIDE, UidSource, classify_box
 from .relax import MeshTopology, signed_areas
 from .triggers import ElementShape, element_shape
 
-__all__ = ["Adapted", "Cleanup", "adapt", "cleanup_candidates"]
+__all__ = ["Adapted", "Cleanup", "adapt", "cleanup_candidates", "SIDE_MERGE"]
+
+#: box-side nodes closer than ``SIDE_MERGE`` times their target along their side are coarsened
+SIDE_MERGE = 0.5
 
 
 @dataclass(frozen=True)
@@ -127,6 +131,17 @@ def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind,
     row = candidate_row
     present = row >= 0
     cand = present & (mesh_kind == FREE) & ~has_long
+    if box is not None:
+        # box-side nodes closer than half their target along their side go too (a body moving
+        # along a wall drags the side nodes ahead of it together: without this they pile up)
+        on_box = (mesh_kind == SIDE) | (mesh_kind == CORNER)
+        along = on_box[e0] & on_box[e1] & (L < SIDE_MERGE * L0)
+        if along.any():
+            along[along] = classify_box(0.5 * (old[e0[along]] + old[e1[along]]), box)[0] == SIDE
+            short_side = np.zeros(n_old, dtype=bool)
+            short_side[e0[along]] = True
+            short_side[e1[along]] = True
+            cand |= present & (mesh_kind == SIDE) & short_side
     rng = np.random.default_rng(seed)
     prio = np.where(cand, rng.random(n_old), -1.0)
     nb_max = np.full(n_old, -1.0)

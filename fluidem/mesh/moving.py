@@ -726,6 +726,15 @@ class MovingMesh:
             before = self.__dict__.get("walls", np.zeros((0, 2), dtype=np.int64))
             if now.shape != before.shape or not np.array_equal(now, before):
                 return True
+            # a wall node held on its side while its body lifted off there (a body rocking on
+            # the wall): the closed outline no longer fits
+            wall = self.__dict__.get("_contact_wall")
+            if wall is not None and (wall >= 0).any():
+                sel = wall >= 0
+                idx = self._contact_idx[sel]
+                rigid = world(self._contact_local[sel], self.body_of[idx], self.poses)
+                if (np.abs(rigid - self.points[idx]).max() > self.min_gap):
+                    return True
         return contacts_changed(self._polygons(), self._near_pairs, self.contacts, self.min_gap, self.points,
                                 self.body_of)
 

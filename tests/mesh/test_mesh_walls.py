@@ -76,8 +76,23 @@ def test_a_body_in_a_corner_touches_two_walls():
     assert not ((mm.kind == CORNER) & (mm.points[:, 0] == 0.0) & (mm.points[:, 1] == 0.0)).any()
 
 
+@pytest.mark.parametrize("gap", [0.0, 1e-4, 0.2 * H])
+def test_a_long_slide_along_the_floor_keeps_its_quality(gap):
+    """140 steps of 0.2 h touching, at 2 min_gap and at h/5: the box-side nodes ahead of the
+    body are coarsened at re-triangulation instead of piling up (measured worst min angle
+    15.1–15.4°, 12–13 re-triangulations; before, elements of 0.4° between piled-up nodes)."""
+    mm = MovingMesh(BOX, [rectangle(0.3, 0.1)], [[0.3, 0.05 + gap, 0.0]], h=H)
+    n = 0
+    for k in range(1, 141):
+        ev = mm.update([[0.3 + 0.01 * k, 0.05 + gap, 0.0]])
+        q = _check_valid(mm)
+        assert q.min_angle >= 12.0, (k, q)
+        n += ev.retriangulated
+    assert n <= 26
+
+
 def test_a_body_sliding_along_the_floor_stays_meshable():
-    """Gaps from 2 min_gap down to touching and back while sliding (and turning slightly)."""
+    """Gaps from 2 min_gap down to touching and back while sliding."""
     mm = MovingMesh(BOX, [rectangle(0.3, 0.1)], [[0.5, 0.05 + 1e-4, 0.0]], h=H)
     g = mm.min_gap
     gaps = np.concatenate([np.geomspace(2 * g, 1e-3 * g, 20), np.zeros(20), np.geomspace(1e-3 * g, 0.5 * g, 20)])
