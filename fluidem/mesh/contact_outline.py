@@ -13,7 +13,8 @@ are filled and no element thinner than ``min_gap`` is produced.  On the closed o
   contact points, bridge corners) become *contact nodes*, owned by and moving with the
   nearest body;
 * holes of the closed union are *pores*: fluid enclosed by a ring of touching bodies (meshed,
-  and reported by area: a pore needs its own pressure reference).
+  and reported by area: a pore needs its own pressure reference); so is fluid cut off from
+  the rest of the box by bodies in contact with a wall (all fluid regions but the largest).
 
 Walls in contact: a box side closer than ``min_gap`` to a body of a cluster (touching, or
 overlapping it by as much as ``wall_overlap · h``) is one more member of that cluster.  It
@@ -393,6 +394,15 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
                 else np.zeros((0, 2)))
     contact_wall = (np.concatenate(contact_wall).astype(np.int64) if len(contact_points)
                     else np.zeros(0, dtype=np.int64))
+    if wall_solids:
+        # fluid cut off from the rest by bodies in contact with a wall (between the legs of an
+        # arch on the floor, between two bodies touching each other and the floor) is a pore too
+        xmin, xmax, ymin, ymax = box
+        filled = shapely.union_all(shapely.polygons(shapely.get_exterior_ring(np.asarray(wall_solids, dtype=object))))
+        parts = [q for q in shapely.get_parts(shapely.difference(shapely.box(xmin, ymin, xmax, ymax), filled))
+                 if shapely.get_type_id(q) == 3]
+        areas = sorted((float(shapely.area(q)) for q in parts), reverse=True)
+        pores.extend(a for a in areas[1:] if a > tol_box * h)
     return ContactOutline(contacts=contacts, clustered=clustered, pore_areas=np.array(pores),
                           keep_outline=keep_outline, contact_points=contact_points, contact_body=contact_body,
                           segments=np.vstack([plain_segments] + cluster_segments), holes=hole_pts, solids=solids,

@@ -136,6 +136,18 @@ def test_two_bodies_touching_each_other_and_the_floor():
     _check_valid(mm)
 
 
+def test_fluid_cut_off_by_a_body_on_the_floor_is_a_pore():
+    """An arch standing on the floor encloses 0.2 × 0.1 of fluid between its legs: meshed and
+    reported as a pore (it needs its own pressure reference)."""
+    arch = np.array([[-0.2, -0.1], [-0.1, -0.1], [-0.1, 0.0], [0.1, 0.0], [0.1, -0.1], [0.2, -0.1],
+                     [0.2, 0.1], [-0.2, 0.1]])
+    mm = MovingMesh(BOX, [arch], [[0.8, 0.1, 0.0]], h=H)
+    _check_valid(mm)
+    assert np.allclose(mm.pore_areas, [0.02])
+    lifted = MovingMesh(BOX, [arch], [[0.8, 0.2, 0.0]], h=H)
+    assert len(lifted.pore_areas) == 0 and len(lifted.walls) == 0
+
+
 def test_a_flow_step_on_a_mesh_with_a_body_on_the_floor():
     """Navier–Stokes BDF2 on the merged outline: walls no-slip, the body's rigid motion on its
     facets (applied last, so it wins at the wall nodes, which move with the body)."""
