@@ -6,7 +6,9 @@
   centroid of triangles larger than ``refine_area`` target areas (``√3/4 h²``): vacated
   regions coarsen again, regions a body moved into refine.  A large triangle with an edge
   on a box side gets a side node at that edge's midpoint instead (a centroid a third of
-  the way off the wall makes an element of about 140° there).
+  the way off the wall makes an element of about 140° there).  With a node budget
+  (``hold_node_count``) the count is held: a stretched region is split once per pair of
+  large neighbours, and the most compressed free nodes go while the count is above it.
 * :func:`cleanup_candidates`: after a triangulation, free vertices of elements still
   outside the angle bounds (outside narrow gaps) are removed and a node is added in such
   elements without free vertices; the caller triangulates the new candidates once more.
@@ -78,7 +80,7 @@ class Cleanup:
 
 def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind, candidate_row, solid_tree, target,
           uids: UidSource, seed: int, refine_area: float, coarsen_ratio: float, clearance: float,
-          box=None, coarsen_area: float = 0.0, budget: float | None = None,
+          box=None, budget: float | None = None,
           budget_tolerance: float = 0.02) -> Adapted:
     """Coarsen where edges are much shorter than the target, refine where triangles are too big.
 
@@ -99,8 +101,14 @@ def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind,
     uids : UidSource
     seed : int
         Seed of the random priorities of the independent set (the step count: reproducible).
-    refine_area, coarsen_ratio, clearance, coarsen_area : float
+    refine_area, coarsen_ratio, clearance : float
         :class:`fluidem.mesh.params.MeshParams` fields.
+    budget : float or None
+        Free and box nodes to aim at (``hold_node_count``): above ``budget · (1 +
+        budget_tolerance)`` the most compressed free nodes are removed as well, below
+        ``budget · (1 − budget_tolerance)`` the largest elements are split; with a budget, of
+        two large elements across an edge only the larger is split.  ``None``: no aim.
+    budget_tolerance : float
     box : (xmin, xmax, ymin, ymax) or None
         The box: large triangles on its sides are split at the side (module docstring);
         ``None``: at the centroid.
@@ -123,11 +131,6 @@ def adapt(points, kind, uid, mesh_points, topo: MeshTopology, mesh_h, mesh_kind,
     area_ratio = area / ((np.sqrt(3) / 4) * ht**2)
     n_tri = np.bincount(t.ravel(), minlength=n_old)
     mean_area = np.bincount(t.ravel(), np.repeat(area_ratio, 3), n_old) / np.maximum(n_tri, 1)
-    if coarsen_area > 0.0:
-        # ... or its elements are on average smaller than coarsen_area target areas: the node
-        # density is too high even where the elements are not short in every direction (a mesh
-        # compressed along one axis, as the harmonic drag leaves it ahead of a body)
-        has_long &= mean_area >= coarsen_area
     row = candidate_row
     present = row >= 0
     cand = present & (mesh_kind == FREE) & ~has_long

@@ -301,9 +301,8 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
                     # edge i -> i + 1 along a box side: not fluid boundary
                     wall_edge = on_box & on_box[nxt] & (np.abs(_box_distance(mid, box)) < tol_box)
                     if wall_edge.any():
-                        fluid = shapely.multilinestrings(
-                            [shapely.linestrings(ring_vertices[[i, j]]) for i, j in
-                             zip(np.flatnonzero(~wall_edge), nxt[~wall_edge])])
+                        ends = np.stack([ring_vertices[~wall_edge], ring_vertices[nxt[~wall_edge]]], axis=1)
+                        fluid = shapely.multilinestrings(shapely.linestrings(ends))
                     # vertices on the box with a fluid-facing edge are wall nodes; the others go
                     inner = on_box & wall_edge & np.roll(wall_edge, 1)
                     forced = (on_box & ~inner)[~inner]

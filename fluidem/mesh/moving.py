@@ -553,7 +553,7 @@ class MovingMesh:
             ad = adapt_nodes(kept_points, kept_kind, kept_uid, self.points, self.topo, self.h_node, self.kind,
                              np.where(keep, np.cumsum(keep) - 1, -1), solid_tree, target, self._uids,
                              self.step_count, p.refine_area, p.coarsen_ratio, p.clearance, box=self.box,
-                             coarsen_area=p.coarsen_area, budget=self._node_budget(),
+                             budget=self._node_budget(),
                              budget_tolerance=p.node_count_tolerance)
             kept_points, kept_kind, kept_uid = ad.points, ad.kind, ad.uid
             info["n_removed"], info["n_inserted"] = ad.n_removed, ad.n_inserted

@@ -144,9 +144,6 @@ class MeshParams:
     coarsen_ratio : float
         Re-triangulation removes free nodes whose incident edges average below
         ``coarsen_ratio`` of their target; in (0, 1).
-    coarsen_area : float
-        ... and free nodes whose elements average below ``coarsen_area`` target areas
-        (``√3/4 h²``); 0 (default): off; in [0, 1).
     hold_node_count : bool
         Re-triangulation keeps the number of free and box nodes within
         ``node_count_tolerance`` of its budget, the count of the first triangulation per
@@ -193,7 +190,6 @@ class MeshParams:
     tow_width: float = 2.0
     refine_area: float = 1.6
     coarsen_ratio: float = 0.7
-    coarsen_area: float = 0.0
     hold_node_count: bool = True
     node_count_tolerance: float = 0.02
 
@@ -237,7 +233,6 @@ class MeshParams:
                                         lo_open=True))
         s(self, "coarsen_ratio", v.fraction(_key("coarsen_ratio"), self.coarsen_ratio, lo_open=True,
                                             hi_open=True))
-        s(self, "coarsen_area", v.fraction(_key("coarsen_area"), self.coarsen_area, hi_open=True))
         s(self, "hold_node_count", v.boolean(_key("hold_node_count"), self.hold_node_count))
         s(self, "node_count_tolerance", v.fraction(_key("node_count_tolerance"), self.node_count_tolerance,
                                                    lo_open=True, hi_open=True))
