@@ -152,9 +152,10 @@ def wall_contacts(vertices, vertex_body, n_bodies: int, box, min_gap: float) -> 
     return np.column_stack([b, c]).astype(np.int64)
 
 
-def covered_box_nodes(points, contact: ContactOutline, tol: float) -> np.ndarray:
+def covered_box_nodes(points, contact: ContactOutline, tol: float, corner=None) -> np.ndarray:
     """Mask ``(k,)``: box nodes ``points (k, 2)`` that are no fluid boundary, on a closed wall
-    cluster (within ``tol``) or closer than ``contact.wall_merge`` to a wall node."""
+    cluster (within ``tol``) or, unless a box corner (``corner (k,)`` bool), closer than
+    ``contact.wall_merge`` to a wall node."""
     out = np.zeros(len(points), dtype=bool)
     if not contact.wall_solids or not len(points):
         return out
@@ -164,7 +165,10 @@ def covered_box_nodes(points, contact: ContactOutline, tol: float) -> np.ndarray
     wall_nodes = contact.contact_points[contact.contact_wall >= 0]
     if len(wall_nodes):
         d, _ = cKDTree(wall_nodes).query(points)
-        out |= d < contact.wall_merge
+        near = d < contact.wall_merge
+        if corner is not None:
+            near &= ~np.asarray(corner, dtype=bool)
+        out |= near
     return out
 
 
@@ -269,9 +273,13 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
             closed = shapely.simplify(closed, min_gap, preserve_topology=True)
             if len(sides):
                 # the walls are outside the box: what the fluid loses is the part inside
-                # (vertices within round-off of a side put on it first: no sliver along the wall)
+                # (vertices closer than min_gap to a side put on it first: that gap is filled
+                # anyway, and the simplification may have cut a chord of the wall slab across
+                # a shallow contact, a sliver along the wall)
                 xmin, xmax, ymin, ymax = box
-                closed = shapely.transform(closed, lambda q: _snap_to_box(q, box, tol_box)[0])
+                closed = shapely.transform(closed, lambda q: _snap_to_box(q, box, max(tol_box, min_gap))[0])
+                if not shapely.is_valid(closed):
+                    closed = shapely.make_valid(closed)
                 closed = shapely.intersection(closed, shapely.box(xmin, ymin, xmax, ymax))
                 comps = [c for c in shapely.get_parts(closed)
                          if shapely.get_type_id(c) == 3 and shapely.area(c) > tol_box * h]

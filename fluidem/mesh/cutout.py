@@ -182,7 +182,8 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         xmin, xmax, ymin, ymax = box
         is_box = (kind == SIDE) | (kind == CORNER)
         drop = np.zeros(len(points), dtype=bool)
-        drop[is_box] = covered_box_nodes(points[is_box], contact, 1e-9 * max(xmax - xmin, ymax - ymin))
+        drop[is_box] = covered_box_nodes(points[is_box], contact, 1e-9 * max(xmax - xmin, ymax - ymin),
+                                         corner=kind[is_box] == CORNER)
         points, kind, uid = points[~drop], kind[~drop], uid[~drop]
     contact_points, contact_body = contact.contact_points, contact.contact_body
     keep_outline = contact.keep_outline

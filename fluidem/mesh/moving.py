@@ -672,10 +672,24 @@ class MovingMesh:
                                self.junction_bary, self.poses, new, p.drag_halvings, self._harmonic_drag(),
                                wall_side=self.__dict__.get("_contact_wall"), box=self.box)
         self.poses = new
+        # nodes dragged out of the box: movable ones are put back on it; a fixed one (an outline
+        # node of a body pressed into a wall) cannot be: no relaxation, re-triangulate now
+        # (the outline is rebuilt with the wall, :mod:`fluidem.mesh.contact_outline`)
+        xmin, xmax, ymin, ymax = self.box
+        lo, hi = np.array([xmin, ymin]), np.array([xmax, ymax])
+        outside = ((xd < lo) | (xd > hi)).any(axis=1)
+        pressed = False
+        if outside.any():
+            movable = outside & self._mobility.any(axis=1)
+            xd[movable] = np.clip(xd[movable], lo, hi)
+            pressed = bool((outside & ~movable).any())
         # relaxation with the per-step iteration limit (Sec. 3.3)
         damp = self.drag.relax_damping if self._damping is None else self.drag.relax_damping * self._damping
-        xr, nb = relax(xd, self.topo, self.h_node, self._mobility, self.relax_iterations, p.relax_params,
-                       bounds=self.box, damping=damp)
+        if pressed:
+            xr, nb = xd, 0
+        else:
+            xr, nb = relax(xd, self.topo, self.h_node, self._mobility, self.relax_iterations, p.relax_params,
+                           bounds=self.box, damping=damp)
         ev.n_blocked = nb
         osc = self._osc.update(xr - xd, self.h_node)
         if len(osc):
@@ -690,6 +704,8 @@ class MovingMesh:
         reason = retriangulation_reason(
             shape, self.baseline, p.degenerate_area, self._steps_since, p.retriangulate_every,
             self._contacts_changed, lambda: quality_dropped(shape, self.baseline, self._anchored_across_gap))
+        if pressed and reason not in ("inverted", "degenerate"):
+            reason = "contact"
         if reason:
             ev.old_points, ev.old_triangles = xr.copy(), self.triangles.copy()
             ev.prev_points = self._prev_points

@@ -199,3 +199,26 @@ def test_regenerate_strategy_and_pickle_with_a_wall_contact():
     copy = pickle.loads(pickle.dumps(dm))
     a, b = dm.update([[0.82, 0.05, 0.0]]), copy.update([[0.82, 0.05, 0.0]])
     assert a.reason == b.reason and np.array_equal(dm.points, copy.points)
+
+
+def test_a_body_pressed_into_the_wall_between_triangulations():
+    """A disk at 2e-5 from the floor pushed 3e-3 into it in one step (within wall_overlap · h):
+    its outline nodes cross the wall before the outline is rebuilt; no relaxation with nodes
+    outside the box (it would not end), the mesh is rebuilt at once."""
+    mm = MovingMesh(BOX, [_disk()], [[0.5, 0.1 + 2e-5, 0.0]], h=H)
+    ev = mm.update([[0.5, 0.1 - 3e-3, 0.02]])
+    assert ev.retriangulated and ev.reason in ("contact", "inverted", "degenerate"), ev.reason
+    _check_valid(mm)
+    assert mm.walls.tolist() == [[0, 0]]
+
+
+def test_a_shallow_edge_crossing_the_top_wall_leaves_no_sliver():
+    """The top edge of a square crosses the top wall at 2.7° and runs within min_gap of it: no
+    thin strip along the wall is taken from the fluid (the top side keeps its nodes)."""
+    mm = MovingMesh(BOX, [rectangle(0.2, 0.2)], [[0.450551, 0.90012, 4.759232]], h=H)
+    assert mm.walls.tolist() == [[0, 2]]
+    _check_valid(mm)
+    m = mm.skfem_mesh()
+    top = m.p[:, m.facets[:, m.boundaries["top"]]]
+    assert top[0].min() < 1e-12 and np.isclose(top[0].max(), 2.0)  # from corner to corner, apart from the body
+    assert (np.abs(top[1] - 1.0) < 1e-12).all()
