@@ -683,13 +683,18 @@ class MovingMesh:
             movable = outside & self._mobility.any(axis=1)
             xd[movable] = np.clip(xd[movable], lo, hi)
             pressed = bool((outside & ~movable).any())
+        if pressed:
+            self.points = xd
+            self._steps_since += 1
+            shape = element_shape(xd, self.topo)
+            reason = retriangulation_reason(shape, self.baseline, p.degenerate_area, 0, p.retriangulate_every,
+                                            lambda: False, lambda: False)
+            self._retriangulate_step(ev, reason if reason in ("inverted", "degenerate") else "contact")
+            return
         # relaxation with the per-step iteration limit (Sec. 3.3)
         damp = self.drag.relax_damping if self._damping is None else self.drag.relax_damping * self._damping
-        if pressed:
-            xr, nb = xd, 0
-        else:
-            xr, nb = relax(xd, self.topo, self.h_node, self._mobility, self.relax_iterations, p.relax_params,
-                           bounds=self.box, damping=damp)
+        xr, nb = relax(xd, self.topo, self.h_node, self._mobility, self.relax_iterations, p.relax_params,
+                       bounds=self.box, damping=damp)
         ev.n_blocked = nb
         osc = self._osc.update(xr - xd, self.h_node)
         if len(osc):
@@ -704,15 +709,17 @@ class MovingMesh:
         reason = retriangulation_reason(
             shape, self.baseline, p.degenerate_area, self._steps_since, p.retriangulate_every,
             self._contacts_changed, lambda: quality_dropped(shape, self.baseline, self._anchored_across_gap))
-        if pressed and reason not in ("inverted", "degenerate"):
-            reason = "contact"
         if reason:
-            ev.old_points, ev.old_triangles = xr.copy(), self.triangles.copy()
-            ev.prev_points = self._prev_points
-            info = self.retriangulate()
-            ev.retriangulated, ev.reason = True, reason
-            ev.n_purged, ev.n_removed, ev.n_inserted = info["n_purged"], info["n_removed"], info["n_inserted"]
-            ev.n_junctions = info["n_junctions"]
+            self._retriangulate_step(ev, reason)
+
+    def _retriangulate_step(self, ev, reason):
+        """Re-triangulate the current nodes in a drag step and record it in ``ev``."""
+        ev.old_points, ev.old_triangles = self.points.copy(), self.triangles.copy()
+        ev.prev_points = self._prev_points
+        info = self.retriangulate()
+        ev.retriangulated, ev.reason = True, reason
+        ev.n_purged, ev.n_removed, ev.n_inserted = info["n_purged"], info["n_removed"], info["n_inserted"]
+        ev.n_junctions = info["n_junctions"]
 
     def _harmonic_drag(self) -> HarmonicDrag | None:
         """The harmonic extension of this connectivity (``drag_field="harmonic"``), factorised
