@@ -177,9 +177,17 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
     n_bodies = len(polys)
     outline_world = outline_world
     n_outline = len(outline_world)
+    xmin, xmax, ymin, ymax = box
+    corners = np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]])
+    have = (np.abs(points[kind == CORNER][:, None, :] - corners[None]).max(axis=2) == 0).any(axis=0)
+    if not have.all():
+        # a box corner dropped under a body in contact with two walls comes back once the body left
+        k = int((~have).sum())
+        points = np.vstack([points, corners[~have]])
+        kind = np.concatenate([kind, np.full(k, CORNER, np.int8)])
+        uid = np.concatenate([uid, uids.take(k)])
     if contact.wall_solids:
         # box nodes under a body in contact with a wall (or next to its wall nodes) are no boundary
-        xmin, xmax, ymin, ymax = box
         is_box = (kind == SIDE) | (kind == CORNER)
         drop = np.zeros(len(points), dtype=bool)
         drop[is_box] = covered_box_nodes(points[is_box], contact, 1e-9 * max(xmax - xmin, ymax - ymin),

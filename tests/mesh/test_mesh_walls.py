@@ -222,3 +222,13 @@ def test_a_shallow_edge_crossing_the_top_wall_leaves_no_sliver():
     top = m.p[:, m.facets[:, m.boundaries["top"]]]
     assert top[0].min() < 1e-12 and np.isclose(top[0].max(), 2.0)  # from corner to corner, apart from the body
     assert (np.abs(top[1] - 1.0) < 1e-12).all()
+
+
+def test_a_box_corner_comes_back_when_the_body_leaves_it():
+    mm = MovingMesh(BOX, [rectangle(0.3, 0.1)], [[0.15, 0.05, 0.0]], h=H)
+    assert not ((mm.kind == CORNER) & (np.abs(mm.points).max(axis=1) == 0.0)).any()  # covered
+    for k in range(1, 6):
+        mm.update([[0.15 + 0.01 * k, 0.05 + 0.005 * k, 0.0]])
+        _check_valid(mm)
+    assert len(mm.walls) == 0
+    assert ((mm.kind == CORNER) & (np.abs(mm.points).max(axis=1) == 0.0)).sum() == 1
