@@ -30,7 +30,7 @@ import triangle as tr
 from ..errors import MeshError
 from ..geometry import barycentric
 from .adjacency import edges_from_neighbors, split_with_neighbors
-from .contact_outline import ContactOutline
+from .contact_outline import ContactOutline, covered_box_nodes
 from .gaps import gap_from_pairs
 from .junctions import junction_points
 from .nodes import (
@@ -91,6 +91,8 @@ class Triangulation:
         1..4 for the box sides, ``FIRST_BODY_MARKER + b`` for body ``b``.
     contact_local : (n_contact, 2) float
         Body-frame positions of the contact nodes (in node order).
+    contact_wall : (n_contact,) int
+        Box side a contact node slides along (a wall node), ``-1`` for the others.
     junction_nodes : (k,) int
     junction_verts : (k, 3) int
         The triangle of outline nodes each junction node split.
@@ -111,6 +113,7 @@ class Triangulation:
     junction_nodes: np.ndarray
     junction_verts: np.ndarray
     junction_bary: np.ndarray
+    contact_wall: np.ndarray = None
 
 
 def cut_out(cand, cand_kind, h_cand, table, purge: float, gap_purge: float, box) -> CutOut:
@@ -174,6 +177,22 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
     n_bodies = len(polys)
     outline_world = outline_world
     n_outline = len(outline_world)
+    xmin, xmax, ymin, ymax = box
+    corners = np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]])
+    have = (np.abs(points[kind == CORNER][:, None, :] - corners[None]).max(axis=2) == 0).any(axis=0)
+    if not have.all():
+        # a box corner dropped under a body in contact with two walls comes back once the body left
+        k = int((~have).sum())
+        points = np.vstack([points, corners[~have]])
+        kind = np.concatenate([kind, np.full(k, CORNER, np.int8)])
+        uid = np.concatenate([uid, uids.take(k)])
+    if contact.wall_solids:
+        # box nodes under a body in contact with a wall (or next to its wall nodes) are no boundary
+        is_box = (kind == SIDE) | (kind == CORNER)
+        drop = np.zeros(len(points), dtype=bool)
+        drop[is_box] = covered_box_nodes(points[is_box], contact, 1e-9 * max(xmax - xmin, ymax - ymin),
+                                         corner=kind[is_box] == CORNER)
+        points, kind, uid = points[~drop], kind[~drop], uid[~drop]
     contact_points, contact_body = contact.contact_points, contact.contact_body
     keep_outline = contact.keep_outline
     # assemble nodes: [candidates | outline | contact nodes | junctions]
@@ -194,7 +213,19 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
     uid = np.concatenate([uid, UID_OUTLINE + outline_rows, uids.take(len(contact_points))])
     # contact nodes: body coordinates for rigid motion
     contact_local = to_body(contact_points, poses[contact_body]) if len(contact_points) else np.zeros((0, 2))
-    ring_seg, ring_mark = box_ring(nodes, kind, box)
+    first_contact = n_cand + len(outline_rows)
+    wall_nodes = first_contact + np.flatnonzero(contact.contact_wall >= 0)
+    ring_seg, ring_mark = box_ring(nodes, kind, box, extra=wall_nodes)
+    if len(wall_nodes):
+        # the box segments under a body in contact are no fluid boundary
+        mid_pts = shapely.points(0.5 * (nodes[ring_seg[:, 0]] + nodes[ring_seg[:, 1]]))
+        xmin, xmax, ymin, ymax = box
+        tol = 1e-9 * max(xmax - xmin, ymax - ymin)
+        covered = np.zeros(len(ring_seg), dtype=bool)
+        for solid in contact.wall_solids:
+            covered |= shapely.distance(solid, mid_pts) < tol
+        ring_seg, ring_mark = ring_seg[~covered], ring_mark[~covered]
+    contact_wall = contact.contact_wall.copy()
     mid = 0.5 * (nodes[outline_segments[:, 0]] + nodes[outline_segments[:, 1]])
     if len(outline_segments):
         owner = body_of[outline_segments[:, 0]]
@@ -231,8 +262,8 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         t = remap[t]
         boundary_segments = remap[boundary_segments]
         nodes, kind, body_of, outline_row, uid = nodes[used], kind[used], body_of[used], outline_row[used], uid[used]
-        first_contact = n_cand + len(outline_rows)
-        contact_local = contact_local[used[first_contact: first_contact + len(contact_points)]]
+        contact_used = used[first_contact: first_contact + len(contact_points)]
+        contact_local, contact_wall = contact_local[contact_used], contact_wall[contact_used]
     # Triangle returns counter-clockwise triangles; make sure (swap vertices 1, 2 and
     # the neighbours opposite them together)
     cw = signed_areas(nodes, t) < 0
@@ -268,4 +299,5 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         uid=uid.astype(np.int64), triangles=t,
         topo=MeshTopology(t, edges, edge_tris, edge_tris[:, 0] != edge_tris[:, 1]),
         boundary_segments=boundary_segments, boundary_markers=boundary_markers, contact_local=contact_local,
-        junction_nodes=junction_nodes, junction_verts=junction_verts, junction_bary=junction_bary)
+        junction_nodes=junction_nodes, junction_verts=junction_verts, junction_bary=junction_bary,
+        contact_wall=contact_wall)

@@ -55,7 +55,7 @@ from .nodes import FREE, JUNCTION, OUTLINE, SIDE, world
 from .relax import MeshTopology, signed_areas
 
 __all__ = ["DragAssociation", "HarmonicDrag", "drag_association", "harmonic_drag", "rigid_displacement",
-           "dragged_positions"]
+           "dragged_positions", "clamp_to_sides"]
 
 
 @dataclass(frozen=True)
@@ -184,10 +184,22 @@ def rigid_displacement(points, pose_old, pose_new) -> np.ndarray:
     return rotate(r, pose_new[:, 2] - pose_old[:, 2]) + pose_new[:, :2] - points
 
 
+def clamp_to_sides(points, side, box) -> np.ndarray:
+    """``points (k, 2)`` with those of ``side (k,)`` >= 0 put back on that box side (0 bottom,
+    1 right, 2 top, 3 left) by their normal coordinate; ``-1``: left as they are."""
+    xmin, xmax, ymin, ymax = box
+    p = np.array(points, dtype=float)
+    p[side == 0, 1] = ymin
+    p[side == 1, 0] = xmax
+    p[side == 2, 1] = ymax
+    p[side == 3, 0] = xmin
+    return p
+
+
 def dragged_positions(points, triangles, kind, outline_row, outline_local, outline_body, contact_nodes,
                       contact_local, body_of, drag_mobility, assoc: DragAssociation, junction_nodes, junction_verts,
                       junction_bary, poses_old, poses_new, max_halvings: int,
-                      harmonic: HarmonicDrag | None = None) -> np.ndarray:
+                      harmonic: HarmonicDrag | None = None, *, wall_side=None, box=None) -> np.ndarray:
     """Node positions ``(n, 2)`` after steps 1–3 of the module docstring.
 
     Parameters
@@ -209,6 +221,10 @@ def dragged_positions(points, triangles, kind, outline_row, outline_local, outli
         ``drag_halvings``.
     harmonic : HarmonicDrag or None
         The harmonic extension (``drag_field="harmonic"``); ``None``: the ramp.
+    wall_side : (c,) int or None
+        Box side each contact node slides along (wall nodes of
+        :mod:`fluidem.mesh.contact_outline`), ``-1`` for the others; with ``box``.
+    box : (xmin, xmax, ymin, ymax) or None
     """
     rigid = points.copy()
     # 1. outline and contact nodes move rigidly with their body (Sec. 4.2)
@@ -218,6 +234,9 @@ def dragged_positions(points, triangles, kind, outline_row, outline_local, outli
     ci = contact_nodes
     if len(ci):
         rigid[ci] = world(contact_local, body_of[ci], poses_new)
+        if wall_side is not None and (wall_side >= 0).any():
+            # wall nodes slide along their box side with the body
+            rigid[ci] = clamp_to_sides(rigid[ci], wall_side, box)
     fixed = (drag_mobility == 0.0).all(axis=1)
     n = len(rigid)
     # 2. drag: free nodes near a body follow its rigid motion, weights of several bodies averaged

@@ -49,7 +49,12 @@ Strategies (``strategy=``):
     average shorter than ``coarsen_ratio`` (0.7) of their target and nodes are added in
     triangles larger than ``refine_area`` (1.6) target areas (at the midpoint of an edge on
     a box side, else at the centroid; so vacated regions coarsen again, Fig. 6), and
-    junction points are recomputed.
+    junction points are recomputed.  The number of free and box nodes is held within
+    ``node_count_tolerance`` (2 %) of a budget, the first mesh's count per unit of
+    ``∫ h⁻² dA`` (``hold_node_count``): of two large neighbours only the larger is split, and
+    above the budget the most compressed free nodes are removed as well (the harmonic drag
+    compresses the whole region ahead of a body only mildly, below the coarsening
+    threshold, while it stretches the region behind it beyond the refinement one).
 ``"fixed"``
     bodies do not move: the mesh is built once; :meth:`MovingMesh.update` checks that.
 
@@ -77,8 +82,18 @@ added, the outline cuts straight across the contact notch, which lies in the flu
 element overlaps a body, at the price of a fluid sliver below ``0.3 h`` at each contact.
 Fluid enclosed by a ring of touching bodies (a hole of the closed union) is a *pore*: it is
 meshed, detected and reported (``pore_areas``; it needs its own pressure reference).
-Bodies must stay at least ``min_gap`` inside the box; a body outside raises
-:class:`~fluidem.errors.InputError` (a ``ValueError``).
+Walls join the contact policy: a body closer than ``min_gap`` to a box side (touching it,
+or overlapping it by up to ``wall_overlap · h``, as the DEM's soft wall contact allows) is
+meshed with that wall as one closed outline; the fluid between them narrower than
+``min_gap`` is filled, the box sides under the body are no boundary (the ``bottom``/...
+facets end where the body's facets begin), and *wall nodes* where the outline leaves the
+side slide along it with the body (:mod:`fluidem.mesh.contact_outline`).  Fluid conditions
+on the merged outline: every facet keeps its owner, the body facets get the body's rigid
+motion and the wall facets the wall's condition; the node where they meet is a body (wall)
+node, so it moves with the body: the body condition applied after the wall one wins there,
+as at a corner of a lid-driven cavity.  A body overlapping a side by more than
+``wall_overlap · h`` or lying outside the box raises :class:`~fluidem.errors.InputError`
+(a ``ValueError``).
 
 Narrow gaps: see :mod:`fluidem.mesh.quality`; an element counts as narrow-gap when the gap
 at its centroid is narrower than ``h/2`` or when one of its edges joins two different
@@ -111,7 +126,7 @@ from ..errors import InputError, MeshError
 from .adaptation import adapt as adapt_nodes
 from .adaptation import cleanup_candidates
 from .background import GradedSize, SizeField, UniformSize
-from .contact_outline import contact_outline, contact_pairs
+from .contact_outline import contact_outline, contact_pairs, wall_contacts, wall_depths
 from .cutout import Triangulation, cut_out, triangulate
 from .drag import DragAssociation, HarmonicDrag, drag_association, dragged_positions, harmonic_drag
 from .gaps import (
@@ -124,8 +139,11 @@ from .gaps import (
 )
 from .nodes import (
     CONTACT,
+    CORNER,
     FIRST_BODY_MARKER,
+    FREE,
     JUNCTION,
+    SIDE,
     BackgroundNodes,
     BodyOutlines,
     UidSource,
@@ -139,7 +157,7 @@ from .periodic import check_clearance, freeze_periodic_sides, match_side_nodes, 
 from .params import PARAM_NAMES, STRATEGIES, MeshParams, mesh_params
 from .proximity import PolygonTable
 from .quality import MeshQuality, OscillationDetector, mesh_quality
-from .relax import relax
+from .relax import relax, signed_areas
 from .triangulate import SIDE_NAMES, BoxDomain, _facet_lookup
 from .triggers import (
     QualityBaseline,
@@ -180,6 +198,9 @@ class MeshEvent:
         Relaxation moves dropped because they would have inverted an element.
     contacts : (k, 2) int
         Body pairs closer than ``min_gap`` (meshed as one outline).
+    walls : (k, 2) int
+        ``(body, side)`` pairs closer than ``min_gap`` (side 0 bottom, 1 right, 2 top, 3 left),
+        meshed with the wall as one outline.
     pore_areas : (k,) float
         Areas of fluid pores fully enclosed by touching bodies, units².
     old_points, old_triangles : arrays or None
@@ -214,6 +235,7 @@ class MeshEvent:
     n_blocked: int = 0
     contacts: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     pore_areas: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    walls: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     old_points: np.ndarray | None = field(default=None, repr=False)
     old_triangles: np.ndarray | None = field(default=None, repr=False)
     prev_points: np.ndarray | None = field(default=None, repr=False)
@@ -283,6 +305,8 @@ class MovingMesh:
         Target edge length carried by every node.
     contacts : (k, 2) int
         Body pairs meshed as one outline (closer than ``min_gap``).
+    walls : (k, 2) int
+        ``(body, side)`` pairs meshed as one outline with the wall (closer than ``min_gap``).
     pore_areas : (k,) float
         Areas of fluid pores enclosed by touching bodies.
     outlines : BodyOutlines
@@ -356,11 +380,14 @@ class MovingMesh:
         self._uids = UidSource()
         self.pore_areas = np.zeros(0)
         self.contacts = np.zeros((0, 2), dtype=np.int64)
+        self.walls = np.zeros((0, 2), dtype=np.int64)
         self._prev_points = None
         self._prev_uid = None
         bg = self.background_candidates
         self._triangulate_from(bg.points, bg.kind, bg.uid, purge=p.clearance, adapt=False,
                                n_relax=p.initial_iterations)
+        # free and box nodes per unit of ∫ h⁻² dA: the node budget of the re-triangulations
+        self._node_density = self._movable_count() / self._size_integral()
         self._prev_points = self.points.copy()
         self._prev_uid = self.uid.copy()
         self._trajectory = (None, None)  # node_history(): positions at t^n, t^{n-1} of the current nodes
@@ -447,19 +474,44 @@ class MovingMesh:
         if p.shape != (self.n_bodies, 3) or not np.all(np.isfinite(p)):
             raise InputError(f"poses must be a finite ({self.n_bodies}, 3) array of x, y, angle; got shape {p.shape}")
         w = world(self._vcat, self._vbody, p)
-        xmin, xmax, ymin, ymax = self.box
-        g = self.min_gap
-        out = (w[:, 0] < xmin + g) | (w[:, 0] > xmax - g) | (w[:, 1] < ymin + g) | (w[:, 1] > ymax - g)
-        if out.any():
-            k = int(np.flatnonzero(out)[0])
-            b = int(self._vbody[k])
+        # a body may touch a wall or overlap it slightly (it is meshed with the wall as one outline)
+        depth = -wall_depths(w, self._vbody, self.n_bodies, self.box)  # (n_bodies, 4): > 0 outside
+        allowed = self.params.wall_overlap * self.h
+        bad = np.flatnonzero(depth.max(axis=1) > allowed)
+        if len(bad):
+            b = int(bad[0])
+            side = int(np.argmax(depth[b]))
+            what = ("it lies outside" if self._outside(p[b]) else
+                    f"it overlaps the {SIDE_NAMES[side]} wall by {depth[b, side]:.3g}")
             raise InputError(
-                f"body {b} ({self.body_names[b]}) is not inside the domain {self.box} with the minimum gap "
-                f"{g:.3g}: vertex {w[k].tolist()} at pose {p[b].tolist()}"
-            )
+                f"body {b} ({self.body_names[b]}) at pose {p[b].tolist()} is not inside the domain "
+                f"{tuple(float(c) for c in self.box)}: {what}; expected an overlap of at most "
+                f"wall_overlap · h = {allowed:.3g}")
         check_clearance(w, self._vbody, self.body_names, p, self.box, self.periodic, self.h,
                         error=InputError if self.__dict__.get("step_count") is None else MeshError)
         return p
+
+    def _outside(self, pose) -> bool:
+        """The reference point of a body at ``pose`` lies outside the box."""
+        xmin, xmax, ymin, ymax = self.box
+        return not (xmin <= pose[0] <= xmax and ymin <= pose[1] <= ymax)
+
+    def _movable_count(self) -> int:
+        """Free and box nodes of the current mesh (what the adaptation adds and removes)."""
+        return int(((self.kind == FREE) | (self.kind == SIDE) | (self.kind == CORNER)).sum())
+
+    def _size_integral(self) -> float:
+        """``∫ h⁻² dA`` over the current mesh (elements, mean per-node target), dimensionless."""
+        t = self.triangles
+        h_t = self.h_node[t].mean(axis=1)
+        return float((np.abs(signed_areas(self.points, t)) / h_t**2).sum())
+
+    def _node_budget(self) -> float | None:
+        """Free and box nodes the adaptation aims at (``hold_node_count``), ``None``: no aim."""
+        density = self.__dict__.get("_node_density")
+        if not self.params.hold_node_count or density is None:
+            return None
+        return density * self._size_integral()
 
     def _target(self, pts, outline_world=None) -> np.ndarray:
         """Target edge length at ``pts`` (size field, and the zone the bodies carry)."""
@@ -506,8 +558,9 @@ class MovingMesh:
         def target(q):
             return self._target(q, outline_world)
 
-        contact = contact_outline(polys, tree, outline_world, self.outlines, self.h, self.min_gap, p)
+        contact = contact_outline(polys, tree, outline_world, self.outlines, self.h, self.min_gap, p, box=self.box)
         self.contacts = contact.contacts
+        self.walls = contact.walls
         self.pore_areas = contact.pore_areas
 
         cand = np.asarray(cand, dtype=float)
@@ -523,7 +576,9 @@ class MovingMesh:
             solid_tree = shapely.STRtree(np.asarray(contact.solids, dtype=object)) if self.n_bodies else None
             ad = adapt_nodes(kept_points, kept_kind, kept_uid, self.points, self.topo, self.h_node, self.kind,
                              np.where(keep, np.cumsum(keep) - 1, -1), solid_tree, target, self._uids,
-                             self.step_count, p.refine_area, p.coarsen_ratio, p.clearance, box=self.box)
+                             self.step_count, p.refine_area, p.coarsen_ratio, p.clearance, box=self.box,
+                             budget=self._node_budget(),
+                             budget_tolerance=p.node_count_tolerance)
             kept_points, kept_kind, kept_uid = ad.points, ad.kind, ad.uid
             info["n_removed"], info["n_inserted"] = ad.n_removed, ad.n_inserted
 
@@ -573,6 +628,8 @@ class MovingMesh:
         self.n_junctions = int(len(tri.junction_nodes))
         self._contact_local = tri.contact_local
         self._contact_idx = np.flatnonzero(tri.kind == CONTACT)
+        self._contact_wall = (np.full(len(self._contact_idx), -1, dtype=np.int64) if tri.contact_wall is None
+                              else tri.contact_wall)
         self.h_node = self._target(tri.points, outline_world)
         self._mobility = freeze_periodic_sides(mobility(tri.kind, tri.points, self.box), tri.points, tri.kind,
                                                self.box, self.periodic)
@@ -629,6 +686,7 @@ class MovingMesh:
             self._drag_step(new, ev)
         self._carry_history(ev, *before)
         ev.contacts = self.contacts
+        ev.walls = self.__dict__.get("walls", ev.walls)
         ev.pore_areas = self.pore_areas
         ev.n_nodes, ev.n_triangles = len(self.points), len(self.triangles)
         ev.seconds = time.perf_counter() - t0
@@ -640,8 +698,28 @@ class MovingMesh:
         xd = dragged_positions(self.points, self.triangles, self.kind, self.outline_row, self.outlines.local,
                                self.outlines.body, self._contact_idx, self._contact_local, self.body_of,
                                self._drag_mobility, self.drag, self.junction_nodes, self.junction_verts,
-                               self.junction_bary, self.poses, new, p.drag_halvings, self._harmonic_drag())
+                               self.junction_bary, self.poses, new, p.drag_halvings, self._harmonic_drag(),
+                               wall_side=self.__dict__.get("_contact_wall"), box=self.box)
         self.poses = new
+        # nodes dragged out of the box: movable ones are put back on it; a fixed one (an outline
+        # node of a body pressed into a wall) cannot be: no relaxation, re-triangulate now
+        # (the outline is rebuilt with the wall, :mod:`fluidem.mesh.contact_outline`)
+        xmin, xmax, ymin, ymax = self.box
+        lo, hi = np.array([xmin, ymin]), np.array([xmax, ymax])
+        outside = ((xd < lo) | (xd > hi)).any(axis=1)
+        pressed = False
+        if outside.any():
+            movable = outside & self._mobility.any(axis=1)
+            xd[movable] = np.clip(xd[movable], lo, hi)
+            pressed = bool((outside & ~movable).any())
+        if pressed:
+            self.points = xd
+            self._steps_since += 1
+            shape = element_shape(xd, self.topo)
+            reason = retriangulation_reason(shape, self.baseline, p.degenerate_area, 0, p.retriangulate_every,
+                                            lambda: False, lambda: False)
+            self._retriangulate_step(ev, reason if reason in ("inverted", "degenerate") else "contact")
+            return
         # relaxation with the per-step iteration limit (Sec. 3.3)
         damp = self.drag.relax_damping if self._damping is None else self.drag.relax_damping * self._damping
         xr, nb = relax(xd, self.topo, self.h_node, self._mobility, self.relax_iterations, p.relax_params,
@@ -661,12 +739,16 @@ class MovingMesh:
             shape, self.baseline, p.degenerate_area, self._steps_since, p.retriangulate_every,
             self._contacts_changed, lambda: quality_dropped(shape, self.baseline, self._anchored_across_gap))
         if reason:
-            ev.old_points, ev.old_triangles = xr.copy(), self.triangles.copy()
-            ev.prev_points = self._prev_points
-            info = self.retriangulate()
-            ev.retriangulated, ev.reason = True, reason
-            ev.n_purged, ev.n_removed, ev.n_inserted = info["n_purged"], info["n_removed"], info["n_inserted"]
-            ev.n_junctions = info["n_junctions"]
+            self._retriangulate_step(ev, reason)
+
+    def _retriangulate_step(self, ev, reason):
+        """Re-triangulate the current nodes in a drag step and record it in ``ev``."""
+        ev.old_points, ev.old_triangles = self.points.copy(), self.triangles.copy()
+        ev.prev_points = self._prev_points
+        info = self.retriangulate()
+        ev.retriangulated, ev.reason = True, reason
+        ev.n_purged, ev.n_removed, ev.n_inserted = info["n_purged"], info["n_removed"], info["n_inserted"]
+        ev.n_junctions = info["n_junctions"]
 
     def _harmonic_drag(self) -> HarmonicDrag | None:
         """The harmonic extension of this connectivity (``drag_field="harmonic"``), factorised
@@ -688,7 +770,23 @@ class MovingMesh:
 
     # ------------------------------------------------------------------ gaps and triggers on the current mesh
     def _contacts_changed(self) -> bool:
-        """:func:`fluidem.mesh.triggers.contacts_changed` at the current poses."""
+        """:func:`fluidem.mesh.triggers.contacts_changed` at the current poses, or a body
+        came within ``min_gap`` of a wall or left it (:func:`wall_contacts`)."""
+        if self.n_bodies:
+            now = wall_contacts(world(self._vcat, self._vbody, self.poses), self._vbody, self.n_bodies, self.box,
+                                self.min_gap)
+            before = self.__dict__.get("walls", np.zeros((0, 2), dtype=np.int64))
+            if now.shape != before.shape or not np.array_equal(now, before):
+                return True
+            # a wall node held on its side while its body lifted off there (a body rocking on
+            # the wall): the closed outline no longer fits
+            wall = self.__dict__.get("_contact_wall")
+            if wall is not None and (wall >= 0).any():
+                sel = wall >= 0
+                idx = self._contact_idx[sel]
+                rigid = world(self._contact_local[sel], self.body_of[idx], self.poses)
+                if (np.abs(rigid - self.points[idx]).max() > self.min_gap):
+                    return True
         return contacts_changed(self._polygons(), self._near_pairs, self.contacts, self.min_gap, self.points,
                                 self.body_of)
 

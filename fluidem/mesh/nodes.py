@@ -120,12 +120,17 @@ def classify_box(points, box):
     return kind, side
 
 
-def box_ring(points, kind, box):
+def box_ring(points, kind, box, extra=None):
     """Segments ``(k, 2)`` of the box outline through the side/corner nodes, counter-clockwise,
-    and their markers ``(k,)`` (1 bottom, 2 right, 3 top, 4 left)."""
+    and their markers ``(k,)`` (1 bottom, 2 right, 3 top, 4 left).
+
+    ``extra``: indices of further nodes on the box sides taken into the ring (the wall
+    contact nodes of :mod:`fluidem.mesh.contact_outline`)."""
     xmin, xmax, ymin, ymax = box
     W, H = xmax - xmin, ymax - ymin
     idx = np.flatnonzero((kind == SIDE) | (kind == CORNER))
+    if extra is not None and len(extra):
+        idx = np.concatenate([idx, np.asarray(extra, dtype=np.int64)])
     p = points[idx]
     _, side = classify_box(p, box)
     s = np.select(
