@@ -7,7 +7,10 @@ scenes) comes from :mod:`fluidem.names`, the table scene files and the Python fa
 read too; old spellings are accepted as aliases.  An error fluidem raises on purpose
 (:class:`fluidem.errors.FluidemError`, or a ``ValueError`` from validation) prints one line
 ``fluidem: error: <message>`` to stderr and exits with status 2; ``--debug`` shows the
-traceback instead.
+traceback instead.  A run stopped by Ctrl-C or SIGTERM exits with 130 or 143, a run whose
+step failed with 3, each after a one-line message saying where its last checkpoint is and
+how to continue (``fluidem run SCENE --out DIR --restart``).  ``--overwrite`` clears an
+earlier run's output in the directory (a fresh run into it is refused otherwise).
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 
 from . import names
 from .errors import FluidemError
@@ -52,6 +56,26 @@ def _positive_float(text):
     return v
 
 
+def _positive_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return v
+
+
+def _nonnegative_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return v
+
+
 def _name(kind: str):
     """An argparse ``type`` that turns a registry name or alias of ``kind`` into its canonical name.
 
@@ -78,7 +102,10 @@ def _add_debug(parser, default=False) -> None:
 
 
 def _build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
     p = argparse.ArgumentParser(prog="fluidem", description="Resolved particle-laden flow: FEM fluid + polygonal DEM.")
+    p.add_argument("--version", action="version", version=f"fluidem {__version__}")
     _add_debug(p)
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
@@ -88,7 +115,7 @@ def _build_parser() -> argparse.ArgumentParser:
                                    "errors, DOFs and the wall-time split. Defaults are each case's own.")
     b.add_argument("name", help="benchmark case", **_named("case"))
     b.add_argument("--element", help="velocity/pressure element pair", **_named("element"))
-    b.add_argument("--level", type=int, help="mesh level (each level halves the cell size), 0-6")
+    b.add_argument("--level", type=_nonnegative_int, help="mesh level (each level halves the cell size), 0-6")
     b.add_argument("--dt", type=_positive_float, help="time step (unsteady cases)")
     b.add_argument("--t-end", type=_positive_float, dest="t_end", help="end time (periodic cases)")
     b.add_argument("--convection", **_named("convection"),
@@ -112,14 +139,19 @@ def _add_scene_commands(sub) -> None:
     """``run``, ``plan``, ``examples`` and ``plot``: the scene path."""
     r = sub.add_parser("run", help="run a scene file (or a built-in example) and write its output",
                        description="Run a scene: history.csv, fields and body outlines (VTU + PVD), mesh "
-                                   "quality, events.log and checkpoints in the output directory.")
+                                   "quality, events.log, checkpoints and run.json in the output directory. "
+                                   "A directory holding another run's output is refused unless --overwrite or "
+                                   "--restart. Ctrl-C or SIGTERM stops after the step in progress with a checkpoint.")
     r.add_argument("scene", nargs="?", help="scene TOML file")
     r.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file: "
                    + ", ".join(names.choices("example")) + " (see 'fluidem examples')")
     r.add_argument("--out", metavar="DIR", help="output directory (default: the scene's [output] dir)")
     r.add_argument("--restart", nargs="?", const=True, metavar="CHECKPOINT",
-                   help="continue from a checkpoint file, or from the newest one in the output directory")
-    r.add_argument("--steps", type=int, metavar="N", help="stop after N steps in total")
+                   help="continue from a checkpoint file, or from the newest valid one in the output directory "
+                        "(only time.t_end and [output] may differ from the run's scene)")
+    r.add_argument("--overwrite", action="store_true",
+                   help="clear the output of an earlier run in the output directory first")
+    r.add_argument("--steps", type=_positive_int, metavar="N", help="stop after N steps in total (N >= 1)")
     r.add_argument("--plot", action="store_true", help="draw the PNG figures at the end")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     pl = sub.add_parser("plan", help="print the effects a scene needs and why",
@@ -199,7 +231,7 @@ def _scene_main(args) -> int:
     out = args.out or scene.output.dir
     if not args.quiet:
         print(sim.plan, file=sys.stderr)
-    result = sim.run(out_dir=out, restart=args.restart, n_steps=args.steps,
+    result = sim.run(out_dir=out, restart=args.restart, n_steps=args.steps, overwrite=args.overwrite,
                      progress=None if args.quiet else _ProgressBar())
     print(result)
     if args.plot:
@@ -249,20 +281,54 @@ def main(argv=None) -> int:
     """Run the command line ``argv`` (default: ``sys.argv[1:]``); returns the exit status.
 
     Errors fluidem raises on purpose (:class:`~fluidem.errors.FluidemError`, and the
-    ``ValueError`` of validation) print ``fluidem: error: <message>`` on one line to stderr
-    and return 2; with ``--debug`` they propagate with their traceback.  Usage errors exit
-    through argparse (status 2).
+    ``ValueError`` of validation) and a path the system cannot read or write print
+    ``fluidem: error: <message>`` on one line to stderr and return 2 (a run stopped by an
+    interrupt or by a bad state returns its own status, see :mod:`fluidem.simulation`); any
+    other exception prints one line too and returns 1; with ``--debug`` they propagate with
+    their traceback.  Usage errors exit through argparse (status 2).
     """
     parser = _build_parser()
     args = parser.parse_args(argv)
     try:
-        return _dispatch(args, parser)
+        with warnings.catch_warnings():
+            if not args.debug:
+                warnings.showwarning = _show_warning
+            return _dispatch(args, parser)
     except (FluidemError, ValueError) as exc:
         if args.debug:
             raise
-        message = " ".join(str(exc).splitlines()) or type(exc).__name__
-        print(f"fluidem: error: {message}", file=sys.stderr)
+        status = getattr(exc, "exit_status", 2)
+        print(f"fluidem: error: {_one_line(exc)}", file=sys.stderr)
+        return status
+    except OSError as exc:  # a path that cannot be read or written: the system's reason and the path
+        if args.debug:
+            raise
+        where = f": {exc.filename!r}" if getattr(exc, "filename", None) else ""
+        print(f"fluidem: error: {exc.strerror or exc}{where}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        if args.debug:
+            raise
+        print("fluidem: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # not raised on purpose: still one line, the traceback with --debug
+        if args.debug:
+            raise
+        print(f"fluidem: error: {type(exc).__name__}: {_one_line(exc)} (an unexpected error: run again with --debug "
+              "for the traceback)", file=sys.stderr)
+        return 1
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """fluidem's own warnings as ``fluidem: warning: <message>`` (others as Python prints them)."""
+    if category.__module__.startswith("fluidem"):
+        print(f"fluidem: warning: {_one_line(message)}", file=sys.stderr)
+    else:
+        print(warnings.formatwarning(message, category, filename, lineno, line), end="", file=sys.stderr)
+
+
+def _one_line(exc) -> str:
+    return " ".join(str(exc).splitlines()) or type(exc).__name__
 
 
 if __name__ == "__main__":  # pragma: no cover

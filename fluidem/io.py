@@ -11,12 +11,26 @@ Layout of an output directory::
     bodies/                one polygon cell per body with cell data id, velocity, omega
     mesh_quality.csv       step, t, min/max angle, share of angles > 135°, inverted, nodes, triangles
     events.log             one line per event (mesh built, re-triangulation, transfer, restart, ...)
-    checkpoints/           ckpt_<step>.pkl: everything needed to continue the run
+    checkpoints/           ckpt_<step>.npz: everything needed to continue the run (arrays + a JSON
+                           header, :mod:`fluidem.checkpoint`; loading never executes code)
     scene.toml             the scene as run
+    run.json               which scene the folder belongs to, and how far the run got: status
+                           running | complete | interrupted | failed, last step and time
+
+An output directory belongs to one run: :func:`prepare_output_dir` refuses a fresh run into
+a directory that holds another run's output unless told to overwrite it (which removes the
+entries listed above, nothing else) or to restart (continue) it.
 
 XDMF would need h5py; VTU files with a PVD index are read by ParaView and meshio alike.
 ``fx, fy, torque`` are the hydrodynamic load in fluid scenes and the contact force and
 torque (without gravity) in dry scenes; ``contacts`` counts each body's contacts.
+
+Units: those of the scene (one consistent system, nothing converted).  Every quantity is
+per unit depth in 2D; the fluid's pressure is the *kinematic* pressure p/ρ (length²/time²),
+while the forces and torques in history.csv are *dynamic*, i.e. the fluid density times the
+kinematic load.  The VTU ``pressure`` field is dynamic too (ρ times the kinematic pressure,
+which is written beside it as ``kinematic_pressure``), so loads and pressure share one
+convention; run.json lists the unit of every history column (:data:`HISTORY_UNITS`).
 
 Examples
 --------
@@ -37,27 +51,110 @@ Examples
 from __future__ import annotations
 
 import io as _io
+import json
 import os
 import pickle
 import re
+import shutil
 from pathlib import Path
 from typing import Union
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .checkpoint import CheckpointError, checkpoint_files
+from .checkpoint import load as _load_npz
+from .checkpoint import save as _save_npz
+from .errors import InputError
 from .validate import fail
 
-__all__ = ["OutputWriter", "read_history", "read_pvd", "latest_checkpoint", "load_checkpoint", "fluid_point_data",
-           "HISTORY_COLUMNS"]
+__all__ = ["OutputWriter", "read_history", "read_pvd", "latest_checkpoint", "load_checkpoint", "load_latest_checkpoint",
+           "fluid_point_data", "prepare_output_dir", "read_run_record", "write_run_record", "HISTORY_COLUMNS",
+           "HISTORY_UNITS", "OUTPUT_ENTRIES", "OutputDirError"]
 
 PathLike = Union[str, os.PathLike]
 
 HISTORY_COLUMNS = ("step", "t", "id", "x", "y", "angle", "vx", "vy", "omega", "fx", "fy", "torque", "contacts")
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2  # 1: pickles (read only with allow_pickle=True); 2: npz + JSON (fluidem.checkpoint)
+
+#: unit of each history column, in the scene's own unit system (see the module docstring)
+HISTORY_UNITS = {"step": "1", "t": "time", "id": "1", "x": "length", "y": "length", "angle": "rad",
+                 "vx": "length/time", "vy": "length/time", "omega": "rad/time", "fx": "force/depth",
+                 "fy": "force/depth", "torque": "force*length/depth", "contacts": "1"}
+
+#: what a run writes into its output directory (and what overwriting it removes)
+OUTPUT_ENTRIES = ("history.csv", "events.log", "mesh_quality.csv", "fields.pvd", "bodies.pvd", "fields", "bodies",
+                  "checkpoints", "plots", "scene.toml", "run.json")
 
 
-def fluid_point_data(space, x: np.ndarray) -> dict[str, np.ndarray]:
+class OutputDirError(InputError):
+    """The output directory cannot be used as asked (a file, under a file, or another run's output)."""
+
+
+def prepare_output_dir(out_dir: PathLike, mode: str = "new") -> Path:
+    """Make ``out_dir`` ready for a run and return it.
+
+    Parameters
+    ----------
+    out_dir : path
+        Created (with its parents) when missing.
+    mode : {"new", "overwrite", "restart"}
+        ``"new"``: refuse a directory that holds a run's output (any of :data:`OUTPUT_ENTRIES`);
+        ``"overwrite"``: remove those entries (and nothing else) first; ``"restart"``: keep
+        them (the run continues).
+
+    Raises
+    ------
+    OutputDirError
+        (an :class:`~fluidem.errors.InputError`) naming the directory and the options.
+    """
+    d = Path(out_dir)
+    if d.exists() and not d.is_dir():
+        raise OutputDirError(f"output directory {str(d)!r} is an existing file; expected a directory or a path "
+                             "that does not exist yet")
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        parent = next((p for p in d.parents if p.exists() and not p.is_dir()), d.parent)
+        raise OutputDirError(f"output directory {str(d)!r}: {str(parent)!r} is a file, not a directory; expected a "
+                             "path whose parents are directories") from None
+    except PermissionError:
+        raise OutputDirError(f"output directory {str(d)!r} cannot be created (permission denied); choose another "
+                             "--out") from None
+    found = [e for e in OUTPUT_ENTRIES if (d / e).exists()]
+    if mode == "new" and found:
+        rec = read_run_record(d)
+        who = f"scene {rec.get('scene')!r}, {rec.get('status', 'unknown')} at step {rec.get('step')}" if rec else \
+            ", ".join(found[:4])
+        raise OutputDirError(f"output directory {str(d)!r} holds the output of another run ({who}); give --overwrite "
+                             "(overwrite=True) to clear it, --restart (restart=True) to continue it, or another --out")
+    if mode == "overwrite":
+        for e in found:
+            p = d / e
+            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
+    elif mode not in ("new", "restart"):
+        raise fail("mode", mode, "one of 'new', 'overwrite', 'restart'")
+    return d
+
+
+def read_run_record(out_dir: PathLike) -> dict:
+    """The ``run.json`` record of an output directory (``{}`` when there is none or it is unreadable)."""
+    try:
+        rec = json.loads((Path(out_dir) / "run.json").read_text())
+    except (OSError, ValueError):
+        return {}
+    return rec if isinstance(rec, dict) else {}
+
+
+def write_run_record(out_dir: PathLike, record: dict) -> None:
+    """Write ``run.json`` atomically (write, then rename)."""
+    path = Path(out_dir) / "run.json"
+    tmp = path.with_name("run.json.tmp")
+    tmp.write_text(json.dumps(record, indent=1, allow_nan=False) + "\n")
+    os.replace(tmp, path)
+
+
+def fluid_point_data(space, x: np.ndarray, rho: float = 1.0) -> dict[str, np.ndarray]:
     """Velocity, speed and pressure at the mesh vertices, for VTU output.
 
     Velocity: the vertex DOFs (all element pairs here have nodal vertex values).  Pressure:
@@ -69,13 +166,17 @@ def fluid_point_data(space, x: np.ndarray) -> dict[str, np.ndarray]:
     space : fluidem.fluid.space.FlowSpace
         Velocity/pressure spaces on the mesh (``n_u`` velocity DOFs first, then pressure).
     x : (space.n_dofs,) float
-        Velocity (m/s) and kinematic pressure (p/ρ, m²/s²) DOFs.
+        Velocity (length/time) and kinematic pressure (p/ρ, length²/time²) DOFs.
+    rho : float
+        Fluid density (mass/length² in 2D): ``pressure`` is ρ times the kinematic one, the
+        convention of the loads in history.csv.
 
     Returns
     -------
     dict
-        ``"velocity"`` (n_vertices, 3) m/s with a zero z column, ``"speed"`` (n_vertices,) m/s,
-        ``"pressure"`` (n_vertices,) m²/s².
+        ``"velocity"`` (n_vertices, 3) length/time with a zero z column, ``"speed"``
+        (n_vertices,) length/time, ``"pressure"`` (n_vertices,) dynamic pressure (ρ p/ρ) and
+        ``"kinematic_pressure"`` (n_vertices,) length²/time².
     """
     mesh = space.mesh
     nv = mesh.nvertices
@@ -92,7 +193,7 @@ def fluid_point_data(space, x: np.ndarray) -> dict[str, np.ndarray]:
     s = np.bincount(t.ravel(), pv.ravel(), minlength=nv)
     c = np.bincount(t.ravel(), minlength=nv)
     p = s / np.maximum(c, 1)
-    return {"velocity": vel, "speed": np.hypot(vel[:, 0], vel[:, 1]), "pressure": p}
+    return {"velocity": vel, "speed": np.hypot(vel[:, 0], vel[:, 1]), "pressure": rho * p, "kinematic_pressure": p}
 
 
 def _points3(p2):
@@ -106,8 +207,9 @@ class OutputWriter:
     Parameters
     ----------
     out_dir : str or Path
-        Created if missing; a fresh run overwrites ``history.csv``, ``events.log`` and
-        ``mesh_quality.csv``.
+        Created if missing; a fresh writer starts ``history.csv``, ``events.log`` and
+        ``mesh_quality.csv`` anew (whether the directory may be used is for
+        :func:`prepare_output_dir` to say, before).
     restart_step : int or None
         When continuing from a checkpoint at this step: rows, series entries and events
         after it are dropped so the continued run appends to a consistent record.
@@ -122,7 +224,7 @@ class OutputWriter:
         hist = self.dir / "history.csv"
         if restart_step is None:
             self._hist = open(hist, "w", newline="")
-            self._hist.write(",".join(HISTORY_COLUMNS) + "\n")
+            self._hist.write(_history_header())
             for f in ("events.log", "mesh_quality.csv"):
                 (self.dir / f).unlink(missing_ok=True)
         else:
@@ -143,11 +245,13 @@ class OutputWriter:
     def _truncate_history(path: Path, step: int):
         if not path.exists():
             with open(path, "w") as f:
-                f.write(",".join(HISTORY_COLUMNS) + "\n")
+                f.write(_history_header())
             return
         with open(path) as f:
             lines = f.readlines()
-        keep = [lines[0]] + [ln for ln in lines[1:] if ln.strip() and int(ln.split(",", 1)[0]) <= step]
+        keep = [ln for ln in lines if ln.startswith("#") or not ln[:1].isdigit()]  # comments and the column line
+        keep += [ln for ln in lines if ln[:1].isdigit() and ln.strip().count(",") == len(HISTORY_COLUMNS) - 1
+                 and int(ln.split(",", 1)[0]) <= step]  # rows up to the step (a half-written last row dropped)
         with open(path, "w") as f:
             f.writelines(keep)
 
@@ -259,16 +363,23 @@ class OutputWriter:
             f.write(f"{step},{t:.10g},{q.min_angle:.6g},{q.max_angle:.6g},{q.frac_above_135:.6g},{q.n_inverted},"
                     f"{q.n_nodes},{q.n_triangles}\n")
 
-    def checkpoint(self, step: int, t: float, state: dict) -> Path:
-        """Pickle ``state`` (plain data and fluidem objects) to checkpoints/ckpt_<step>.pkl."""
+    def checkpoint(self, step: int, t: float, state: dict | None = None, header: dict | None = None,
+                   snapshot: tuple | None = None, keep: int | None = None) -> Path:
+        """Write checkpoints/ckpt_<step>.npz atomically (:func:`fluidem.checkpoint.save`).
+
+        ``state``: the run's state (plain data, arrays, fluidem objects), or ``snapshot`` a
+        ``(tree, arrays)`` pair encoded earlier; ``header``: JSON-able facts (scene, plan, dt)
+        stored beside ``step`` and ``t`` (s).  ``keep``: keep only the newest ``keep``
+        checkpoints.  Returns the file written.
+        """
         d = self.dir / "checkpoints"
         d.mkdir(exist_ok=True)
-        path = d / f"ckpt_{step:07d}.pkl"
-        tmp = path.with_suffix(".tmp")
-        with open(tmp, "wb") as f:
-            pickle.dump({"version": CHECKPOINT_VERSION, "step": step, "t": t, **state}, f,
-                        protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(tmp, path)
+        path = d / f"ckpt_{step:07d}.npz"
+        _save_npz(path, {"version": CHECKPOINT_VERSION, "step": int(step), "t": float(t), **(header or {})}, state,
+                  snapshot=snapshot)
+        if keep:
+            for old in checkpoint_files(self.dir)[keep:]:
+                old.unlink(missing_ok=True)
         return path
 
     def close(self) -> None:
@@ -288,8 +399,9 @@ def read_history(path: PathLike) -> dict[str, np.ndarray]:
     if path.is_dir():
         path = path / "history.csv"
     with open(path) as f:
-        header = f.readline().strip().split(",")
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        lines = [ln for ln in f if not ln.startswith("#")]
+    header = lines[0].strip().split(",")
+    data = np.loadtxt(lines[1:], delimiter=",", ndmin=2)
     out = {}
     for k, name in enumerate(header):
         col = data[:, k] if data.size else np.zeros(0)
@@ -313,34 +425,72 @@ def read_pvd(path: PathLike, with_steps: bool = False) -> list[tuple]:
     return out
 
 
+def _history_header() -> str:
+    """The column line of history.csv (units: :data:`HISTORY_UNITS`, also in run.json)."""
+    return ",".join(HISTORY_COLUMNS) + "\n"
+
+
 def latest_checkpoint(out_dir: PathLike) -> Path:
-    """Newest checkpoint file in ``out_dir/checkpoints``.
+    """Newest checkpoint file in ``out_dir/checkpoints`` (not checked; see :func:`load_latest_checkpoint`).
 
     Raises :class:`fluidem.errors.InputError` (a ``ValueError``) if there is none.
     """
-    d = Path(out_dir) / "checkpoints"
-    files = sorted(d.glob("ckpt_*.pkl")) if d.is_dir() else []
+    files = checkpoint_files(out_dir)
     if not files:
-        raise fail("checkpoint directory", str(d), "a directory holding ckpt_*.pkl files written by 'fluidem run' "
-                   "with output.checkpoint_every")
-    return files[-1]
+        d = Path(out_dir) / "checkpoints"
+        legacy = sorted(d.glob("ckpt_*.pkl")) if d.is_dir() else []
+        raise fail("checkpoint directory", str(d), "a directory holding ckpt_*.npz files written by 'fluidem run'"
+                   + (f" (it holds {len(legacy)} pickle checkpoint(s) of an earlier version: give one of them as "
+                      "the checkpoint file, with allow_pickle=True, and only if you wrote it)" if legacy else ""))
+    return files[0]
 
 
-def load_checkpoint(path: PathLike) -> dict:
-    """Read a checkpoint written by :meth:`OutputWriter.checkpoint` (a run directory: its newest).
+def load_checkpoint(path: PathLike, allow_pickle: bool = False) -> dict:
+    """Read a checkpoint written by :meth:`OutputWriter.checkpoint` (a run directory: its newest valid one).
 
-    Returns the pickled state with ``version``, ``step`` and ``t`` (s).  Raises
-    :class:`fluidem.errors.InputError` (a ``ValueError``) for a missing file or a file that is
-    not a checkpoint of this version.  Only load checkpoints you wrote: they are pickles.
+    Returns the state with ``version``, ``step``, ``t`` (s) and the header (``scene``,
+    ``dt``, ``plan``).  Raises :class:`fluidem.checkpoint.CheckpointError` (an
+    :class:`~fluidem.errors.InputError`) for a missing, damaged or foreign file.  Pickle
+    checkpoints of earlier versions (``.pkl``) are read only with ``allow_pickle=True``
+    (loading a pickle can execute code: only for files you wrote).
     """
     path = Path(path)
     if path.is_dir():
-        path = latest_checkpoint(path)
-    try:
-        with open(path, "rb") as f:
-            data = pickle.load(f)
-    except FileNotFoundError:
-        raise fail("checkpoint", str(path), "an existing checkpoint file") from None
-    if not isinstance(data, dict) or data.get("version") != CHECKPOINT_VERSION:
-        raise fail("checkpoint", str(path), f"a fluidem checkpoint of version {CHECKPOINT_VERSION}")
-    return data
+        return load_latest_checkpoint(path)[1]
+    if path.suffix == ".pkl":
+        if not allow_pickle:
+            raise CheckpointError(f"checkpoint {str(path)!r} is a pickle of an earlier fluidem version; loading a "
+                                  "pickle can execute code: pass allow_pickle=True only for a file you wrote")
+        try:
+            with open(path, "rb") as f:
+                data = pickle.load(f)
+        except FileNotFoundError:
+            raise fail("checkpoint", str(path), "an existing checkpoint file") from None
+        except Exception as exc:  # a damaged pickle raises many kinds
+            raise CheckpointError(f"checkpoint {str(path)!r} is damaged ({type(exc).__name__})") from None
+        if not isinstance(data, dict) or data.get("version") != 1:
+            raise fail("checkpoint", str(path), "a fluidem pickle checkpoint of version 1")
+        return data
+    header, state = _load_npz(path)
+    if header.get("version") != CHECKPOINT_VERSION or not isinstance(state, dict):
+        raise CheckpointError(f"checkpoint {str(path)!r}: version {header.get('version')!r}; expected a fluidem "
+                              f"checkpoint of version {CHECKPOINT_VERSION}")
+    return {**header, **state}
+
+
+def load_latest_checkpoint(out_dir: PathLike) -> tuple[Path, dict, list]:
+    """The newest *valid* checkpoint of a run directory: ``(path, data, skipped)``.
+
+    A damaged newer checkpoint (empty, truncated, not a checkpoint) is skipped; ``skipped``
+    lists ``(path, reason)`` of each one skipped.  Raises
+    :class:`fluidem.checkpoint.CheckpointError` when none is valid.
+    """
+    skipped = []
+    files = checkpoint_files(out_dir) or [latest_checkpoint(out_dir)]
+    for path in files:
+        try:
+            return path, load_checkpoint(path), skipped
+        except CheckpointError as exc:
+            skipped.append((path, str(exc)))
+    raise CheckpointError(f"no valid checkpoint in {str(Path(out_dir) / 'checkpoints')!r}: "
+                          + "; ".join(r for _, r in skipped))

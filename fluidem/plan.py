@@ -37,7 +37,8 @@ from .errors import InputError
 if TYPE_CHECKING:  # pragma: no cover
     from .scene import Scene
 
-__all__ = ["Plan", "Effect", "make_plan", "moving_mesh_available", "contact_candidates", "prescribed_collisions"]
+__all__ = ["Plan", "Effect", "make_plan", "moving_mesh_available", "contact_candidates", "prescribed_collisions",
+           "mesh_estimate", "machine_memory"]
 
 @dataclass
 class Effect:
@@ -62,7 +63,7 @@ class Plan:
     ----------
     effects : list of Effect
         In order: fluid, inertia, moving-bodies, mesh, ale, contacts, gravity, buoyancy,
-        rotation, remeshing, solver.
+        rotation, remeshing, periodic, solver.
     mesh : {"none", "once", "moving"}
         No mesh (dry), a mesh built once, or a moving mesh.
     contact_pairs : int
@@ -79,6 +80,10 @@ class Plan:
     n_steps: int
     unsupported: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    #: things the run will do but should not go unsaid (a coarse or degenerate mesh, memory)
+    warnings: list = field(default_factory=list)
+    #: fluid scenes: rough size of the mesh and its solve before anything is built (:func:`mesh_estimate`)
+    estimate: dict | None = None
 
     def effect(self, name) -> Effect:
         for e in self.effects:
@@ -92,7 +97,12 @@ class Plan:
     def __str__(self):
         lines = [f"plan for scene {self.scene_name!r}: {self.n_steps} steps"]
         lines += [str(e) for e in self.effects]
+        if self.estimate:
+            e = self.estimate
+            lines.append(f"  estimate: about {e['triangles']:.2g} triangles, {e['nodes']:.2g} nodes, {e['dofs']:.2g} "
+                         f"DOFs, peak memory {_bytes(e['peak_bytes'])} (this machine: {_bytes(e['machine_bytes'])})")
         lines += [f"  note: {n}" for n in self.notes]
+        lines += [f"  warning: {w}" for w in self.warnings]
         if self.unsupported:
             lines.append("  cannot run yet:")
             lines += [f"    - {u}" for u in self.unsupported]
@@ -201,7 +211,13 @@ def prescribed_collisions(scene: Scene) -> list:
     x0, x1, y0, y1 = scene.domain.box
     out = []
     for k in idx:  # prescribed bodies: a handful
-        if lo[k, 0] <= x0 or hi[k, 0] >= x1 or lo[k, 1] <= y0 or hi[k, 1] >= y1:
+        reach = [s for s, hit in (("left", lo[k, 0] <= x0), ("right", hi[k, 0] >= x1), ("bottom", lo[k, 1] <= y0),
+                                  ("top", hi[k, 1] >= y1)) if hit]
+        periodic = [s for s in reach if scene.domain.side(s).type == "periodic"]
+        if periodic:
+            out.append(f"{B[k].name} to the periodic side {periodic[0]!r} (crossing a periodic side is not "
+                       "supported: the run stops when the body comes closer than mesh.h to it)")
+        elif reach:
             out.append(f"{B[k].name} to a side of the box")
         others = [j for j, b in enumerate(B) if j != k and b.motion != "free"]
         if others:
@@ -333,6 +349,20 @@ def make_plan(scene: Scene) -> Plan:
                         f"{scene.mesh.retriangulate_every} steps or when quality drops", st))
     else:
         E.append(Effect("remeshing", False, "no moving mesh: never re-triangulated"))
+    # periodic sides
+    if not periodic:
+        E.append(Effect("periodic", False, "no periodic sides"))
+    else:
+        x0, x1, y0, y1 = scene.domain.box
+        pairs = [f"{a}/{b} (period {p:g} in {ax})" for a, b, p, ax in
+                 (("left", "right", x1 - x0, "x"), ("bottom", "top", y1 - y0, "y")) if a in periodic]
+        drive = ""
+        if fl is not None:
+            drive = (f"; driven by body_force = {list(fl.body_force)}" if any(fl.body_force) else
+                     "; no body_force (driven by moving walls or bodies only)")
+        E.append(Effect("periodic", True, "periodic pairs " + ", ".join(pairs) + ": matching mesh nodes, "
+                        "identified velocity (and continuous pressure) DOFs" + drive,
+                        "+".join(ax for a, ax in (("left", "x"), ("bottom", "y")) if a in periodic)))
     # solver
     if fl is None:
         if not moving:
@@ -352,9 +382,9 @@ def make_plan(scene: Scene) -> Plan:
         notes.append("prescribed motion brings " + "; ".join(hit[:3]) + (" ..." if len(hit) > 3 else "")
                      + " before t_end (prescribed bodies feel no contact forces)")
     # what this version cannot do (the plan still says what would be needed)
-    if periodic:
-        unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the "
-                           + ("fluid solver" if fl else "DEM") + "; use 'wall' or 'outflow'")
+    if periodic and fl is None:
+        unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the DEM "
+                           "(a dry scene); use 'wall' or 'outflow'")
     if fl is not None:
         if free:
             unsupported.append(f"free bodies in a fluid ({len(free)}: {', '.join(b.name for b in free[:5])}"
@@ -368,9 +398,142 @@ def make_plan(scene: Scene) -> Plan:
                 notes.append("prescribed translating bodies use fluidem.mesh.MovingMesh (ALE)")
         if fl.model == "stokes" and n_steps == 1 and outline_moving:
             notes.append("quasi-steady Stokes at t = 0 only: forces are those of the initial geometry")
+        if mesh == "moving" and scene.mesh.strategy == "fixed":
+            unsupported.append(f"mesh.strategy = 'fixed' keeps the mesh still, but {len(outline_moving)} body "
+                               f"outline(s) move ({', '.join(b.name for b in outline_moving[:3])}); use strategy "
+                               "'drag' or 'regenerate'")
     else:
         bad = [s for s in names.choices("side") if scene.domain.side(s).type in ("inflow", "moving-wall")]
         if bad:
             unsupported.append(f"domain sides {', '.join(bad)} are fluid conditions; a dry scene allows "
                                "'wall' and 'outflow' (open)")
-    return Plan(scene.name, E, mesh, nb + nw, n_steps, unsupported, notes)
+    estimate, warnings = None, []
+    if fl is not None:
+        estimate = mesh_estimate(scene)
+        warnings, refuse = _mesh_warnings(scene, estimate)
+        unsupported += refuse
+    defaulted = getattr(scene, "defaulted", ())
+    if "time" in defaulted:
+        notes.append(f"no [time] table: default dt = {scene.time.dt:g}, t_end = {scene.time.t_end:g}")
+    if "mesh.h" in defaulted and fl is not None:
+        notes.append(f"no mesh.h: default h = {scene.mesh.h:g}")
+    return Plan(scene.name, E, mesh, nb + nw, n_steps, unsupported, notes, warnings, estimate)
+
+
+# ---------------------------------------------------------------------------------------
+# mesh size before the mesh: estimates and warnings
+# ---------------------------------------------------------------------------------------
+#: DOFs per mesh vertex of each element pair on a triangle mesh (E ≈ 3V edges, T ≈ 2V triangles)
+DOFS_PER_VERTEX = {"th": 9.0, "p2b": 18.0, "p3": 22.0, "mini": 7.0}
+#: measured: triangles ≈ this × area / h² (an equilateral mesh has 2.31; the boundary refinement adds the rest)
+TRIANGLES_PER_AREA = 3.6
+#: measured peak memory per DOF of a run (matrices, the LU factors, the moving mesh), bytes; plus a base
+BYTES_PER_DOF, BYTES_BASE = 11e3, 150e6
+#: smallest mesh edges along a body's outline, and smallest thickness / h, before a warning
+MIN_EDGES_PER_BODY, MIN_THICKNESS_PER_H = 8, 0.1
+
+
+def _bytes(b: float) -> str:
+    for unit, f in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if b >= f:
+            return f"{b / f:.3g} {unit}"
+    return f"{b / 1e3:.3g} kB"
+
+
+def machine_memory() -> tuple[float, float]:
+    """(total, available) physical memory of this machine, bytes (``inf`` when unknown)."""
+    import os
+
+    try:
+        page = os.sysconf("SC_PAGE_SIZE")
+        return float(page * os.sysconf("SC_PHYS_PAGES")), float(page * os.sysconf("SC_AVPHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not a POSIX system
+        return float("inf"), float("inf")
+
+
+def _outline_stats(scene):
+    """(areas (n,), perimeters (n,)) of the bodies' initial outlines, length² and length."""
+    outlines = scene.world_outlines()
+    area = np.array([0.5 * abs(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1)))
+                     for p in outlines])  # once per plan
+    perim = np.array([np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1).sum() for p in outlines])
+    return area, perim
+
+
+def mesh_estimate(scene) -> dict:
+    """Rough size of a fluid scene's mesh and solve, before anything is built.
+
+    Triangles ≈ :data:`TRIANGLES_PER_AREA` × (fluid area) / h² (graded: the region at ``h``,
+    the rest at the geometric mean of ``h`` and ``h_max``); nodes ≈ triangles / 2; DOFs by
+    :data:`DOFS_PER_VERTEX`; peak memory ≈ :data:`BYTES_BASE` + :data:`BYTES_PER_DOF` × DOFs
+    (measured for a Taylor–Hood channel with the default solver).  Within a factor of ~2.
+
+    Returns
+    -------
+    dict
+        ``triangles``, ``nodes``, ``dofs``, ``peak_bytes``, ``machine_bytes``,
+        ``available_bytes`` (floats).
+    """
+    x0, x1, y0, y1 = scene.domain.box
+    area_b, _ = _outline_stats(scene) if scene.bodies else (np.zeros(0), None)
+    A = max((x1 - x0) * (y1 - y0) - float(area_b.sum()), 0.0)
+    h = scene.mesh.h
+    g = scene.mesh.grading
+    if g is None:
+        tri = TRIANGLES_PER_AREA * A / h**2
+    else:
+        reg = g["region"]
+        if reg == "bodies":
+            a_reg = min(A, float(sum(np.pi * (2 * b.bounding_radius + 4 * h) ** 2 for b in scene.bodies)))
+        else:
+            a_reg = min(A, max(0.0, min(reg[1], x1) - max(reg[0], x0)) * max(0.0, min(reg[3], y1) - max(reg[2], y0)))
+        tri = TRIANGLES_PER_AREA * (a_reg / h**2 + (A - a_reg) / (h * g["h_max"]))
+    n_boundary = 2.0 * ((x1 - x0) + (y1 - y0)) / h + sum(scene.default_segments(b) for b in scene.bodies)
+    tri = max(tri, n_boundary)  # at least the outline nodes, however coarse h is
+    nodes = max(tri / 2.0, n_boundary)
+    dofs = DOFS_PER_VERTEX.get(scene.fluid.element, 9.0) * nodes
+    total, avail = machine_memory()
+    return {"triangles": tri, "nodes": nodes, "dofs": dofs, "peak_bytes": BYTES_BASE + BYTES_PER_DOF * dofs,
+            "machine_bytes": total, "available_bytes": avail}
+
+
+def _mesh_warnings(scene, est) -> tuple[list, list]:
+    """(warnings, refusals) about a fluid scene's mesh: memory, a coarse box, coarse or thin bodies."""
+    warn, refuse = [], []
+    h = scene.mesh.h
+    x0, x1, y0, y1 = scene.domain.box
+    L = min(x1 - x0, y1 - y0)
+    size = (f"mesh.h = {h:g}: about {est['nodes']:.2g} nodes, {est['dofs']:.2g} DOFs, peak memory "
+            f"{_bytes(est['peak_bytes'])}")
+    if est["peak_bytes"] > est["machine_bytes"]:
+        refuse.append(f"{size}, more than this machine's {_bytes(est['machine_bytes'])}: raise mesh.h (or grade the "
+                      "mesh with mesh.grading)")
+    elif est["peak_bytes"] > 0.5 * est["available_bytes"]:
+        warn.append(f"{size}, more than half the memory available now ({_bytes(est['available_bytes'])})")
+    if h > L / 4:
+        warn.append(f"mesh.h = {h:g} is coarse for the box ({x1 - x0:g} × {y1 - y0:g}): about {est['triangles']:.0f} "
+                    f"triangles; results will be far off (the default is min(box / 20, body / 4) = "
+                    f"{_default_h(scene):g})")
+    if scene.bodies:
+        area, perim = _outline_stats(scene)
+        nodes = np.array([scene.default_segments(b) if b.shape in ("disk", "ellipse") else len(b.local_vertices())
+                          for b in scene.bodies])  # the outline's own vertices stay in the mesh
+        edges = np.maximum(perim / h, nodes)
+        thick = 2.0 * area / np.maximum(perim, 1e-300)
+        for k in np.flatnonzero(edges < MIN_EDGES_PER_BODY)[:3]:
+            b = scene.bodies[k]
+            warn.append(f"body {b.name!r}: about {edges[k]:.0f} mesh edges along its outline (perimeter "
+                        f"{perim[k]:.3g}, mesh.h = {h:g}); at least {MIN_EDGES_PER_BODY} resolve it (mesh.h <= "
+                        f"{perim[k] / MIN_EDGES_PER_BODY:.3g})")
+        for k in np.flatnonzero(thick / h < MIN_THICKNESS_PER_H)[:3]:
+            b = scene.bodies[k]
+            warn.append(f"body {b.name!r} is about {thick[k]:.3g} thick, {h / thick[k]:.0f} times thinner than "
+                        f"mesh.h = {h:g}: expect degenerate triangles (angles of a fraction of a degree) around it; "
+                        "a thicker body or a finer mesh near it (mesh.grading)")
+    return warn, refuse
+
+
+def _default_h(scene) -> float:
+    from .scene.specs import default_h
+
+    return default_h(scene)

@@ -154,9 +154,9 @@ def plot_run(out_dir: PathLike, save_dir: PathLike | None = None, dpi: int = 120
 
         fig, ax = figure()
         tc = ax.tripcolor(T, m.point_data["pressure"], shading="gouraud", cmap="RdBu_r")
-        fig.colorbar(tc, ax=ax, label="p / ρ", shrink=0.8)
+        fig.colorbar(tc, ax=ax, label="p (dynamic)", shrink=0.8)
         _draw_bodies(ax, last_bodies)
-        finish(fig, ax, "pressure.png", f"pressure (kinematic), t = {t_last:.4g}")
+        finish(fig, ax, "pressure.png", f"pressure (dynamic), t = {t_last:.4g}")
 
     if bodies_series:
         fig, ax = figure()

@@ -24,11 +24,29 @@ coupled solver (a later version) and are refused with a ``ValueError`` that says
 Each step's wall time is a :class:`fluidem.cost.CostSplit` with parts ``bodies``, ``mesh``,
 ``rebuild``, ``assembly``, ``solve``, ``loads`` and ``output``, reported to a progress
 callback and summed in :attr:`RunResult.totals`.
+
+Runs that never lose or silently corrupt a result:
+
+* the output directory belongs to one run (:func:`fluidem.io.prepare_output_dir`): a fresh
+  run into another run's output is refused unless ``overwrite`` or ``restart``; ``run.json``
+  records the scene and how far the run got;
+* after every step :class:`fluidem.state_checks.StateCheck` checks the state (non-finite
+  values, overlaps deeper than half a body's size, a runaway flow); a bad step is
+  never recorded;
+* checkpoints (:mod:`fluidem.checkpoint`: npz + JSON, loading never executes code) are
+  written atomically at ``output.checkpoint_every`` steps (default: about ten a run) and
+  every ``output.checkpoint_seconds`` of wall-clock time; on SIGINT/SIGTERM (after the step
+  in progress) or an error inside a step the state of the last good step is checkpointed,
+  the outputs are closed and :class:`RunStopped` says where and how to continue;
+* a restart may change only ``time.t_end`` and ``[output]`` (:func:`scene_changes` lists
+  anything else), whatever the scene file is called; the time axis stays ``t = step dt``.
 """
 
 from __future__ import annotations
 
+import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,10 +54,22 @@ import numpy as np
 
 from .coupling.bodies import DEMBodies, KinematicBodies, LinearPath
 from .cost import CostSplit
+from .errors import FluidemError, InputError
 from .geometry import orient_ccw
 from .scene import Scene
+from .state_checks import StateCheck, StateError
+from .validate import integer
 
-__all__ = ["Simulation", "RunResult", "StepTimes", "run", "LinearPath"]
+__all__ = ["Simulation", "RunResult", "StepTimes", "run", "LinearPath", "RunStopped", "RunWarning", "StateError",
+           "scene_changes", "RESTART_MAY_CHANGE"]
+
+#: a snapshot of the state (to checkpoint if a later step fails) is taken once the steps since the
+#: last one took this many times the snapshot's own time: every step for fluid runs, every few
+#: steps for cheap DEM steps of many bodies
+SNAPSHOT_RATIO = 20.0
+
+#: smallest triangle angle (degrees) of a freshly built mesh before a warning
+MIN_ANGLE = 5.0
 
 #: Former name of the per-step cost record (now :class:`fluidem.cost.CostSplit`; parts read as attributes).
 StepTimes = CostSplit
@@ -137,28 +167,104 @@ class Simulation:
             self.events.append(("mesh", ("moving, initial: " if self.plan.mesh == "moving" else "built once: ")
                                 + f"{self.flow.mesh.t.shape[1]} triangles, "
                                         f"{self.flow.dofs} DOFs, {'curved' if self.flow.curved else 'polygonal'}"))
+            self._warn_degenerate()
+        for w in self.plan.warnings:
+            self.events.append(("warning", w))
+            warnings.warn(w, RunWarning, stacklevel=2)
+
+    def _warn_degenerate(self) -> None:
+        """A warning (and an event) when the mesh just built has triangles with angles below :data:`MIN_ANGLE`."""
+        from .mesh.quality import mesh_quality
+
+        m = self.flow.mesh
+        q = mesh_quality(m.p[:, :m.nvertices].T, _ccw(m))
+        if q.min_angle < MIN_ANGLE:
+            w = (f"the mesh has degenerate triangles: smallest angle {q.min_angle:.2g}° (warned below {MIN_ANGLE:g}°) "
+                 f"among {q.n_triangles} triangles; a body thinner than mesh.h = {self.scene.mesh.h:g} or a narrow "
+                 "gap: refine there (mesh.grading) or thicken the body")
+            self.plan.warnings.append(w)
 
     # -- state ------------------------------------------------------------------------------
     def _state(self) -> dict:
+        """The run's state: bodies, flow and counters (plain data, arrays and fluidem objects)."""
         return {"bodies": self.bodies.get_state(), "flow": self.flow.get_state() if self.flow else None,
-                "scene": self.scene.to_dict(), "counters": dict(self.counters)}
+                "counters": dict(self.counters)}
 
-    def restore(self, checkpoint) -> None:
-        """Continue from a checkpoint file or output directory (its newest checkpoint)."""
-        from .io import load_checkpoint
+    def _header(self) -> dict:
+        """What a checkpoint carries beside the state: the scene, dt and the plan it ran with."""
+        from . import __version__
 
-        data = load_checkpoint(checkpoint)
-        if data["scene"] != self.scene.to_dict():
-            diff = [k for k in data["scene"] if data["scene"][k] != self.scene.to_dict().get(k)]
-            allowed = {"time", "output"}
-            if set(diff) - allowed:
-                raise ValueError(f"checkpoint {str(checkpoint)!r} belongs to a different scene (tables differ: "
-                                 f"{', '.join(sorted(set(diff) - allowed))}); allowed changes: time.t_end, output")
-        self.bodies.set_state(data["bodies"])
+        return {"scene": self.scene.to_dict(), "dt": self.scene.time.dt, "fluidem": __version__,
+                "plan": {"mesh": self.plan.mesh, "contacts": self.plan.on("contacts"), "n_steps": self.plan.n_steps,
+                         "bodies": type(self.bodies).__name__,
+                         "flow": type(self.flow).__name__ if self.flow is not None else None}}
+
+    def _snapshot(self) -> tuple:
+        """``(step, t, (tree, arrays))``: a copy of the state now, to checkpoint if a later step fails."""
+        from .checkpoint import encode
+
+        arrays: list = []
+        return self.step_index, self.t, (encode(self._state(), arrays, copy=True), arrays)
+
+    def restore(self, checkpoint, allow_pickle: bool = False) -> Path:
+        """Continue from a checkpoint file, or from the newest valid checkpoint of an output directory.
+
+        A damaged newer checkpoint in the directory is skipped with a :class:`RunWarning`.  The
+        scene may differ from the checkpoint's only in ``time.t_end``, ``[output]``, its name and
+        description; when the longer ``t_end`` switches contacts on, the DEM continues the
+        closed-form motion.  Returns the checkpoint used.
+
+        Raises
+        ------
+        fluidem.errors.InputError
+            A different scene (the message lists each change), a checkpoint beyond ``t_end``,
+            or a plan that needs another kind of flow; :class:`fluidem.checkpoint.CheckpointError`
+            for a damaged or missing file.
+        """
+        from .io import load_checkpoint, load_latest_checkpoint
+
+        path = Path(checkpoint)
+        if path.is_dir():
+            path, data, skipped = load_latest_checkpoint(path)
+            for bad, why in skipped:
+                warnings.warn(f"{why}; continuing from the previous valid checkpoint {str(path)!r}", RunWarning,
+                              stacklevel=2)
+        else:
+            data = load_checkpoint(path, allow_pickle=allow_pickle)
+        sc = self.scene
+        changes = scene_changes(data["scene"], sc.to_dict())
+        if changes:
+            raise InputError(f"checkpoint {str(path)!r} belongs to a different scene: changed "
+                             + "; ".join(changes) + "; a restart may change only time.t_end and [output] (anything "
+                             "else is a new run: --overwrite or another --out)")
+        step, t = int(data["step"]), float(data["t"])
+        if step > self.plan.n_steps:
+            raise InputError(f"time.t_end = {sc.time.t_end:g}: the checkpoint {str(path)!r} is at t = {t:g} (step "
+                             f"{step}); expected a t_end of at least {t:g}")
+        flow_kind = type(self.flow).__name__ if self.flow is not None else None
+        old = data.get("plan") or {}
+        if old.get("flow", flow_kind) != flow_kind:
+            raise InputError(f"time.t_end = {sc.time.t_end:g}: the longer run needs a {self.plan.mesh!r} mesh, the "
+                             f"checkpoint {str(path)!r} holds a {old.get('mesh')!r} one; run the longer scene from the "
+                             "start (--overwrite)")
+        bs = data["bodies"]
+        if isinstance(self.bodies, DEMBodies) and "dem" not in bs:
+            kin = KinematicBodies(sc)
+            kin.set_state(bs)
+            self.bodies = DEMBodies.from_kinematic(sc, kin)
+            self.events.append(("plan", f"from step {step} contacts are on: the DEM continues the closed-form motion"))
+        elif isinstance(self.bodies, KinematicBodies) and "dem" in bs:
+            dem = DEMBodies.__new__(DEMBodies)
+            dem.n = len(sc.bodies)
+            dem.set_state(bs)
+            self.bodies = dem
+        else:
+            self.bodies.set_state(bs)
         if self.flow is not None:
             self.flow.set_state(data["flow"])
-        self.step_index = int(data["step"])
-        self.t = float(data["t"])
+        self.step_index = step
+        self.t = t
+        return path
 
     def _record(self, writer, fields: bool, last: bool = False):
         b = self.bodies
@@ -183,42 +289,134 @@ class Simulation:
 
                 m = self.flow.mesh
                 writer.fields(self.step_index, self.t, m.p[:, :m.nvertices].T, _ccw(m),
-                              fluid_point_data(self.flow.space, self.flow.x))
+                              fluid_point_data(self.flow.space, self.flow.x, sc.fluid.density))
         return t_loads
 
+    def _advance(self, dt: float, writer, check: StateCheck) -> CostSplit:
+        """One step of the bodies and the flow, then the state checks; the step is not recorded yet."""
+        st = CostSplit()
+        t_new = (self.step_index + 1) * dt
+        b = self.bodies
+        with st.timer("bodies"):
+            if isinstance(b, DEMBodies):
+                with np.errstate(all="ignore"):  # a bad state is reported by the checks below, by body
+                    b.step(dt)
+            else:
+                b.step(dt)
+        check.bodies(b.positions, b.angles, b.velocities, b.omegas, t_new)
+        if isinstance(b, DEMBodies):
+            check.walls(b.dem.world_vertices(), b.dem.walls, t_new)
+            check.overlaps(b.dem.contacts, t_new)
+        if self.flow is not None:
+            self.flow.step(dt)
+            st += self.flow.last_cost
+            x, nd = self.flow.x, self.flow.space.ub.nodal_dofs
+            if not np.isfinite(x).all():
+                x = np.where(np.isfinite(x), x, np.nan)
+            check.flow(x[nd[0]], x[nd[1]], self.flow.mesh.p, t_new, x=x)
+        return st
+
+    def _run_record(self, out_dir, status: str, n_steps: int, checkpoint=None, message: str = "") -> None:
+        from . import __version__
+        from .io import HISTORY_UNITS, write_run_record
+
+        sc = self.scene
+        write_run_record(out_dir, {
+            "format": "fluidem-run-1", "scene": sc.name, "scene_key": scene_key(sc.to_dict()),
+            "source": sc.source, "fluidem": __version__, "status": status, "step": self.step_index, "t": self.t,
+            "n_steps": n_steps, "dt": sc.time.dt, "t_end": sc.time.t_end,
+            "checkpoint": None if checkpoint is None else str(Path(checkpoint).relative_to(out_dir)),
+            "message": message, "units": HISTORY_UNITS,
+            "pressure": "VTU 'pressure' is dynamic (fluid density x kinematic pressure), 'kinematic_pressure' "
+                        "beside it; history loads are dynamic too"})
+
+    def _check_owner(self, out_dir) -> None:
+        """Refuse to continue, in ``out_dir``, a run of another scene."""
+        from .io import OutputDirError, read_run_record
+
+        rec = read_run_record(out_dir)
+        if rec.get("scene_key") and rec["scene_key"] != scene_key(self.scene.to_dict()):
+            raise OutputDirError(f"output directory {str(out_dir)!r} holds a run of another scene "
+                                 f"({rec.get('scene')!r}); continue it with its own scene ({str(out_dir)}/scene.toml) "
+                                 "or give another --out")
+
+    def _log_mesh_event(self, writer, ev_mesh) -> None:
+        """Event-log lines of this step's mesh update: re-triangulation (reason, size, field
+        transfer, interpolation noise and force change) and oscillating nodes."""
+        if ev_mesh.retriangulated:
+            msg = f"reason={ev_mesh.reason} nodes={ev_mesh.n_nodes} triangles={ev_mesh.n_triangles}"
+            if self.scene.fluid.model != "stokes":
+                how = ("ALE interpolation through the old mesh motion" if ev_mesh.history == "ale" else
+                       "interpolation, Eulerian step (old mesh not valid at the new positions)"
+                       if ev_mesh.history == "eulerian" else "interpolation")
+                msg += f"; fields transferred by {how}"
+                if ev_mesh.transfer_change is not None:
+                    msg += f"; interpolation noise {100 * ev_mesh.transfer_change:.3g} %"
+                if ev_mesh.force_change is not None:
+                    msg += f"; force change {100 * ev_mesh.force_change:.3g} %"
+            writer.event(self.step_index, self.t, "retriangulation", msg)
+        if len(ev_mesh.oscillating):
+            writer.event(self.step_index, self.t, "oscillation", f"{len(ev_mesh.oscillating)} oscillating nodes")
+
     # -- running ---------------------------------------------------------------------------------
-    def run(self, out_dir="scene", restart=None, progress=None, n_steps: int | None = None) -> RunResult:
+    def run(self, out_dir="scene", restart=None, progress=None, n_steps: int | None = None,
+            overwrite: bool = False, allow_pickle: bool = False) -> RunResult:
         """Step to ``time.t_end`` (or ``n_steps`` steps in total), writing output to ``out_dir``.
 
         Parameters
         ----------
         out_dir : str, Path or None
-            Output directory; ``"scene"`` takes ``[output] dir``; ``None`` writes nothing.
+            Output directory; ``"scene"`` takes ``[output] dir``; ``None`` writes nothing.  A
+            directory holding another run's output is refused unless ``overwrite`` or ``restart``.
         restart : str, Path or True, optional
-            Continue from a checkpoint file, or from the newest checkpoint in ``out_dir``
+            Continue from a checkpoint file, or from the newest valid checkpoint in ``out_dir``
             (``True``); the history is cut back to the checkpoint and continued.
         progress : callable, optional
             ``progress(step, n_steps, t, cost)`` after every step, ``cost`` the step's
             :class:`~fluidem.cost.CostSplit`.
         n_steps : int, optional
             Stop after this many steps in total (the plan's ``round(t_end/dt)`` by default).
+        overwrite : bool
+            Clear the run output already in ``out_dir`` (:data:`fluidem.io.OUTPUT_ENTRIES`) first.
+        allow_pickle : bool
+            Accept a pickle checkpoint of an earlier version as ``restart`` (only for your own files).
+
+        Raises
+        ------
+        RunStopped
+            On SIGINT/SIGTERM (after the step in progress; a second Ctrl-C stops at once) or an
+            error inside a step, with output: the outputs are closed, the state of the last
+            good step is checkpointed, and the message says where and how to continue.
+            Without output the error itself propagates.
         """
-        from .io import OutputWriter
+        from .io import OutputWriter, prepare_output_dir
 
         sc = self.scene
         if out_dir == "scene":
             out_dir = sc.output.dir
-        if restart is not None and restart is not False:
+        restarting = restart is not None and restart is not False
+        if restarting and overwrite:
+            raise InputError("restart and overwrite exclude each other: restart continues the run in the output "
+                             "directory, overwrite clears it")
+        if n_steps is not None:
+            n_steps = integer("n_steps", n_steps, lo=1)
+        ck_used = None
+        if restarting:
             if restart is True:
                 if out_dir is None:
-                    raise ValueError("restart = True needs an output directory with checkpoints")
+                    raise InputError("restart = True needs an output directory with checkpoints")
                 restart = out_dir
-            self.restore(restart)
+            n_events = len(self.events)
+            ck_used = self.restore(restart, allow_pickle=allow_pickle)  # lists any change of the scene
+            if out_dir is not None and Path(out_dir).is_dir():
+                self._check_owner(out_dir)  # a checkpoint from elsewhere: the folder must be this scene's
+        N = self.plan.n_steps if n_steps is None else n_steps
         writer = None
         if out_dir is not None:
-            writer = OutputWriter(out_dir, restart_step=self.step_index if restart else None)
-            if not restart:
-                sc.to_toml(Path(out_dir) / "scene.toml")
+            prepare_output_dir(out_dir, "restart" if restarting else ("overwrite" if overwrite else "new"))
+            writer = OutputWriter(out_dir, restart_step=self.step_index if restarting else None)
+            sc.to_toml(Path(out_dir) / "scene.toml")  # the scene as run (on a restart: with its new t_end)
+            if not restarting:
                 for kind, msg in self.events:
                     writer.event(0, 0.0, kind, msg)
                 if self.flow is not None:
@@ -227,57 +425,266 @@ class Simulation:
                     m = self.flow.mesh
                     writer.mesh_quality(0, 0.0, mesh_quality(m.p[:, :m.nvertices].T, _ccw(m)))
             else:
-                writer.event(self.step_index, self.t, "restart", f"from {restart}")
-        N = self.plan.n_steps if n_steps is None else int(n_steps)
+                writer.event(self.step_index, self.t, "restart", f"from {ck_used}")
+                for kind, msg in self.events[n_events:]:
+                    writer.event(self.step_index, self.t, kind, msg)
+            self._run_record(out_dir, "running", N)
         dt = sc.time.dt
-        ev, ck = sc.output.every, sc.output.checkpoint_every
+        ev = sc.output.every
+        ck, ck_wall = sc.output.checkpoint_every, sc.output.checkpoint_seconds
+        keep = None
+        if ck is None:  # the default cadence: about ten checkpoints a run, the newest three kept
+            ck, keep = max(1, -(-N // 10)), 3
+        check = StateCheck.for_scene(sc)
         totals = CostSplit()
         wall0 = time.perf_counter()
+        last_ck_wall = wall0
+        stop = None  # (kind, signal name, exception)
+        snap = None
+        last_ck = None
+        guard = _SignalGuard()
         try:
-            if self.step_index == 0 and writer is not None:
-                self._record(writer, fields=True)
-            while self.step_index < N:
-                st = CostSplit()
-                with st.timer("bodies"):
-                    self.bodies.step(dt)
-                if self.flow is not None:
-                    self.flow.step(dt)
-                    st += self.flow.last_cost
-                    ev_mesh = getattr(self.flow, "last_event", None)
-                    if ev_mesh is not None and writer is not None:
-                        if ev_mesh.retriangulated:
-                            writer.event(self.step_index + 1, self.t + dt, "retriangulation",
-                                         f"reason={ev_mesh.reason} nodes={ev_mesh.n_nodes} "
-                                         f"triangles={ev_mesh.n_triangles}; fields transferred by interpolation"
-                                         if self.scene.fluid.model != "stokes" else f"reason={ev_mesh.reason}")
-                        if len(ev_mesh.oscillating):
-                            writer.event(self.step_index + 1, self.t + dt, "oscillation",
-                                         f"{len(ev_mesh.oscillating)} oscillating nodes")
-                self.step_index += 1
-                self.counters["steps"] += 1
-                self.t = self.step_index * dt
-                t0 = time.perf_counter()
-                last = self.step_index == N
-                t_loads = self._record(writer, fields=(self.step_index % ev == 0 or last), last=last)
-                if writer is not None and self.plan.mesh == "moving" and (self.step_index % ev == 0 or last):
-                    writer.mesh_quality(self.step_index, self.t, self.flow.mm.quality())
-                if writer is not None and ((ck and self.step_index % ck == 0) or last):
-                    writer.checkpoint(self.step_index, self.t, self._state())
-                st.add("loads", t_loads)
-                st.add("output", time.perf_counter() - t0 - t_loads)
-                st.count("steps")
-                totals += st
-                if progress is not None:
-                    progress(self.step_index, N, self.t, st)
-        finally:
-            if writer is not None:
+            with guard:
+                if self.step_index == 0 and writer is not None:
+                    self._record(writer, fields=True)
+                if writer is not None:
+                    snap = self._snapshot()
+                snap_s, since = 0.0, 0.0  # seconds of the last snapshot, of the steps since
+                while self.step_index < N:
+                    if guard.signal:
+                        stop = ("interrupt", guard.signal, None)
+                        break
+                    t_step = time.perf_counter()
+                    try:
+                        st = self._advance(dt, writer, check)
+                    except KeyboardInterrupt:
+                        if writer is None:
+                            raise
+                        stop = ("interrupt", "SIGINT", None)
+                        break
+                    except Exception as exc:
+                        if writer is None:
+                            raise
+                        stop = ("error", None, exc, self.step_index + 1)
+                        break
+                    self.step_index += 1
+                    self.counters["steps"] += 1
+                    self.t = self.step_index * dt
+                    t0 = time.perf_counter()
+                    last = self.step_index == N
+                    t_loads = self._record(writer, fields=(self.step_index % ev == 0 or last), last=last)
+                    ev_mesh = getattr(self.flow, "last_event", None) if self.flow is not None else None
+                    if ev_mesh is not None and writer is not None:  # after the loads: the force change is known
+                        self._log_mesh_event(writer, ev_mesh)
+                    if writer is not None and self.plan.mesh == "moving" and (self.step_index % ev == 0 or last):
+                        writer.mesh_quality(self.step_index, self.t, self.flow.mm.quality())
+                    if writer is not None:
+                        now = time.perf_counter()
+                        since += now - t_step
+                        due = (ck and self.step_index % ck == 0) or last or (ck_wall and now - last_ck_wall >= ck_wall)
+                        if due or since >= SNAPSHOT_RATIO * snap_s:  # snapshots cost at most ~5 % of the steps
+                            snap = self._snapshot()
+                            snap_s, since = time.perf_counter() - now, 0.0
+                        if due:
+                            last_ck = writer.checkpoint(self.step_index, self.t, header=self._header(),
+                                                        snapshot=snap[2], keep=keep)
+                            last_ck_wall = now
+                    st.add("loads", t_loads)
+                    st.add("output", time.perf_counter() - t0 - t_loads)
+                    st.count("steps")
+                    totals += st
+                    if progress is not None:
+                        progress(self.step_index, N, self.t, st)
+            if guard.signal and stop is None and self.step_index < N:
+                stop = ("interrupt", guard.signal, None)
+            if stop is not None and stop[0] == "interrupt" and writer is not None and snap[0] != self.step_index:
+                snap = self._snapshot()  # stopped between steps: the state now is good
+            if stop is not None and writer is None:
+                raise KeyboardInterrupt
+        except BaseException as exc:  # outside a step (recording, output, progress)
+            if writer is None or isinstance(exc, (SystemExit, GeneratorExit)):
+                if writer is not None:
+                    writer.close()
+                raise
+            stop = ("interrupt", "SIGINT", None) if isinstance(exc, KeyboardInterrupt) else \
+                ("error", None, exc, max(self.step_index, 1))  # recording the step failed
+        if writer is not None:
+            if stop is None:
                 writer.event(self.step_index, self.t, "end", f"{self.counters['steps']} steps this run")
                 writer.close()
+                self._run_record(out_dir, "complete" if self.step_index >= self.plan.n_steps else "stopped", N,
+                                 last_ck)
+            else:
+                self._stop(writer, out_dir, N, stop, snap, keep)
         if isinstance(self.bodies, DEMBodies):
             self.counters["dem_substeps"] = self.bodies.substeps
         return RunResult(self.step_index, self.t, None if out_dir is None else str(out_dir),
                          time.perf_counter() - wall0, self.flow.dofs if self.flow else 0, totals,
                          ("curved" if self.flow.curved else "polygonal") if self.flow else "")
+
+    def _stop(self, writer, out_dir, n_steps, stop, snap, keep):
+        """Close the outputs at the last good step, checkpoint it and raise :class:`RunStopped`."""
+        kind, sig, exc = stop[:3]
+        step, t, snapshot = snap if snap is not None else (self.step_index, self.t, None)
+        failed_at = stop[3] if kind == "error" else self.step_index + 1
+        path = None
+        try:
+            if snapshot is not None:
+                path = writer.checkpoint(step, t, header=self._header(), snapshot=snapshot, keep=keep)
+        except Exception as err:  # the disk is full, say: the older checkpoints stay
+            writer.event(step, t, "checkpoint-failed", _one_line(err))
+        sc = self.scene
+        where = f"checkpoint {str(path)!r}" if path is not None else "no new checkpoint (see events.log)"
+        how = f"fluidem run {sc.source or str(Path(out_dir) / 'scene.toml')} --out {out_dir} --restart"
+        if kind == "interrupt":
+            msg = (f"interrupted by {sig} after step {step} of {n_steps} (t = {t:.6g}); the output holds steps 0 to "
+                   f"{step}; {where}; continue with: {how}")
+            status, code = "interrupted", 143 if sig == "SIGTERM" else 130
+        else:
+            what = _one_line(exc)
+            msg = (f"step {failed_at} (t = {failed_at * sc.time.dt:.6g}) failed: {what}; the output holds steps 0 to "
+                   f"{failed_at - 1}, the last good state "
+                   + (f"saved (step {step}) " if step != failed_at - 1 else "") + f"is in {where}")
+            if not isinstance(exc, StateError):
+                msg += f"; continue with: {how}"
+            status, code = "failed", 3
+        writer.event(step, t, status, _one_line(msg))
+        writer.event(step, t, "end", f"{self.counters['steps']} steps this run")
+        writer.close()
+        self._run_record(out_dir, status, n_steps, path, _one_line(msg))
+        err = RunStopped(msg, status=status, exit_status=code, checkpoint=path)
+        if exc is not None:
+            raise err from exc
+        raise err
+
+
+class RunWarning(UserWarning):
+    """Something a run did that its output should say: a damaged checkpoint skipped, a coarse mesh."""
+
+
+class RunStopped(FluidemError):
+    """A run stopped before its end: interrupted (SIGINT/SIGTERM) or a step failed.
+
+    Attributes
+    ----------
+    status : {"interrupted", "failed"}
+    exit_status : int
+        130 (SIGINT), 143 (SIGTERM) or 3 (a failed step): the command line's exit status.
+    checkpoint : Path or None
+        The checkpoint of the last good step.
+
+    The :class:`Simulation` itself is left where it stopped (after a failed step: in the bad
+    state); continue with a new one, ``Simulation(scene).run(out_dir, restart=True)``.
+    """
+
+    def __init__(self, message, status="failed", exit_status=3, checkpoint=None):
+        super().__init__(message)
+        self.status = status
+        self.exit_status = exit_status
+        self.checkpoint = checkpoint
+
+
+class _SignalGuard:
+    """SIGINT and SIGTERM set :attr:`signal` (the run stops after the step in progress); a second
+    SIGINT raises ``KeyboardInterrupt`` at once.  Installed only in the main thread, and not for a
+    signal the process ignores."""
+
+    def __init__(self):
+        self.signal = None
+        self._old = {}
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        if threading.current_thread() is not threading.main_thread():
+            return self
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                old = signal.getsignal(sig)
+                if old is signal.SIG_IGN or old is None:
+                    continue
+                self._old[sig] = signal.signal(sig, self._handle)
+            except (ValueError, OSError):  # pragma: no cover - not allowed here
+                pass
+        return self
+
+    def _handle(self, signum, frame):
+        import signal
+
+        name = signal.Signals(signum).name
+        if self.signal is not None and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        self.signal = name
+        print(f"fluidem: {name}: stopping after this step (Ctrl-C again to stop at once)", file=sys.stderr,
+              flush=True)
+
+    def __exit__(self, *exc):
+        import signal
+
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+        self._old = {}
+        return False
+
+
+# ---------------------------------------------------------------------------------------
+# restart rules
+# ---------------------------------------------------------------------------------------
+#: scene keys a restart may change (besides every key of [output])
+RESTART_MAY_CHANGE = ("name", "description", "time.t_end")
+
+
+def _flatten(d, prefix="") -> dict:
+    if isinstance(d, dict):
+        out = {}
+        for k, v in d.items():
+            out.update(_flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+        return out
+    if isinstance(d, list) and prefix == "bodies":
+        out = {"bodies": f"{len(d)} bodies"}
+        for i, v in enumerate(d):
+            out.update(_flatten(v, f"bodies[{i}]"))
+        return out
+    return {prefix: d}
+
+
+def _fixed(flat: dict) -> dict:
+    return {k: v for k, v in flat.items() if k not in RESTART_MAY_CHANGE and k != "output" and
+            not k.startswith("output.")}
+
+
+def scene_changes(old: dict, new: dict) -> list:
+    """The changes between two scene dicts (:meth:`Scene.to_dict`) that a restart does not allow.
+
+    Returns ``"key old -> new"`` strings; ``time.t_end``, ``[output]``, ``name`` and
+    ``description`` may change, and ``[mesh]`` of a dry scene (which has no mesh).
+
+    Examples
+    --------
+    >>> scene_changes({"time": {"dt": 0.05, "t_end": 2.0}}, {"time": {"dt": 0.025, "t_end": 4.0}})
+    ['time.dt 0.05 -> 0.025']
+    """
+    a, b = _fixed(_flatten(old)), _fixed(_flatten(new))
+    if "fluid" not in old and "fluid" not in new:  # a dry scene has no mesh: [mesh] does not matter
+        a, b = ({k: v for k, v in x.items() if not k.startswith("mesh.")} for x in (a, b))
+    missing = "(absent)"
+    keys = list(a) + [k for k in b if k not in a]
+    return [f"{k} {a.get(k, missing)!r} -> {b.get(k, missing)!r}".replace("'(absent)'", missing)
+            for k in keys if a.get(k, missing) != b.get(k, missing)]
+
+
+def scene_key(d: dict) -> str:
+    """A digest of what a restart must keep of a scene dict (see :func:`scene_changes`)."""
+    import hashlib
+    import json
+
+    flat = _fixed(_flatten(d))
+    return hashlib.sha256(json.dumps(flat, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def _one_line(exc) -> str:
+    return " ".join(str(exc).splitlines()) or type(exc).__name__
 
 
 def _ccw(mesh) -> np.ndarray:
@@ -285,6 +692,6 @@ def _ccw(mesh) -> np.ndarray:
     return orient_ccw(mesh.p.T, mesh.t.T)
 
 
-def run(scene, out_dir="scene", restart=None, progress=None) -> RunResult:
-    """Build a :class:`Simulation` for ``scene`` (a Scene or a TOML path) and run it."""
-    return Simulation(scene).run(out_dir=out_dir, restart=restart, progress=progress)
+def run(scene, out_dir="scene", restart=None, progress=None, overwrite: bool = False) -> RunResult:
+    """Build a :class:`Simulation` for ``scene`` (a Scene or a TOML path) and run it (see :meth:`Simulation.run`)."""
+    return Simulation(scene).run(out_dir=out_dir, restart=restart, progress=progress, overwrite=overwrite)

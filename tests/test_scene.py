@@ -233,7 +233,8 @@ def test_plan_fluid_effects():
     assert any("free bodies in a fluid" in u for u in free.plan().unsupported)
     assert free.plan().on("buoyancy")
     per = _fluid("stokes", [], domain={"box": [0.0, 2.0, 0.0, 1.0], "left": "periodic", "right": "periodic"})
-    assert any("periodic" in u for u in per.plan().unsupported)
+    assert not per.plan().unsupported and per.plan().on("periodic")
+    assert "left/right (period 2 in x)" in per.plan().effect("periodic").why
     text = str(fixed.plan())
     for word in ("inertia", "moving-bodies", "contacts", "gravity", "buoyancy", "rotation", "remeshing", "solver"):
         assert word in text

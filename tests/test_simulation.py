@@ -107,9 +107,9 @@ def test_single_body_far_from_walls_does_no_contact_search(monkeypatch):
 
 def _restart_check(scene_dict, tmp_path, n, half):
     full, part = tmp_path / "full", tmp_path / "part"
-    Simulation(Scene.from_dict(scene_dict)).run(out_dir=full)
-    Simulation(Scene.from_dict(scene_dict)).run(out_dir=part, n_steps=n)
-    Simulation(Scene.from_dict(scene_dict)).run(out_dir=part, restart=part / "checkpoints" / f"ckpt_{half:07d}.pkl")
+    Simulation(Scene.from_dict(scene_dict)).run(out_dir=full, overwrite=True)
+    Simulation(Scene.from_dict(scene_dict)).run(out_dir=part, n_steps=n, overwrite=True)
+    Simulation(Scene.from_dict(scene_dict)).run(out_dir=part, restart=part / "checkpoints" / f"ckpt_{half:07d}.npz")
     a, b = read_history(full), read_history(part)
     assert len(a["t"]) == len(b["t"]) and np.array_equal(a["step"], b["step"])
     return max(float(np.abs(a[k] - b[k]).max()) for k in a)

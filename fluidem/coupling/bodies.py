@@ -98,7 +98,7 @@ class KinematicBodies:
 class DEMBodies:
     """Bodies moved by :class:`fluidem.dem.DEM` (sub-steps of at most ``dt_max`` inside a scene step)."""
 
-    def __init__(self, scene):
+    def __init__(self, scene, t0: float = 0.0):
         from ..dem import DEM, Body, ContactModel
 
         bodies = []
@@ -115,9 +115,23 @@ class DEMBodies:
         walls = (x0 if sides["left"] == "wall" else -np.inf, x1 if sides["right"] == "wall" else np.inf,
                  y0 if sides["bottom"] == "wall" else -np.inf, y1 if sides["top"] == "wall" else np.inf)
         c = scene.contact
-        self.dem = DEM(bodies, walls=walls, gravity=scene.gravity, contact=ContactModel(E=c.E, mu=c.mu, gamma=c.gamma))
+        self.dem = DEM(bodies, walls=walls, gravity=scene.gravity, contact=ContactModel(E=c.E, mu=c.mu, gamma=c.gamma),
+                       t0=t0)
         self.n = len(bodies)
         self.substeps = 0
+
+    @classmethod
+    def from_kinematic(cls, scene, kinematic: KinematicBodies) -> DEMBodies:
+        """The DEM continuing the closed-form motion of ``kinematic`` at its time (a restart whose
+        longer ``t_end`` switches contacts on): free bodies start from their current state,
+        prescribed bodies keep their paths (the DEM's clock starts at that time)."""
+        sc = scene.copy()
+        pos, ang, vel, om = kinematic.positions, kinematic.angles, kinematic.velocities, kinematic.omegas
+        for k, b in enumerate(sc.bodies):  # once per restart
+            if b.motion == "free":
+                b.position, b.angle = tuple(pos[k]), float(ang[k])
+                b.velocity, b.omega = tuple(vel[k]), float(om[k])
+        return cls(sc, t0=kinematic.t)
 
     def step(self, dt):
         self.substeps += self.dem.advance(dt)

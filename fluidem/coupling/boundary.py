@@ -6,7 +6,15 @@ import math
 
 import numpy as np
 
-__all__ = ["inflow_value", "velocity_bcs"]
+__all__ = ["inflow_value", "velocity_bcs", "periodic_axes_of"]
+
+
+def periodic_axes_of(scene) -> tuple:
+    """Periodic axes of the scene's box: ``"x"`` if ``left``/``right`` are periodic, ``"y"`` if
+    ``bottom``/``top`` are (:mod:`fluidem.mesh.periodic`)."""
+    from ..mesh.periodic import axes_of_sides
+
+    return axes_of_sides({s: scene.domain.side(s).type for s in ("left", "right", "bottom", "top")})
 
 
 def inflow_value(side: str, box, profile: dict):
@@ -45,7 +53,7 @@ def velocity_bcs(scene, centers):
     """Velocity conditions of the box sides and the bodies (rigid motion about ``centers`` (n, 2)).
 
     Returns a list of :class:`fluidem.fluid.space.VelocityBC`: the sides first (in the order
-    left, right, bottom, top; outflow sides get none), then one per body, so a body's
+    left, right, bottom, top; outflow and periodic sides get none), then one per body, so a body's
     condition wins on DOFs it shares with a side.
     """
     from ..fluid.space import RigidMotion, VelocityBC

@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 from ..cost import CostSplit
-from .boundary import velocity_bcs
+from .boundary import periodic_axes_of, velocity_bcs
 from .loads import FlowLoads
 
 __all__ = ["FixedMeshFlow"]
@@ -22,6 +22,8 @@ class FixedMeshFlow(FlowLoads):
 
     Attributes
     ----------
+    periodic : tuple of {"x", "y"}
+        Periodic axes of the box (matched mesh nodes, identified DOFs).
     mesh : skfem.MeshTri or MeshTri2
     space : FlowSpace
     problem : FlowProblem
@@ -53,7 +55,8 @@ class FixedMeshFlow(FlowLoads):
             region = g["region"] if g["region"] != "bodies" else [o.vertices for o in obstacles]
             size = GradedSize(h_min=ms.h, growth=g["growth"], h_max=g["h_max"], region=region) if region else \
                 UniformSize(ms.h)
-        tmesh = tri.triangulate_box(scene.domain.box, obstacles, size)
+        self.periodic = periodic_axes_of(scene)
+        tmesh = tri.triangulate_box(scene.domain.box, obstacles, size, periodic=self.periodic)
         self.curved = bool(tmesh.circles)
         self.mesh = tri.to_skfem(tmesh, curved=self.curved)
         sim.counters["triangulations"] += 1
@@ -61,7 +64,8 @@ class FixedMeshFlow(FlowLoads):
         self.space = FlowSpace(self.mesh, fl.element)
         bcs = velocity_bcs(scene, [b.position for b in scene.bodies])
         self.rho = fl.density
-        self.problem = FlowProblem(self.space, fl.viscosity, bcs, rho=fl.density, body_force=fl.body_force)
+        self.problem = FlowProblem(self.space, fl.viscosity, bcs, rho=fl.density, body_force=fl.body_force,
+                                   periodic=self.periodic)
         self.stokes = fl.model == "stokes"
         self.centers = [b.position for b in scene.bodies]
         self.names = [b.name for b in scene.bodies]

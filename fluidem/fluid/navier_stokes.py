@@ -62,15 +62,12 @@ def _solve_free(problem: FlowProblem, uu_data: np.ndarray, rhs_full: np.ndarray,
 
     ``refactorize``: a lagged LU factorises this K now (the DOF numbering changed).
     """
-    f = problem.free
     K = problem.condensed_matrix(uu_data)
     if refactorize and isinstance(solver, (LaggedLUSolver, AutoSolver)):
         solver.factorize(K, force=True)
     else:
         solver.factorize(K)
-    out = np.zeros_like(rhs_full)
-    out[f] = solver.solve(rhs_full[f])
-    return out
+    return problem.expand(solver.solve(problem.reduce(rhs_full)))
 
 
 def solve_stokes(problem: FlowProblem, t: float = 0.0, solver=None) -> FlowState:
@@ -112,11 +109,10 @@ def solve_steady(problem: FlowProblem, tol: float = 1e-11, max_iter: int = 25, s
     d, v = problem.dirichlet_values(0.0)
     x[d] = v
     history = []
-    f = problem.free
     for it in range(max_iter + 1):
         t0 = time.perf_counter()
         r = problem.steady_residual(x)
-        res = float(np.linalg.norm(r[f]))
+        res = float(np.linalg.norm(problem.reduce(r)))
         history.append(res)
         if verbose:
             print(f"  Newton {it:2d}: |R| = {res:.3e}")
@@ -282,16 +278,15 @@ class BDF2Stepper:
             if self._explicit_a0 != a0:  # the matrix changes only from the BDF1 to the BDF2 step
                 self._explicit_lu = pr.direct_solver().factorize(pr.condensed_matrix(base))
                 self._explicit_a0 = a0
-            x[pr.free] -= self._explicit_lu.solve(r[pr.free])
+            x -= pr.expand(self._explicit_lu.solve(pr.reduce(r)))
             tm.add("solve", time.perf_counter() - t0)
             self.last_b = None
         else:
-            f = pr.free
             for it in range(30):
                 t0 = time.perf_counter()
                 b = x[:n_u] if self.mesh_velocity is None else x[:n_u] - self.mesh_velocity
                 r = self.residual(x, a0, hist, b)
-                res = np.linalg.norm(r[f])
+                res = np.linalg.norm(pr.reduce(r))
                 if res < self.newton_tol:
                     tm.add("assembly", time.perf_counter() - t0)
                     break

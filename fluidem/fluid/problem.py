@@ -67,10 +67,25 @@ class FlowProblem:
         :meth:`update_geometry` (straight meshes only), so that a problem built on a mesh
         and one moved onto it agree bit for bit (restarts of moving-mesh runs).  Default:
         scikit-fem assembly.
+    periodic : sequence of {"x", "y"}
+        Periodic axes (``"x"``: sides ``left``/``right``, ``"y"``: ``bottom``/``top``; the mesh
+        has matching nodes there, :mod:`fluidem.mesh.periodic`): their velocity DOFs (and
+        continuous pressure DOFs) are identified (:mod:`fluidem.fluid.periodic`); periodic
+        sides take no velocity condition and are no do-nothing boundary.  A body force (or
+        the equivalent mean pressure gradient, ``body_force = −∇p̄ / ρ``) drives a periodic
+        channel.
+
+    Attributes
+    ----------
+    free : (n_free,) int
+        The unknowns of the condensed system: free DOFs of ``[u, p]`` (with periodic sides
+        only the representatives of identified DOFs).
+    rep : (n_u + n_p,) int or None
+        Representative of every DOF (periodic sides; ``None`` without).
     """
 
     def __init__(self, space: FlowSpace, nu: float, bcs: Sequence[VelocityBC] = (), rho: float = 1.0,
-                 body_force=(0.0, 0.0), moving: bool = False):
+                 body_force=(0.0, 0.0), moving: bool = False, periodic=()):
         if not (np.isfinite(nu) and nu > 0):
             raise ValueError(f"viscosity nu must be a positive number, got {nu!r}")
         if not (np.isfinite(rho) and rho > 0):
@@ -80,27 +95,55 @@ class FlowProblem:
         self.rho = float(rho)
         self.bcs = list(bcs)
         self.body_force = np.asarray(body_force, dtype=float)
+        from ..mesh.periodic import SIDE_PAIRS, periodic_axes
+
+        self.periodic = periodic_axes(periodic)
+        periodic_sides = {s for a in self.periodic for s in SIDE_PAIRS[a]}
+        for name in sorted(periodic_sides):
+            space._check_boundary(name)
         named = set()
         for bc in self.bcs:
             for name in bc.names:
                 space._check_boundary(name)
+                if name in periodic_sides:
+                    raise ValueError(f"boundary {name!r} is periodic: it takes no velocity condition")
                 named.add(name)
             for c in bc.components:
                 if c not in (0, 1):
                     raise ValueError(f"velocity components must be 0 or 1, got {bc.components!r}")
-        self.natural_boundaries = [b for b in space.boundary_names if b not in named]
+        self.natural_boundaries = [b for b in space.boundary_names if b not in named and b not in periodic_sides]
         self._dirichlet_dofs = self._collect_dirichlet_dofs()
         n = space.n_dofs
         # With no natural boundary the pressure is fixed only up to a constant: pin one DOF
         # (the pressure is shifted to zero mean afterwards).
         self.pressure_pinned = not self.natural_boundaries
+        self.rep = None
+        pin = space.n_u
+        if self.periodic:
+            from .periodic import periodic_pairs, representatives
+
+            self.rep = representatives(n, periodic_pairs(space, self.periodic), self._dirichlet_dofs)
+            # pin a pressure DOF identified with no other (off the periodic sides)
+            alone = np.bincount(self.rep, minlength=n)[self.rep] == 1
+            pin = space.n_u + int(np.argmax(alone[space.n_u:]))
         fixed = self._dirichlet_dofs
         if self.pressure_pinned:
-            fixed = np.concatenate([fixed, [space.n_u]])
+            fixed = np.concatenate([fixed, [pin]])
         self.fixed = np.unique(fixed)
         mask = np.ones(n, dtype=bool)
         mask[self.fixed] = False
+        if self.rep is not None:
+            mask &= self.rep == np.arange(n)
         self.free = np.flatnonzero(mask)
+        self._fold = None
+        if self.rep is not None:
+            pos = np.full(n, -1, dtype=np.int64)
+            pos[self.free] = np.arange(len(self.free))
+            fold = pos[self.rep]
+            fold[self.fixed] = -1
+            self._fold = fold
+            self._fold_src = np.flatnonzero(fold >= 0)
+            self._fold_dst = fold[self._fold_src]
         self.timings = CostSplit()  # seconds in assembly and solve, accumulated
         t0 = time.perf_counter()
         ub, pb = space.ub, space.pb
@@ -115,7 +158,7 @@ class FlowProblem:
             self.M = self.assembler.matrix(self.M_data)
             self.B = asm(forms.divergence, ub, pb).tocsr()
             self._f = self._body_force_vector()
-        self.system = CondensedSystem(self.assembler, self.B, self.free)
+        self.system = self._condensed()
         self._bv_index = None
         self._index_boundary_values()
         self.timings.add("assembly", time.perf_counter() - t0)
@@ -155,9 +198,42 @@ class FlowProblem:
         self._refill_forms()
         if not self.system.update_divergence(self.B):
             # B's structure changed (built by scikit-fem, which drops structural zeros): once
-            self.system = CondensedSystem(self.assembler, self.B, self.free)
+            self.system = self._condensed()
         self._index_boundary_values()
         self.timings.add("rebuild", time.perf_counter() - t0)
+
+    def _condensed(self):
+        """The condensed saddle-point structure (folded onto the periodic unknowns if any)."""
+        if self._fold is None:
+            return CondensedSystem(self.assembler, self.B, self.free)
+        from .periodic import FoldedSystem
+
+        return FoldedSystem(self.assembler, self.B, self._fold, len(self.free))
+
+    # -- the condensed unknowns ----------------------------------------------------------
+    def reduce(self, r: np.ndarray) -> np.ndarray:
+        """A full residual ``(n_u + n_p,)`` on the condensed unknowns, ``(n_free,)``: ``Pᵀ r``
+        restricted to the free DOFs (``r[free]`` without periodic sides)."""
+        if self._fold is None:
+            return r[self.free]
+        return np.bincount(self._fold_dst, weights=r[self._fold_src], minlength=len(self.free))
+
+    def expand(self, y: np.ndarray) -> np.ndarray:
+        """A correction on the condensed unknowns ``(n_free,)`` on all DOFs: ``P y``, zero on fixed DOFs."""
+        out = np.zeros(self.space.n_dofs)
+        if self._fold is None:
+            out[self.free] = y
+        else:
+            out[self._fold_src] = y[self._fold_dst]
+        return out
+
+    def make_periodic(self, x: np.ndarray) -> None:
+        """Give every identified DOF of ``x`` its representative's value, in place (no-op without
+        periodic sides)."""
+        if self.rep is not None:
+            keep = np.zeros(len(x), dtype=bool)
+            keep[self.fixed] = True
+            x[~keep] = x[self.rep[~keep]]
 
     def _refill_forms(self) -> None:
         """ν A, M, B and the body-force vector from the assembler's current basis values."""
@@ -280,7 +356,9 @@ class FlowProblem:
         return r
 
     def normalise_pressure(self, x: np.ndarray) -> None:
-        """Shift the pressure to zero mean when it is defined only up to a constant."""
+        """Shift the pressure to zero mean when it is defined only up to a constant (and, with
+        periodic sides, make the identified DOFs equal: :meth:`make_periodic`)."""
+        self.make_periodic(x)
         if self.pressure_pinned:
             one = np.ones(self.space.n_p)
             pm = self.space.pb
@@ -301,6 +379,7 @@ class FlowProblem:
         x = np.zeros(self.space.n_dofs)
         d, v = self.dirichlet_values(t)
         x[d] = v
+        self.make_periodic(x)
         return x
 
 

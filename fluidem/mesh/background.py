@@ -156,7 +156,7 @@ def friedrichs_keller_grid(domain, h: float) -> tuple[np.ndarray, np.ndarray]:
     return pts, tris
 
 
-def graded_background(domain, size, min_angle: float = 30.0) -> np.ndarray:
+def graded_background(domain, size, min_angle: float = 30.0, periodic=()) -> np.ndarray:
     """Background nodes of a box graded by a size field (paper Sec. 2.3, Fig. 3).
 
     A quality Delaunay refinement (Triangle) of the empty box with triangles no larger
@@ -168,6 +168,9 @@ def graded_background(domain, size, min_angle: float = 30.0) -> np.ndarray:
     size : float, SizeField or callable ``points (m, 2) -> h (m,)``
     min_angle : float
         Triangle's minimum-angle bound, degrees.
+    periodic : sequence of {"x", "y"}
+        Periodic axes: the nodes of the paired sides match (:mod:`fluidem.mesh.periodic`).
+        The Friedrichs–Keller grid matches them by construction.
 
     Returns
     -------
@@ -175,4 +178,4 @@ def graded_background(domain, size, min_angle: float = 30.0) -> np.ndarray:
     """
     from .triangulate import triangulate_box  # local import: triangulate imports this module
 
-    return triangulate_box(domain, (), size=size, min_angle=min_angle).points
+    return triangulate_box(domain, (), size=size, min_angle=min_angle, periodic=periodic).points

@@ -107,7 +107,7 @@ import shapely
 from scipy.spatial import cKDTree
 
 from .. import validate
-from ..errors import InputError
+from ..errors import InputError, MeshError
 from .adaptation import adapt as adapt_nodes
 from .adaptation import cleanup_candidates
 from .background import GradedSize, SizeField, UniformSize
@@ -135,6 +135,7 @@ from .nodes import (
     outline_nodes,
     world,
 )
+from .periodic import check_clearance, freeze_periodic_sides, match_side_nodes, periodic_axes
 from .params import PARAM_NAMES, STRATEGIES, MeshParams, mesh_params
 from .proximity import PolygonTable
 from .quality import MeshQuality, OscillationDetector, mesh_quality
@@ -189,6 +190,15 @@ class MeshEvent:
         use it with ``old_triangles`` when ``reason == "inverted"``).
     seconds : float
         Wall-clock time of the update.
+    history : str
+        How the node trajectories continue through a re-triangulation
+        (:meth:`MovingMesh.node_history`): ``"ale"`` (pulled back through the old mesh motion),
+        ``"eulerian"`` (nodes at rest this step: ``reason`` ``"inverted"`` or ``"regenerate"``),
+        ``""`` without re-triangulation.
+    transfer_change, force_change : float or None
+        Filled by the flow on the moving mesh at a re-triangulation: the relative L2 change
+        the field transfer made to u^n (interpolation noise, paper Fig. 5) and the relative
+        change of the body forces in this step.
     """
 
     step: int
@@ -208,6 +218,9 @@ class MeshEvent:
     old_triangles: np.ndarray | None = field(default=None, repr=False)
     prev_points: np.ndarray | None = field(default=None, repr=False)
     seconds: float = 0.0
+    history: str = ""
+    transfer_change: float | None = None
+    force_change: float | None = None
 
 
 class MovingMesh:
@@ -233,6 +246,11 @@ class MovingMesh:
         the zone towed by the bodies; else 1.2).
     strategy : {"drag", "regenerate", "fixed"} or None
         Overrides ``params.strategy`` (default ``"drag"``).
+    periodic : sequence of {"x", "y"}
+        Periodic axes (``"x"``: the sides ``left`` and ``right`` are one; ``"y"``: ``bottom``
+        and ``top``; :mod:`fluidem.mesh.periodic`).  Their nodes match in every
+        triangulation and do not slide; a body closer than ``h`` to a periodic side raises
+        :class:`~fluidem.errors.MeshError` (``InputError`` at the start).
     params : MeshParams or None
         Every other parameter (:class:`fluidem.mesh.params.MeshParams`, which documents
         them: ``retriangulate_every``, ``relax_iterations``, ``min_angle_trigger``,
@@ -299,13 +317,14 @@ class MovingMesh:
     """
 
     def __init__(self, domain, bodies, poses, h: float, grading=None, strategy: str | None = None, *,
-                 params: MeshParams | None = None, **keywords):
+                 params: MeshParams | None = None, periodic=(), **keywords):
         if strategy is not None:
             keywords["strategy"] = strategy
         self.params = p = mesh_params(params, **keywords)
         self.domain = BoxDomain.from_any(domain)
         self.box = (self.domain.xmin, self.domain.xmax, self.domain.ymin, self.domain.ymax)
         self.h = validate.positive("mesh size h", h)
+        self.periodic = periodic_axes(periodic)
 
         # size field
         self._size, self._growth, self._graded = self._make_size(grading)
@@ -328,7 +347,8 @@ class MovingMesh:
         self.poses = self._check_poses(poses)
 
         self.outlines: BodyOutlines = outline_nodes(verts, self.poses, self._size, self.h)
-        self.background_candidates = background_nodes(self.box, self.h, self._size, self.background_kind)
+        self.background_candidates = background_nodes(self.box, self.h, self._size, self.background_kind,
+                                                     periodic=self.periodic)
         self.step_count = 0
         self._steps_since = 0
         self._osc = OscillationDetector()
@@ -343,6 +363,7 @@ class MovingMesh:
                                n_relax=p.initial_iterations)
         self._prev_points = self.points.copy()
         self._prev_uid = self.uid.copy()
+        self._trajectory = (None, None)  # node_history(): positions at t^n, t^{n-1} of the current nodes
 
     # ------------------------------------------------------------------ parameters as attributes
     def __getattr__(self, name):
@@ -393,6 +414,7 @@ class MovingMesh:
         """Unpickle; a mesh pickled before the split by stage (checkpoints) is converted."""
         if "params" not in state:
             state = _state_before_split(state)
+        state.setdefault("periodic", ())
         self.__dict__.update(state)
 
     # ------------------------------------------------------------------ set-up
@@ -435,6 +457,8 @@ class MovingMesh:
                 f"body {b} ({self.body_names[b]}) is not inside the domain {self.box} with the minimum gap "
                 f"{g:.3g}: vertex {w[k].tolist()} at pose {p[b].tolist()}"
             )
+        check_clearance(w, self._vbody, self.body_names, p, self.box, self.periodic, self.h,
+                        error=InputError if self.__dict__.get("step_count") is None else MeshError)
         return p
 
     def _target(self, pts, outline_world=None) -> np.ndarray:
@@ -505,6 +529,8 @@ class MovingMesh:
 
         final_shape = None
         for attempt in range(p.cleanup_passes + 1):
+            kept_points, kept_kind, kept_uid = match_side_nodes(kept_points, kept_kind, kept_uid, self.box,
+                                                                self.periodic, self._uids)
             tri = triangulate(kept_points, kept_kind, kept_uid, outline_world, self.outlines, contact, poses, polys,
                               tree, self.box, self._uids, p.junctions, p.junction_clearance, target)
             self._install(tri, outline_world)
@@ -548,7 +574,8 @@ class MovingMesh:
         self._contact_local = tri.contact_local
         self._contact_idx = np.flatnonzero(tri.kind == CONTACT)
         self.h_node = self._target(tri.points, outline_world)
-        self._mobility = mobility(tri.kind, tri.points, self.box)
+        self._mobility = freeze_periodic_sides(mobility(tri.kind, tri.points, self.box), tri.points, tri.kind,
+                                               self.box, self.periodic)
         # junction nodes are dragged (they are not relaxed)
         self._drag_mobility = self._mobility.copy()
         self._drag_mobility[tri.kind == JUNCTION] = 1.0
@@ -584,6 +611,7 @@ class MovingMesh:
         ev = MeshEvent(step=self.step_count)
         self._prev_points = self.points.copy()
         self._prev_uid = self.uid.copy()
+        before = (self._prev_points, self.__dict__.get("_trajectory", (None, None))[0])
         if self.strategy == "fixed":
             if not np.allclose(new, self.poses, rtol=0, atol=1e-12 * max(1.0, np.abs(self.poses).max(initial=0))):
                 raise InputError("strategy 'fixed' is for bodies that do not move; poses changed "
@@ -599,6 +627,7 @@ class MovingMesh:
             ev.n_purged, ev.n_junctions = info["n_purged"], info["n_junctions"]
         else:
             self._drag_step(new, ev)
+        self._carry_history(ev, *before)
         ev.contacts = self.contacts
         ev.pore_areas = self.pore_areas
         ev.n_nodes, ev.n_triangles = len(self.points), len(self.triangles)
@@ -702,15 +731,72 @@ class MovingMesh:
             bnd[name] = look(self.boundary_segments[self.boundary_markers == FIRST_BODY_MARKER + b])
         return m.with_boundaries(bnd)
 
-    def node_velocity(self, dt: float) -> np.ndarray:
+    # ------------------------------------------------------------------ node trajectories (ALE)
+    def _carry_history(self, ev: MeshEvent, x_n: np.ndarray, x_nm1: np.ndarray | None) -> None:
+        """Positions at t^n and t^{n−1} of the trajectories of the nodes after :meth:`update`.
+
+        ``x_n`` (positions before the update) and ``x_nm1`` (their own history) belong to the
+        nodes before the update.  Without re-triangulation the nodes are the same.  After one
+        the new nodes y lie in the old connectivity at the positions reached this step
+        (``ev.old_points``, covering the new domain); the old mesh motion is affine on each
+        old element, so the trajectory of y is that of its barycentric combination of old
+        nodes: x^n(y) = Σ λ_k x_k^n, x^{n−1}(y) = Σ λ_k x_k^{n−1}.  If the old mesh is not valid
+        there (``"inverted"``) or did not move (``"regenerate"``) the nodes are at rest this
+        step (Eulerian).
+        """
+        if not ev.retriangulated:
+            self._trajectory = (x_n, x_nm1)
+            return
+        if ev.reason in ("inverted", "regenerate") or ev.old_points is None:
+            ev.history = "eulerian"
+            self._trajectory = (self.points.copy(), self.points.copy())
+            return
+        from skfem import MeshTri
+
+        from .transfer import locate
+
+        old = MeshTri(np.asarray(ev.old_points, float).T.copy(), np.asarray(ev.old_triangles).T.copy())
+        cells, bary = locate(old, self.points.T)
+        tri = old.t[:, cells].T  # (n, 3), in the vertex order of the located cells
+
+        def pull(x):
+            return None if x is None else np.einsum("nk,nkd->nd", bary, x[tri])
+
+        ev.history = "ale"
+        self._trajectory = (pull(x_n), pull(x_nm1))
+
+    def node_history(self) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Positions ``(x_n, x_nm1)``, each ``(n_nodes, 2)`` or None, of the current nodes' trajectories
+        one and two :meth:`update` calls ago (length units).
+
+        Through a re-triangulation the new nodes follow the old mesh motion
+        (:class:`MeshEvent` ``history``).  ``x_nm1`` is None after the first update, both before it.
+        """
+        return self.__dict__.get("_trajectory", (None, None))
+
+    def node_velocity(self, dt: float, order: int = 1) -> np.ndarray:
         """Mesh velocity ``w`` ``(n_nodes, 2)`` for ALE, length units per time unit.
 
-        ``(x_now − x_prev) / dt`` per node for nodes that existed before the last
-        :meth:`update`; a node created by a re-triangulation gets the mean velocity of its
+        ``order = 1``: ``(x_now − x_prev) / dt`` per node for nodes that existed before the
+        last :meth:`update`; a node created by a re-triangulation gets the mean velocity of its
         mesh neighbours that existed before (neighbours of neighbours if none did).
+
+        ``order = 2``: the derivative at the current time of the node trajectories
+        (:meth:`node_history`) by BDF2, w = (3x^{n+1} − 4x^n + x^{n−1}) / (2 dt) (BDF1 when
+        x^{n−1} is not known yet), the mesh velocity of a second-order ALE BDF2 step
+        (Formaggia & Nobile 2004, CMAME 193, 4097–4116).  Constant ``dt`` between updates.
         """
         if not (np.isfinite(dt) and dt > 0):
             raise InputError(f"time step dt must be a positive number, got {dt!r}")
+        if order == 2:
+            x_n, x_nm1 = self.node_history()
+            if x_n is None:
+                return np.zeros_like(self.points)
+            if x_nm1 is None:
+                return (self.points - x_n) / dt
+            return (3.0 * (self.points - x_n) - (x_n - x_nm1)) / (2.0 * dt)  # differences first: round-off
+        if order != 1:
+            raise InputError(f"order = {order!r}: expected 1 or 2")
         order = np.argsort(self._prev_uid)
         pos = np.minimum(np.searchsorted(self._prev_uid[order], self.uid), len(order) - 1)
         match = self._prev_uid[order][pos] == self.uid

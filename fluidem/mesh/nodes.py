@@ -172,13 +172,14 @@ def outline_nodes(verts_local, poses, size, h: float) -> BodyOutlines:
     )
 
 
-def background_nodes(box, h: float, size, kind: str) -> BackgroundNodes:
+def background_nodes(box, h: float, size, kind: str, periodic=()) -> BackgroundNodes:
     """Background nodes: the Friedrichs–Keller grid of spacing ``h`` (``kind == "fk"``) or a
-    graded Delaunay point set of the size field ``size`` (``"delaunay"``), Sec. 2.1, 2.3."""
+    graded Delaunay point set of the size field ``size`` (``"delaunay"``), Sec. 2.1, 2.3;
+    nodes matched on the sides of the ``periodic`` axes (:mod:`fluidem.mesh.periodic`)."""
     if kind == "fk":
         pts, _ = friedrichs_keller_grid(box, h)
     else:
-        pts = graded_background(box, size)
+        pts = graded_background(box, size, periodic=periodic)
     node_kind, _ = classify_box(pts, box)
     return BackgroundNodes(points=pts, kind=node_kind, uid=np.arange(len(pts), dtype=np.int64))
 

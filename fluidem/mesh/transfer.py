@@ -52,6 +52,17 @@ def _candidates(mesh, x, k: int):
     return cand, l1, l2
 
 
+def _best_candidate(mesh, x, k: int):
+    """The candidate triangle of largest smallest barycentric coordinate per point: cells, bary (n, 3), score."""
+    cand, l1, l2 = _candidates(mesh, x, k)
+    l0 = 1 - l1 - l2
+    score = np.minimum(np.minimum(l0, l1), l2)  # (n, k): ≥ 0 inside
+    j = np.argmax(score, axis=1)
+    n = np.arange(len(j))
+    bary = np.stack([l0[n, j], l1[n, j], l2[n, j]], axis=-1)
+    return cand[n, j], bary, score[n, j]
+
+
 def locate(mesh, x, k: int = 12) -> tuple[np.ndarray, np.ndarray]:
     """Triangle containing each point and its barycentric coordinates.
 
@@ -61,7 +72,9 @@ def locate(mesh, x, k: int = 12) -> tuple[np.ndarray, np.ndarray]:
     x : (2, n) float
         Points, length units.
     k : int
-        Candidate triangles per point (nearest centroids).
+        Candidate triangles per point (nearest centroids).  The 4 nearest are tried first
+        and the ``k`` nearest only for points none of them contains (a third of the work
+        for points inside the mesh).
 
     Returns
     -------
@@ -70,13 +83,14 @@ def locate(mesh, x, k: int = 12) -> tuple[np.ndarray, np.ndarray]:
         Barycentric coordinates, clamped into the triangle for points outside the mesh
         (nearest point of the chosen nearby triangle).
     """
-    cand, l1, l2 = _candidates(mesh, x, k)
-    lam = np.stack([1 - l1 - l2, l1, l2], axis=-1)  # (n, k, 3)
-    score = lam.min(axis=-1)
-    j = np.argmax(score, axis=1)
-    n = np.arange(len(j))
-    cells = cand[n, j]
-    bary = np.clip(lam[n, j], 0.0, None)
+    x = np.asarray(x, dtype=float)
+    k0 = min(4, k)
+    cells, bary, score = _best_candidate(mesh, x, k0)
+    if k > k0:
+        miss = np.flatnonzero(score < -1e-12)
+        if len(miss):
+            cells[miss], bary[miss], _ = _best_candidate(mesh, x[:, miss], k)
+    bary = np.clip(bary, 0.0, None)
     bary /= bary.sum(axis=1, keepdims=True)
     return cells, bary
 

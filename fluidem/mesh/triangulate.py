@@ -22,6 +22,7 @@ import triangle as tr
 from ..errors import InputError, MeshError
 from ..geometry import orient_ccw, point_in_polygon, polygon_area, triangle_areas, validate_polygon
 from .background import as_size_field, subdivide_segment
+from .periodic import periodic_axes
 
 __all__ = ["Obstacle", "BoxDomain", "TriangleMesh", "triangulate_box", "to_skfem", "SIDE_NAMES"]
 
@@ -123,7 +124,8 @@ def _outline_points(obstacle: Obstacle, size) -> np.ndarray:
     return np.vstack(pieces)
 
 
-def triangulate_box(domain, obstacles=(), size=0.1, min_angle: float = 30.0, max_refinements: int = 12) -> TriangleMesh:
+def triangulate_box(domain, obstacles=(), size=0.1, min_angle: float = 30.0, max_refinements: int = 12,
+                    periodic=()) -> TriangleMesh:
     """Quality constrained Delaunay triangulation of ``domain`` minus ``obstacles``.
 
     Parameters
@@ -135,6 +137,10 @@ def triangulate_box(domain, obstacles=(), size=0.1, min_angle: float = 30.0, max
         Target edge length field.
     min_angle : float
         Triangle's quality bound on the smallest angle, degrees (≤ 33).
+    periodic : sequence of {"x", "y"}
+        Periodic axes (:mod:`fluidem.mesh.periodic`): the ``left`` side gets the nodes of the
+        ``right`` side translated by the period (``x``), the ``bottom`` side those of the
+        ``top`` (``y``), so partner nodes match exactly (Triangle adds no boundary points).
 
     Returns
     -------
@@ -165,6 +171,14 @@ def triangulate_box(domain, obstacles=(), size=0.1, min_angle: float = 30.0, max
     side_pts = []
     for k in range(4):
         side_pts.append(subdivide_segment(corners[k], corners[(k + 1) % 4], size)[:-1])
+    axes = periodic_axes(periodic)
+    # periodic pairs: side k runs corner k -> k+1 (bottom, right, top, left); the low side of
+    # a pair is the high one reversed and translated (without its first point, a corner)
+    for lo_k, hi_k, shift in ((3, 1, (box.xmin - box.xmax, 0.0)), (0, 2, (0.0, box.ymin - box.ymax))):
+        if ("x" if lo_k == 3 else "y") in axes:
+            hi = np.vstack([side_pts[hi_k], corners[(hi_k + 1) % 4]])  # both ends
+            side_pts[lo_k] = (hi[::-1] + np.array(shift))[:-1]
+            side_pts[lo_k][0] = corners[lo_k]
     ring = np.vstack(side_pts)
     side_mark = np.concatenate([np.full(len(p), k + 1) for k, p in enumerate(side_pts)])
     n = len(ring)

@@ -57,6 +57,13 @@ def read_toml(path) -> dict:
             return tomllib.load(f)
     except FileNotFoundError:
         raise SceneError(f"scene file {str(path)!r} does not exist") from None
+    except IsADirectoryError:
+        raise SceneError(f"scene file {str(path)!r} is a directory; expected a TOML file") from None
+    except (NotADirectoryError, PermissionError) as exc:
+        raise SceneError(f"scene file {str(path)!r} cannot be read ({exc.strerror}); expected a readable TOML "
+                         "file") from None
+    except UnicodeDecodeError:
+        raise SceneError(f"scene file {str(path)!r} is not a text file; expected a TOML file") from None
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"scene file {str(path)!r} is not valid TOML: {exc}") from None
 
@@ -94,6 +101,9 @@ def read_bodies_table(tab, base_dir=".") -> list:
             rows = list(csv.reader(f))
     except FileNotFoundError:
         raise SceneError(f"bodies_table.file = {tab['file']!r}: file {str(path)!r} does not exist") from None
+    except (IsADirectoryError, PermissionError, UnicodeDecodeError):
+        raise SceneError(f"bodies_table.file = {tab['file']!r}: {str(path)!r} cannot be read; expected a CSV "
+                         "text file") from None
     if not rows:
         raise SceneError(f"bodies_table.file = {tab['file']!r} is empty; expected a header row")
     header = [h.strip() for h in rows[0]]
@@ -128,6 +138,10 @@ def read_bodies_table(tab, base_dir=".") -> list:
                     rec[h] = c
             except ValueError:
                 raise fail(where, c, "a number" if h != "vertices" else "'x0 y0; x1 y1; ...'", SceneError) from None
+        for need in ("x", "y"):
+            if need not in rec:
+                raise SceneError(f"bodies_table.file {tab['file']!r} row {r} column {need}: empty; expected a "
+                                 "number (x and y are required in every row)")
         rec["position"] = (rec.pop("x"), rec.pop("y"))
         if "vx" in rec or "vy" in rec:
             rec["velocity"] = (rec.pop("vx", 0.0), rec.pop("vy", 0.0))

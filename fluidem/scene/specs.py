@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..plan import Plan
 
 __all__ = ["Scene", "FluidSpec", "DomainSpec", "SideSpec", "BodySpec", "ContactSpec", "MeshSpec", "TimeSpec",
-           "OutputSpec"]
+           "OutputSpec", "default_h"]
 
 
 @dataclass
@@ -89,7 +89,13 @@ class SideSpec:
     Parameters
     ----------
     type : {"wall", "inflow", "outflow", "periodic", "moving-wall"}
-        ``names.meaning("side type", type)`` says what each is.
+        ``names.meaning("side type", type)`` says what each is.  ``"periodic"`` sides come in
+        pairs (``left`` with ``right``, ``bottom`` with ``top``): the mesh has matching nodes
+        on both and the fluid DOFs there are identified (:mod:`fluidem.mesh.periodic`,
+        :mod:`fluidem.fluid.periodic`); ``fluid.body_force`` (a mean pressure gradient G is
+        ``body_force = −G / density``) or moving walls drive the flow.  Bodies must be narrower
+        than the period and must not overlap a periodic side (on a moving mesh: stay at least
+        ``mesh.h`` away from it).
     velocity : (2,) float
         Wall velocity of a ``"moving-wall"`` side, length/time (zero on every other type).
     profile : dict or None
@@ -345,6 +351,10 @@ class ContactSpec:
 class MeshSpec:
     """Fluid mesh: target edge length ``h`` (length) and optional grading.
 
+    ``h`` not given: from the scene's scale, ``min(L / 20, d / 4)`` with ``L`` the box's
+    shorter side and ``d`` the smallest body's bounding diameter (:func:`default_h`; 0.05 for
+    a 2 × 1 box with a disk of radius 0.1); the plan names it.
+
     ``grading = {region = [xmin, xmax, ymin, ymax] | "bodies", growth = g, h_max = H}``: size
     ``h`` in the region, growing by ``g`` per cell away from it up to ``H`` (default 8h).
     ``strategy`` (``"drag"``, ``"regenerate"`` or ``"fixed"``, see ``names.meaning("strategy",
@@ -352,7 +362,7 @@ class MeshSpec:
     as circles.
     """
 
-    h: float = 0.05
+    h: float | None = None
     grading: dict | None = None
     strategy: str = "drag"
     retriangulate_every: int = 30
@@ -396,6 +406,11 @@ class TimeSpec:
         self.t_end = positive(f"{where}.t_end", self.t_end, error=SceneError)
         if self.t_end < self.dt * (1 - 1e-9):
             raise fail(f"{where}.t_end", self.t_end, f"a number >= dt = {self.dt}", SceneError)
+        n = self.t_end / self.dt
+        if abs(n - round(n)) > 1e-6 * max(1.0, n):  # the last step lands on t_end: t_end = n dt
+            lo, hi = math.floor(n) * self.dt, math.ceil(n) * self.dt
+            raise fail(f"{where}.t_end", self.t_end, f"a whole number of steps dt = {self.dt:g} (e.g. {lo:.10g} or "
+                       f"{hi:.10g}), so that the last step lands on t_end", SceneError)
 
     @property
     def n_steps(self) -> int:
@@ -405,23 +420,30 @@ class TimeSpec:
 @dataclass
 class OutputSpec:
     """Output: directory ``dir``; fields and body outlines every ``every`` steps; history every
-    ``history_every`` steps; a checkpoint every ``checkpoint_every`` steps (0: only at the end);
-    ``fields = false`` writes no fluid fields."""
+    ``history_every`` steps; ``fields = false`` writes no fluid fields.
+
+    Checkpoints: every ``checkpoint_every`` steps (0: only at the end; not given: about ten a
+    run, the newest three kept) and in any case every ``checkpoint_seconds`` of wall-clock
+    time (default 600; 0: off), and at the end."""
 
     dir: str = "out"
     every: int = 10
     history_every: int = 1
-    checkpoint_every: int = 0
+    checkpoint_every: int | None = None
     fields: bool = True
+    checkpoint_seconds: float = 600.0
 
-    KEYS = ("dir", "every", "history_every", "checkpoint_every", "fields")
+    KEYS = ("dir", "every", "history_every", "checkpoint_every", "fields", "checkpoint_seconds")
 
     def validate(self, where="output"):
         if not isinstance(self.dir, str) or not self.dir:
             raise fail(f"{where}.dir", self.dir, "a non-empty path string", SceneError)
         self.every = integer(f"{where}.every", self.every, error=SceneError)
         self.history_every = integer(f"{where}.history_every", self.history_every, error=SceneError)
-        self.checkpoint_every = integer(f"{where}.checkpoint_every", self.checkpoint_every, lo=0, error=SceneError)
+        if self.checkpoint_every is not None:
+            self.checkpoint_every = integer(f"{where}.checkpoint_every", self.checkpoint_every, lo=0,
+                                            error=SceneError)
+        self.checkpoint_seconds = nonnegative(f"{where}.checkpoint_seconds", self.checkpoint_seconds, error=SceneError)
         self.fields = boolean(f"{where}.fields", self.fields, error=SceneError)
 
 
@@ -474,6 +496,8 @@ class Scene:
     name: str = "scene"
     description: str = ""
     source: str | None = None
+    #: tables or keys the scene did not give and that took their defaults ("time", "mesh.h"); the plan names them
+    defaulted: list = field(default_factory=list, compare=False, repr=False)
 
     # -- loading ------------------------------------------------------------------------
     @classmethod
@@ -515,6 +539,9 @@ class Scene:
         if "bodies_table" in data:
             bodies.extend(BodySpec(**rec) for rec in files.read_bodies_table(data["bodies_table"], base_dir))
         kw["bodies"] = bodies
+        kw["defaulted"] = [k for k in ("time",) if k not in data]
+        if "fluid" in data and "h" not in (data.get("mesh") or {}):
+            kw["defaulted"].append("mesh.h")
         scene = cls(**kw)
         scene.validate()
         return scene
@@ -535,8 +562,7 @@ class Scene:
         if self.fluid is not None:
             self.fluid.validate()
         self.domain.validate()
-        for spec, key in ((self.contact, "contact"), (self.mesh, "mesh"), (self.time, "time"),
-                          (self.output, "output")):
+        for spec, key in ((self.contact, "contact"), (self.time, "time"), (self.output, "output")):
             if spec is not None:
                 spec.validate(key)
         sides = names.choices("side")
@@ -549,6 +575,11 @@ class Scene:
             if not isinstance(b.name, str) or b.name in taken or b.name in sides:
                 raise fail(f"bodies[{i}].name", b.name, f"a unique string other than {', '.join(sides)}", SceneError)
             taken.add(b.name)
+        if self.mesh.h is None:  # from the scene's scale (before anything uses h: outlines, grading)
+            self.mesh.h = default_h(self)
+            if "mesh.h" not in self.defaulted and self.fluid is not None:
+                self.defaulted.append("mesh.h")
+        self.mesh.validate("mesh")
         self._check_geometry()
         return self
 
@@ -562,6 +593,23 @@ class Scene:
         polys = self.world_outlines()
         lo = np.array([p.min(axis=0) for p in polys])
         hi = np.array([p.max(axis=0) for p in polys])
+        for c, (s0, s1), (b0, b1) in ((0, ("left", "right"), (x0, x1)), (1, ("bottom", "top"), (y0, y1))):
+            if self.domain.side(s0).type != "periodic":
+                continue
+            width = hi[:, c] - lo[:, c]
+            wide = np.flatnonzero(width >= b1 - b0)
+            if len(wide):
+                i = int(wide[0])
+                raise SceneError(f"bodies[{i}] has width {width[i]:.4g} in {'xy'[c]} across the periodic sides "
+                                 f"{s0}/{s1}: allowed: narrower than the period {b1 - b0:.4g}")
+            cross = np.flatnonzero((lo[:, c] <= b0) | (hi[:, c] >= b1))
+            if len(cross):
+                i = int(cross[0])
+                side = s0 if lo[i, c] <= b0 else s1
+                raise SceneError(f"bodies[{i}].position = {list(self.bodies[i].position)}: the body (extent "
+                                 f"{'xy'[c]} {lo[i, c]:.4g}..{hi[i, c]:.4g}) overlaps the periodic side {side!r} "
+                                 f"at {'xy'[c]} = {b0 if side == s0 else b1:g}; allowed: every vertex strictly "
+                                 "inside the box (bodies crossing a periodic side are not supported)")
         out = np.flatnonzero((lo[:, 0] <= x0) | (hi[:, 0] >= x1) | (lo[:, 1] <= y0) | (hi[:, 1] >= y1))
         if len(out):
             i = int(out[0])
@@ -581,7 +629,14 @@ class Scene:
                 a, b = int(i[bad[0]]), int(j[bad[0]])
                 raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
                                  f"{list(self.bodies[b].position)}) overlap at start by {area[bad[0]]:.3g} "
-                                 f"(length²); allowed: bodies that do not overlap (touching is fine)")
+                                 f"(length²); allowed: bodies that do not overlap"
+                                 + (" or touch" if self.fluid is None else ""))
+            if self.fluid is not None:  # touching outlines leave no fluid between them: no mesh can be built
+                a, b = int(i[0]), int(j[0])
+                raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
+                                 f"{list(self.bodies[b].position)}) touch at start; in a fluid scene bodies need "
+                                 f"fluid between them: move them apart (a gap of at least mesh.h = {self.mesh.h:g}) "
+                                 "or make them one polygon body")
 
     def world_outlines(self) -> list:
         """Initial outlines in world coordinates, list of (n_i, 2) arrays."""
@@ -623,6 +678,28 @@ class Scene:
         from ..plan import make_plan
 
         return make_plan(self)
+
+
+def default_h(scene) -> float:
+    """The default mesh size of ``scene``: ``min(L / 20, d / 4)``, length.
+
+    ``L``: the shorter side of the domain box; ``d``: the smallest bounding diameter of a body
+    (no bodies: ``L / 20``).  So the mesh resolves the box and every body whatever the units.
+
+    Examples
+    --------
+    >>> from fluidem.scene import Scene
+    >>> Scene.from_dict({"domain": {"box": [0, 2, 0, 1]}, "fluid": {},
+    ...                  "bodies": [{"shape": "disk", "radius": 0.1, "position": [0.5, 0.5]}]}).mesh.h
+    0.05
+    >>> Scene.from_dict({"domain": {"box": [0, 1e-3, 0, 2e-4]}, "fluid": {}}).mesh.h
+    1e-05
+    """
+    x0, x1, y0, y1 = (float(v) for v in scene.domain.box)
+    h = min(x1 - x0, y1 - y0) / 20.0
+    if scene.bodies:
+        h = min(h, min(2.0 * b.bounding_radius for b in scene.bodies) / 4.0)
+    return float(f"{h:.3g}")
 
 
 def _plain(obj):

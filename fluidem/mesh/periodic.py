@@ -1,0 +1,212 @@
+"""Periodic pairs of box sides on the meshes: matching nodes, and how close a body may come.
+
+A box ``(xmin, xmax, ymin, ymax)`` may be periodic in ``x`` (the sides ``left`` and
+``right`` are one: a node at ``(xmin, y)`` has its partner at ``(xmax, y)``) and/or in ``y``
+(``bottom`` and ``top``).  The fluid space identifies the degrees of freedom of partner
+nodes (:mod:`fluidem.fluid.periodic`); that needs the same nodes on both sides of a pair
+in every mesh the package builds:
+
+* fixed meshes and graded backgrounds (:func:`fluidem.mesh.triangulate.triangulate_box`):
+  one side of a pair is subdivided, the other gets the same points translated by the
+  period, and Triangle adds no points on boundary segments (switch ``Y``);
+* the moving mesh (:class:`fluidem.mesh.MovingMesh`): the nodes of periodic sides do not
+  slide (:func:`freeze_periodic_sides`, relaxation and dragging keep them), and the node
+  set handed to every re-triangulation gets the partner of every periodic side node it
+  lacks (:func:`match_side_nodes`, e.g. after a refinement inserted a node on one side).
+
+Bodies must keep clear of periodic sides (a body crossing one would have to reappear on
+the other side): :func:`check_clearance` names the body, its position and the side.
+
+Examples
+--------
+>>> import numpy as np
+>>> from fluidem.mesh.nodes import SIDE, FREE, UidSource
+>>> pts = np.array([[0.0, 0.25], [0.5, 0.5], [1.0, 0.5]])
+>>> kind = np.array([SIDE, FREE, SIDE], np.int8)
+>>> p, k, u = match_side_nodes(pts, kind, np.arange(3), (0, 1, 0, 1), ("x",), UidSource())
+>>> p[3:].tolist(), k[3:].tolist()
+([[1.0, 0.25], [0.0, 0.5]], [1, 1])
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError, MeshError
+
+__all__ = ["AXES", "SIDE_PAIRS", "periodic_axes", "axes_of_sides", "match_side_nodes", "freeze_periodic_sides",
+           "check_clearance", "check_matched"]
+
+#: the periodic directions: ``"x"`` pairs left/right, ``"y"`` bottom/top
+AXES = ("x", "y")
+#: (low side, high side) of each axis
+SIDE_PAIRS = {"x": ("left", "right"), "y": ("bottom", "top")}
+
+
+def periodic_axes(periodic) -> tuple:
+    """The validated periodic axes: a subset of ``("x", "y")`` in that order.
+
+    ``periodic`` is ``None``, one axis name, or a sequence of axis names or of side names
+    (``"left"``/``"right"`` mean ``"x"``, ``"bottom"``/``"top"`` mean ``"y"``).
+
+    Examples
+    --------
+    >>> periodic_axes(None), periodic_axes("x"), periodic_axes(["top", "bottom", "left", "right"])
+    ((), ('x',), ('x', 'y'))
+    """
+    if periodic is None:
+        return ()
+    items = (periodic,) if isinstance(periodic, str) else tuple(periodic)
+    side_axis = {s: a for a, pair in SIDE_PAIRS.items() for s in pair}
+    out = set()
+    for it in items:
+        if it in AXES:
+            out.add(it)
+        elif it in side_axis:
+            out.add(side_axis[it])
+        else:
+            raise InputError(f"periodic = {it!r}: expected 'x' (left/right), 'y' (bottom/top) or a side name "
+                             f"({', '.join(side_axis)})")
+    return tuple(a for a in AXES if a in out)
+
+
+def axes_of_sides(side_types: dict) -> tuple:
+    """Periodic axes of a box from its side types ``{"left": "periodic", ...}``."""
+    return tuple(a for a in AXES if side_types.get(SIDE_PAIRS[a][0]) == "periodic")
+
+
+def _tolerance(box) -> float:
+    xmin, xmax, ymin, ymax = box
+    return 1e-9 * max(xmax - xmin, ymax - ymin)
+
+
+def match_side_nodes(points, kind, uid, box, axes, uids):
+    """The node set with the partner of every periodic side node that lacks one.
+
+    Parameters
+    ----------
+    points : (n, 2) float
+        Candidate nodes, length units.
+    kind : (n,) int8
+        Node kinds (:mod:`fluidem.mesh.nodes`); side nodes are ``SIDE``.
+    uid : (n,) int
+        Node uids.
+    box : (xmin, xmax, ymin, ymax)
+    axes : tuple of {"x", "y"}
+        Periodic axes.
+    uids : UidSource
+        Source of the uids of added partners.
+
+    Returns
+    -------
+    points, kind, uid
+        The input with the missing partners appended (``SIDE`` nodes at the translated
+        position: exactly ``xmax`` for a partner of a ``left`` node, and so on).
+    """
+    from .nodes import SIDE
+
+    points = np.asarray(points, dtype=float)
+    if not axes:
+        return points, kind, uid
+    xmin, xmax, ymin, ymax = box
+    tol = _tolerance(box)
+    add = []
+    for a in axes:
+        c = 0 if a == "x" else 1  # the coordinate fixed on the side
+        lo, hi = (xmin, xmax) if a == "x" else (ymin, ymax)
+        on_side = kind == SIDE
+        s = points[:, 1 - c]  # position along the side
+        low = np.flatnonzero(on_side & (np.abs(points[:, c] - lo) < tol))
+        high = np.flatnonzero(on_side & (np.abs(points[:, c] - hi) < tol))
+        for mine, other, target in ((low, high, hi), (high, low, lo)):
+            so = np.sort(s[other])
+            if len(so):
+                pos = np.searchsorted(so, s[mine])
+                d = np.minimum(np.abs(so[np.clip(pos - 1, 0, len(so) - 1)] - s[mine]),
+                               np.abs(so[np.clip(pos, 0, len(so) - 1)] - s[mine]))
+                lack = mine[d > tol]
+            else:
+                lack = mine
+            q = points[lack].copy()
+            q[:, c] = target
+            add.append(q)
+    add = np.vstack(add) if add else np.zeros((0, 2))
+    if not len(add):
+        return points, kind, uid
+    return (np.vstack([points, add]), np.concatenate([kind, np.full(len(add), SIDE, dtype=kind.dtype)]),
+            np.concatenate([uid, uids.take(len(add))]))
+
+
+def freeze_periodic_sides(mobility, points, kind, box, axes) -> np.ndarray:
+    """``mobility (n, 2)`` with the nodes of periodic sides fixed (they do not slide, so
+    partners stay matched through relaxation and dragging)."""
+    from .nodes import SIDE
+
+    if not axes:
+        return mobility
+    mob = mobility.copy()
+    xmin, xmax, ymin, ymax = box
+    tol = _tolerance(box)
+    on = np.zeros(len(points), dtype=bool)
+    if "x" in axes:
+        on |= (np.abs(points[:, 0] - xmin) < tol) | (np.abs(points[:, 0] - xmax) < tol)
+    if "y" in axes:
+        on |= (np.abs(points[:, 1] - ymin) < tol) | (np.abs(points[:, 1] - ymax) < tol)
+    mob[on & (kind == SIDE)] = 0.0
+    return mob
+
+
+def check_clearance(vertices, vbody, names, poses, box, axes, clearance: float, error=MeshError) -> None:
+    """Raise ``error`` if a body comes within ``clearance`` of a periodic side.
+
+    Parameters
+    ----------
+    vertices : (m, 2) float
+        World outline vertices of all bodies; ``vbody (m,)`` their body.
+    names : sequence of str
+        Body names; ``poses (n_bodies, 3)`` their poses (named in the message).
+    box : (xmin, xmax, ymin, ymax)
+    axes : tuple of {"x", "y"}
+    clearance : float
+        Smallest distance allowed, length units (the moving mesh: one target edge length,
+        so that one layer of elements fits between the body and the fixed side nodes).
+    error : exception class
+        :class:`~fluidem.errors.MeshError` during a run, ``InputError`` at the start.
+    """
+    if not axes or not len(vertices):
+        return
+    xmin, xmax, ymin, ymax = box
+    checks = []
+    if "x" in axes:
+        checks += [("left", vertices[:, 0] - xmin), ("right", xmax - vertices[:, 0])]
+    if "y" in axes:
+        checks += [("bottom", vertices[:, 1] - ymin), ("top", ymax - vertices[:, 1])]
+    for side, d in checks:
+        close = np.flatnonzero(d < clearance)
+        if len(close):
+            k = close[np.argmin(d[close])]
+            b = int(vbody[k])
+            raise error(f"body {b} ({names[b]}) at position {np.round(poses[b][:2], 6).tolist()} comes "
+                        f"{d[k]:.4g} from the periodic side {side!r}: allowed: at least {clearance:.4g} "
+                        "(bodies crossing a periodic side are not supported)")
+
+
+def check_matched(points, box, axes, boundary_nodes=None) -> None:
+    """Raise :class:`~fluidem.errors.MeshError` unless every node on a periodic side has its
+    partner (nodes ``points (n, 2)``; ``boundary_nodes``: the indices to check, default all)."""
+    if not axes:
+        return
+    p = np.asarray(points, dtype=float)
+    if boundary_nodes is not None:
+        p = p[boundary_nodes]
+    xmin, xmax, ymin, ymax = box
+    tol = _tolerance(box)
+    for a in axes:
+        c = 0 if a == "x" else 1
+        lo, hi = (xmin, xmax) if a == "x" else (ymin, ymax)
+        s_lo = np.sort(p[np.abs(p[:, c] - lo) < tol, 1 - c])
+        s_hi = np.sort(p[np.abs(p[:, c] - hi) < tol, 1 - c])
+        if len(s_lo) != len(s_hi) or np.any(np.abs(s_lo - s_hi) > tol):
+            lo_name, hi_name = SIDE_PAIRS[a]
+            raise MeshError(f"periodic sides {lo_name!r} and {hi_name!r} do not have matching nodes "
+                            f"({len(s_lo)} and {len(s_hi)} nodes)")

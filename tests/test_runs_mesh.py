@@ -1,0 +1,95 @@
+"""Meshes sized by the scene: default h, estimates before building, warnings with numbers; one unit convention."""
+
+import warnings
+
+import meshio
+import numpy as np
+import pytest
+
+import fluidem.plan as plan_mod
+from fluidem import Scene, Simulation
+from fluidem.cli import main
+from fluidem.io import read_pvd
+from fluidem.simulation import RunWarning
+
+
+def _channel(box=(0.0, 2.0, 0.0, 1.0), r=0.1, mesh=None, **fluid):
+    x0, x1, y0, y1 = box
+    d = {"fluid": {"model": "stokes", "viscosity": 0.01, "element": "th", **fluid},
+         "domain": {"box": list(box), "left": "inflow", "right": "outflow",
+                    "inflow_profile": {"type": "parabolic", "umax": 1.0}},
+         "bodies": [{"shape": "disk", "radius": r, "position": [x0 + 0.3 * (x1 - x0), 0.5 * (y0 + y1)],
+                     "motion": "fixed", "name": "cyl"}],
+         "time": {"dt": 0.1, "t_end": 0.1}}
+    if mesh is not None:
+        d["mesh"] = mesh
+    return d
+
+
+def test_default_h_scales_with_the_box_and_the_bodies(capsys):
+    assert Scene.from_dict(_channel()).mesh.h == 0.05  # the former absolute default, for the usual box
+    micro = Scene.from_dict(_channel(box=(0.0, 2e-3, 0.0, 1e-3), r=1e-4))
+    assert micro.mesh.h == 5e-5 and micro.plan().estimate["triangles"] > 2000
+    assert any("no mesh.h: default h = 5e-05" in n for n in micro.plan().notes)
+    assert Scene.from_dict(_channel(r=0.02)).mesh.h == 0.01  # a small body: d / 4
+
+
+def test_plan_estimates_nodes_dofs_and_memory(tmp_path, capsys):
+    s = Scene.from_dict(_channel(mesh={"h": 0.04}))
+    e = s.plan().estimate
+    sim = Simulation(s)
+    assert 0.5 < e["dofs"] / sim.flow.dofs < 2.0 and 0.5 < e["triangles"] / sim.flow.mesh.t.shape[1] < 2.0
+    p = tmp_path / "s.toml"
+    s.to_toml(p)
+    assert main(["plan", str(p)]) == 0
+    assert "estimate: about" in capsys.readouterr().out
+
+
+def test_a_mesh_beyond_the_machines_memory_is_refused_before_anything_is_built(monkeypatch):
+    import fluidem.mesh.triangulate as tri
+
+    monkeypatch.setattr(plan_mod, "machine_memory", lambda: (16e9, 8e9))
+    monkeypatch.setattr(tri, "triangulate_box", lambda *a, **k: pytest.fail("triangulated"))
+    s = Scene.from_dict(_channel(mesh={"h": 1e-4}))
+    with pytest.raises(ValueError, match=r"mesh.h = 0.0001: about 3.\de\+08 nodes, .* more than this machine's 16 GB"):
+        Simulation(s)
+    s = Scene.from_dict(_channel(mesh={"h": 0.0067}))  # ~7e5 DOFs, ~8 GB: fits, but more than half of what is free
+    assert any("more than half the memory available now (8 GB)" in w for w in s.plan().warnings)
+
+
+def test_a_coarse_mesh_warns_with_the_numbers():
+    d = _channel(mesh={"h": 5.0})
+    d["bodies"].append({"shape": "rectangle", "width": 0.1, "height": 0.1, "position": [1.5, 0.5], "motion": "fixed",
+                        "name": "sq"})
+    w = Scene.from_dict(d).plan().warnings
+    assert any("mesh.h = 5 is coarse for the box (2 × 1)" in x and "default is min(box / 20, body / 4) = 0.0354" in x
+               for x in w)
+    assert any("body 'sq': about 4 mesh edges along its outline (perimeter 0.4, mesh.h = 5); at least 8 resolve it "
+               "(mesh.h <= 0.05)" in x for x in w)
+    assert not any("body 'cyl': about" in x for x in w)  # a disk keeps at least 16 outline nodes
+
+
+def test_a_thin_plate_warns_before_and_after_the_mesh_is_built():
+    d = _channel(mesh={"h": 0.05})
+    d["bodies"] = [{"shape": "rectangle", "width": 0.3, "height": 1e-5, "position": [1.0, 0.5], "motion": "fixed",
+                    "name": "plate"}]
+    s = Scene.from_dict(d)
+    assert any("body 'plate' is about 1e-05 thick, 5000 times thinner than mesh.h = 0.05" in x
+               for x in s.plan().warnings)
+    with pytest.warns(RunWarning) as rec:
+        sim = Simulation(s)
+    msgs = [str(r.message) for r in rec]
+    assert any(m.startswith("the mesh has degenerate triangles: smallest angle 0.") for m in msgs)
+    assert any(k == "warning" and "degenerate" in m for k, m in sim.events)
+
+
+def test_a_well_resolved_scene_warns_nothing():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RunWarning)
+        Simulation(Scene.from_dict(_channel()))
+
+
+def test_pressure_and_loads_share_one_convention(tmp_path):
+    Simulation(Scene.from_dict(_channel(density=2.0, mesh={"h": 0.07}))).run(out_dir=tmp_path)
+    m = meshio.read(read_pvd(tmp_path / "fields.pvd")[-1][1])
+    assert np.allclose(m.point_data["pressure"], 2.0 * m.point_data["kinematic_pressure"])
