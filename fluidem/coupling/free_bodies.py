@@ -25,6 +25,7 @@ import numpy as np
 
 from ..cost import CostSplit
 from ..fluid.problem import FlowState
+from ..fluid.solvers import AutoSolver, LaggedLUSolver
 
 __all__ = ["FreeBodyStepper"]
 
@@ -68,6 +69,8 @@ class FreeBodyStepper:
         self.V = np.zeros((nb, 3)) if velocities is None else np.array(velocities, float).reshape(nb, 3)
         self.V_prev = None
         self.solver = solver or fluid.problem.direct_solver()
+        #: the next factorisation must not reuse an LU of another numbering (a re-triangulation)
+        self.refactorize = False
         self.last_cost = CostSplit()
 
     @property
@@ -117,10 +120,14 @@ class FreeBodyStepper:
         minv = self._inertia_diagonal()
         rz = sysm.restrict(r)
         rz[sysm.n_fluid:] += minv * D_t.ravel() - np.asarray(external, float).ravel() / self.rho
-        K = sysm.matrix(pr.A_data + pr.M_data * (a0 / dt) + pr.convection_data(b), pr.B, minv * (a0 / dt))
+        K = sysm.matrix(pr.A_data + pr.M_data * (a0 / dt) + pr.convection_data(b), minv * (a0 / dt))
         tm.add("assembly", time.perf_counter() - t0)
         t0 = time.perf_counter()
-        self.solver.factorize(K)
+        if self.refactorize and isinstance(self.solver, (LaggedLUSolver, AutoSolver)):
+            self.solver.factorize(K, force=True)
+        else:
+            self.solver.factorize(K)
+        self.refactorize = False
         z -= self.solver.solve(rz)
         tm.add("solve", time.perf_counter() - t0)
         x = sysm.prolong(z, x)

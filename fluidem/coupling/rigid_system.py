@@ -42,13 +42,10 @@ class RigidBodySystem:
 
     Parameters
     ----------
-    assembler : VectorAssembler
-        Velocity-block pattern of the flow problem.
-    B : (n_p, n_u) sparse
-        Divergence matrix (its structure fixed; values taken per step by :meth:`matrix`).
-    free : (n_free,) int
-        The flow problem's free DOFs into ``[u, p]`` (the outline DOFs of the free bodies are
-        Dirichlet DOFs of the problem, so not among them).
+    problem : FlowProblem
+        The flow problem (its velocity-block pattern, divergence matrix and condensed unknowns,
+        folded onto one unknown per periodic pair).  The outline DOFs of the free bodies are
+        Dirichlet DOFs of the problem (so not among its free DOFs); their values are ignored.
     rigid : RigidModes
         Rigid-mode operator of *all* bodies of the problem (rows 3k, 3k+1, 3k+2), whose data
         it refills when the mesh moves.
@@ -60,13 +57,18 @@ class RigidBodySystem:
     n_fluid, n_bodies, shape : sizes; ``z = [z_F (n_fluid), V (3 n_bodies)]``.
     """
 
-    def __init__(self, assembler, B, free: np.ndarray, rigid, bodies):
+    def __init__(self, problem, rigid, bodies):
+        assembler, B = problem.assembler, problem.B
+        self.problem = problem
         self.rigid = rigid
         self.bodies = np.asarray(bodies, dtype=np.int64)
         n_u, n_p = assembler.n, B.shape[0]
         n = n_u + n_p
         self.n_u = n_u
-        self.free = np.asarray(free, dtype=np.int64)
+        fold = problem.condensed_index()
+        self._fold_src = np.flatnonzero(fold >= 0)
+        self._fold_dst = fold[self._fold_src]
+        self.free = np.asarray(problem.free, dtype=np.int64)  # one representative per unknown
         self.n_fluid = len(self.free)
         self.n_bodies = len(self.bodies)
         nz = self.n_fluid + 3 * self.n_bodies
@@ -76,9 +78,9 @@ class RigidBodySystem:
         self._rrows = (3 * self.bodies[:, None] + np.arange(3)[None, :]).ravel()
         # T (n, nz) with data = weight source: 0 -> 1.0, 1 + j -> R.data[j]
         rr, rpos = _expand(R.indptr, self._rrows)          # entries of R in the free bodies' rows
-        t_rows = np.concatenate([self.free, R.indices[rpos]])
-        t_cols = np.concatenate([np.arange(self.n_fluid), self.n_fluid + rr])
-        t_src = np.concatenate([np.zeros(self.n_fluid, np.int64), 1 + rpos])
+        t_rows = np.concatenate([self._fold_src, R.indices[rpos]])
+        t_cols = np.concatenate([self._fold_dst, self.n_fluid + rr])
+        t_src = np.concatenate([np.zeros(len(self._fold_src), np.int64), 1 + rpos])
         T = sp.csr_matrix((np.arange(1, len(t_rows) + 1, dtype=float), (t_rows, t_cols)), shape=(n, nz))
         T.sort_indices()
         t_src = t_src[T.data.astype(np.int64) - 1]
@@ -119,10 +121,10 @@ class RigidBodySystem:
     def _weights(self) -> np.ndarray:
         return np.concatenate([[1.0], self.rigid.matrix.data])
 
-    def matrix(self, uu_data: np.ndarray, B, body_diagonal: np.ndarray) -> sp.csr_matrix:
-        """The coupled matrix for velocity-block data ``uu_data``, divergence ``B`` (same structure)
-        and the body rows' own diagonal ``body_diagonal`` (3 n_bodies,), e.g. m a0/(ρ Δt)."""
-        B = sp.csr_matrix(B)
+    def matrix(self, uu_data: np.ndarray, body_diagonal: np.ndarray) -> sp.csr_matrix:
+        """The coupled matrix for velocity-block data ``uu_data`` and the body rows' own diagonal
+        ``body_diagonal`` (3 n_bodies,), e.g. m a0/(ρ Δt); the divergence is the problem's current one."""
+        B = sp.csr_matrix(self.problem.B)
         B.sum_duplicates()
         if not (np.array_equal(B.indptr, self._B_indptr) and np.array_equal(B.indices, self._B_indices)):
             raise ValueError("RigidBodySystem.matrix: B's structure changed; build a new system")
@@ -137,8 +139,10 @@ class RigidBodySystem:
 
     # -- vectors ------------------------------------------------------------------------------
     def restrict(self, r: np.ndarray) -> np.ndarray:
-        """Tᵀ r (nz,) of a full residual ``r`` (n_u + n_p,): free rows, then Πᵀ r_u per free body."""
-        return np.concatenate([r[self.free], self.rigid.matrix[self._rrows] @ r[: self.n_u]])
+        """Tᵀ r (nz,) of a full residual ``r`` (n_u + n_p,): condensed rows (periodic pairs summed),
+        then Πᵀ r_u per free body."""
+        rF = np.bincount(self._fold_dst, weights=r[self._fold_src], minlength=self.n_fluid)
+        return np.concatenate([rF, self.rigid.matrix[self._rrows] @ r[: self.n_u]])
 
     def split(self, z: np.ndarray):
         """(z_F, V (n_bodies, 3)) of a coupled vector."""
@@ -148,7 +152,7 @@ class RigidBodySystem:
         """Full ``x`` = S z_F + Π V + x_D for a coupled vector ``z`` and the Dirichlet part ``x_D`` (n,)."""
         x = np.array(x_dirichlet, dtype=float, copy=True)
         zF, V = self.split(z)
-        x[self.free] = zF
+        x[self._fold_src] = zF[self._fold_dst]
         R = self.rigid.matrix[self._rrows]
         outline = np.unique(R.indices)
         x[outline] = (R.T @ V.ravel())[outline]

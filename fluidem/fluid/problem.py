@@ -211,6 +211,15 @@ class FlowProblem:
         return FoldedSystem(self.assembler, self.B, self._fold, len(self.free))
 
     # -- the condensed unknowns ----------------------------------------------------------
+    def condensed_index(self) -> np.ndarray:
+        """Row of every DOF of ``[u, p]`` in the condensed system (its representative's with
+        periodic sides), −1 for fixed DOFs: ``(n_u + n_p,)`` int."""
+        if self._fold is not None:
+            return self._fold
+        fold = np.full(self.space.n_dofs, -1, dtype=np.int64)
+        fold[self.free] = np.arange(len(self.free))
+        return fold
+
     def reduce(self, r: np.ndarray) -> np.ndarray:
         """A full residual ``(n_u + n_p,)`` on the condensed unknowns, ``(n_free,)``: ``Pᵀ r``
         restricted to the free DOFs (``r[free]`` without periodic sides)."""

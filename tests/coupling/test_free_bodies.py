@@ -32,7 +32,7 @@ def test_first_step_of_a_settling_disk_balances_weight_inertia_and_fluid_force(e
     independent solve of the same disk prescribed to move at a velocity Vp (linear in V)."""
     rho_s, rho_f, g = 1.5, 1.0, 1.0
     pr, rm, area = disk_in_box(0.04, element)
-    fb = FreeBodyStepper(BDF2Stepper(pr, DT), RigidBodySystem(pr.assembler, pr.B, pr.free, rm, [0]),
+    fb = FreeBodyStepper(BDF2Stepper(pr, DT), RigidBodySystem(pr, rm, [0]),
                          [rho_s * area], [rho_s * area * A_DISK**2 / 2], rho_f)
     weight = np.array([[0.0, -(rho_s - rho_f) * area * g, 0.0]])
     fb.step(weight)

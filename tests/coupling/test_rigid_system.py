@@ -30,11 +30,11 @@ def _problem(element="th", h=0.1):
 @pytest.mark.parametrize("element", ["th", "p2b"])
 def test_coupled_matrix_is_the_bordered_product(element):
     pr, rm = _problem(element)
-    sysm = RigidBodySystem(pr.assembler, pr.B, pr.free, rm, bodies=[0])
+    sysm = RigidBodySystem(pr, rm, bodies=[0])
     rng = np.random.default_rng(0)
     data = rng.standard_normal(pr.assembler.nnz)
     diag = rng.standard_normal(3)
-    Kz = sysm.matrix(data, pr.B, diag)
+    Kz = sysm.matrix(data, diag)
     K = sp.bmat([[pr.assembler.matrix(data), pr.B.T], [pr.B, None]]).tocsr()
     n = K.shape[0]
     S = sp.csr_matrix((np.ones(len(pr.free)), (pr.free, np.arange(len(pr.free)))), shape=(n, len(pr.free)))
@@ -71,8 +71,8 @@ def test_free_disk_between_walls_moves_at_the_faxen_mobility(k):
     s.validate()
     fl = Simulation(s).flow
     pr = fl.problem
-    sysm = RigidBodySystem(pr.assembler, pr.B, pr.free, fl.rigid, bodies=[0])
-    Kz = sysm.matrix(pr.A_data, pr.B, np.zeros(3)).tocsc()
+    sysm = RigidBodySystem(pr, fl.rigid, bodies=[0])
+    Kz = sysm.matrix(pr.A_data, np.zeros(3)).tocsc()
     f_ext = np.array([1.0, 0.0, 0.0])  # kinematic force per unit depth (μ = ρν = 1)
     r0 = sysm.restrict(pr.steady_residual(pr.initial_vector(0.0), convection=False))
     z = spla.spsolve(Kz, np.concatenate([np.zeros(sysm.n_fluid), f_ext]) - r0)
