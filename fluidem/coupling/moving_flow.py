@@ -29,7 +29,7 @@ import numpy as np
 from ..cost import CostSplit
 from ..geometry import barycentric
 from .bodies import LinearPath
-from .boundary import periodic_axes_of, velocity_bcs
+from .boundary import periodic_axes_of, velocity_bcs, viscous_form_of
 from .loads import FlowLoads
 
 __all__ = ["LAGGED_REFACTOR_ITERATIONS", "MovingMeshFlow", "Outline", "p1_at_dofs", "transfer_change"]
@@ -186,7 +186,8 @@ class MovingMeshFlow(FlowLoads):
         self.space = FlowSpace(self.mesh, fl.element)
         self.centers = self._poses(t)[:, :2]
         self.problem = FlowProblem(self.space, fl.viscosity, velocity_bcs(self.scene, self.centers), rho=fl.density,
-                                   body_force=fl.body_force, moving=True, periodic=self.mm.periodic)
+                                   body_force=fl.body_force, moving=True, periodic=self.mm.periodic,
+                                   viscous=viscous_form_of(self.scene))
         self.rigid = RigidModes(self.space, self.names, self.centers)
 
     def _refit(self, t) -> bool:
