@@ -100,6 +100,7 @@ REGISTRY: dict[str, Kind] = {
         "dfg-2d2": "DFG flow around a cylinder, periodic, Re = 100",
         "dfg-2d3": "DFG flow around a cylinder, unsteady inflow, 0 <= t <= 8",
         "square-cylinder": "square cylinder at Re = 100 (Sohankar et al. 1998)",
+        "settling-disk": "a free disk settling in a channel, against its steady terminal velocity",
     }),
     "example": Kind("example scene", {
         "dfg-cylinder": "DFG 2D-1 channel as a scene: Navier-Stokes past a fixed cylinder, Re = 20",
