@@ -31,6 +31,7 @@ _CASE_OPTIONS = {
     "dfg-2d2": ("element", "level", "dt", "t_end", "convection", "solver"),
     "dfg-2d3": ("element", "level", "dt", "convection", "solver"),
     "square-cylinder": ("element", "level", "dt", "t_end", "convection", "solver"),
+    "settling-disk": ("element", "dt", "t_end"),
 }
 
 

@@ -56,6 +56,11 @@ REGISTRY: dict[str, Kind] = {
         "newton": "fully implicit, Newton's method every step",
         "explicit": "extrapolated convection term (BDF2/EXT2), CFL-bounded time step",
     }),
+    "coupling": Kind("fluid-body coupling", {
+        "implicit": "fluid and free bodies in one solve per step (added mass inside; stable at density ratio 1)",
+        "explicit": "staggered: bodies moved by the fluid forces of the last step (unstable when the added "
+                    "mass exceeds the body mass)",
+    }),
     "strategy": Kind("mesh strategy", {
         "drag": "nodes move with nearby bodies; re-triangulate every K steps or when quality drops",
         "regenerate": "a new triangulation every step",
@@ -68,7 +73,7 @@ REGISTRY: dict[str, Kind] = {
         "ellipse": "semi-axes `a`, `b`",
     }),
     "motion": Kind("body motion", {
-        "free": "moved by gravity, contacts and (with the coupled solver) the fluid",
+        "free": "moved by gravity, contacts and the fluid",
         "fixed": "never moves",
         "prescribed": "constant `velocity` and `omega`",
     }),
@@ -95,6 +100,7 @@ REGISTRY: dict[str, Kind] = {
         "dfg-2d2": "DFG flow around a cylinder, periodic, Re = 100",
         "dfg-2d3": "DFG flow around a cylinder, unsteady inflow, 0 <= t <= 8",
         "square-cylinder": "square cylinder at Re = 100 (Sohankar et al. 1998)",
+        "settling-disk": "a free disk settling in a channel, against its steady terminal velocity",
     }),
     "example": Kind("example scene", {
         "dfg-cylinder": "DFG 2D-1 channel as a scene: Navier-Stokes past a fixed cylinder, Re = 20",

@@ -63,7 +63,7 @@ class Plan:
     ----------
     effects : list of Effect
         In order: fluid, inertia, moving-bodies, mesh, ale, contacts, gravity, buoyancy,
-        rotation, remeshing, periodic, solver.
+        coupling, rotation, remeshing, periodic, solver.
     mesh : {"none", "once", "moving"}
         No mesh (dry), a mesh built once, or a moving mesh.
     contact_pairs : int
@@ -243,6 +243,11 @@ def _moving_mesh_available() -> bool:
 _MOVING_MESH_AVAILABLE = moving_mesh_available
 
 
+#: Density ratio below which ``coupling = "explicit"`` is warned about: a disk settling in a
+#: channel blew up at 1.01 and ran stably at 1.5 (tests/coupling/test_free_flow.py).
+EXPLICIT_COUPLING_MIN_RATIO = 1.5
+
+
 def make_plan(scene: Scene) -> Plan:
     """The effects ``scene`` needs and why, see :class:`Plan` (:meth:`fluidem.scene.Scene.plan` calls this).
 
@@ -338,6 +343,15 @@ def make_plan(scene: Scene) -> Plan:
     else:
         E.append(Effect("gravity", True, f"{len(free)} free bodies", f"{list(scene.gravity)}"))
         E.append(Effect("buoyancy", fl is not None, "free bodies in a fluid" if fl else "dry scene: no fluid"))
+    # fluid-body coupling
+    if fl is None or not free:
+        E.append(Effect("coupling", False, "no free bodies in a fluid" if fl is not None else "no fluid"))
+    elif fl.model == "stokes":
+        E.append(Effect("coupling", True, f"{len(free)} free bodies: Stokes mobility, force and torque balance "
+                        "solved with the fluid in one bordered saddle-point system", "mobility"))
+    else:
+        E.append(Effect("coupling", True, f"{len(free)} free bodies: fluid and Newton-Euler rows in one implicit "
+                        "BDF2 solve (added mass inside the matrix)", "implicit"))
     # rotation
     E.append(Effect("rotation", bool(rotating),
                     f"{len(rotating)} bodies can rotate (free or prescribed omega)" if rotating
@@ -386,10 +400,13 @@ def make_plan(scene: Scene) -> Plan:
         unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the DEM "
                            "(a dry scene); use 'wall' or 'outflow'")
     if fl is not None:
-        if free:
-            unsupported.append(f"free bodies in a fluid ({len(free)}: {', '.join(b.name for b in free[:5])}"
-                               f"{', ...' if len(free) > 5 else ''}) need the coupled fluid-body solver, which "
-                               "comes in a later version; use motion = 'fixed' or 'prescribed'")
+        if free and not _moving_mesh_available():
+            unsupported.append(f"free bodies in a fluid ({len(free)}) need the moving-mesh layer "
+                               "(fluidem.mesh.MovingMesh), which is not available in this installation")
+        elif free:
+            if c_on:
+                notes.append("contacts inside the fluid step are not modelled yet: free bodies must stay apart "
+                             "and off the walls (the run stops with a message if they overlap)")
         elif mesh == "moving":
             if not _moving_mesh_available():
                 unsupported.append("moving bodies in fluid need the moving-mesh layer (fluidem.mesh.MovingMesh), "
@@ -412,6 +429,14 @@ def make_plan(scene: Scene) -> Plan:
         estimate = mesh_estimate(scene)
         warnings, refuse = _mesh_warnings(scene, estimate)
         unsupported += refuse
+        if free and fl.coupling == "explicit" and fl.model != "stokes":
+            light = min(free, key=lambda b: b.density)
+            ratio = light.density / fl.density
+            if ratio < EXPLICIT_COUPLING_MIN_RATIO:
+                warnings.append(f"fluid.coupling = 'explicit' with body {light.name!r} at density ratio "
+                                f"rho_s/rho_f = {ratio:g}: a staggered step blows up when the fluid's added mass "
+                                f"(about rho_f A for a disk, more near walls) exceeds the body mass; expected "
+                                f"a ratio >= {EXPLICIT_COUPLING_MIN_RATIO:g}, or coupling = 'implicit'")
     defaulted = getattr(scene, "defaulted", ())
     if "time" in defaulted:
         notes.append(f"no [time] table: default dt = {scene.time.dt:g}, t_end = {scene.time.t_end:g}")

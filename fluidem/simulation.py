@@ -52,7 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .coupling.bodies import DEMBodies, KinematicBodies, LinearPath
+from .coupling.bodies import DEMBodies, FlowBodies, KinematicBodies, LinearPath
 from .cost import CostSplit
 from .errors import FluidemError, InputError
 from .geometry import orient_ccw
@@ -153,10 +153,16 @@ class Simulation:
         if self.plan.on("contacts") and scene.fluid is None:
             self.bodies = DEMBodies(scene)
             self.counters["dem"] += 1
+        elif scene.fluid is not None and any(b.motion == "free" for b in scene.bodies):
+            self.bodies = FlowBodies(scene)
         else:
             self.bodies = KinematicBodies(scene)
         if scene.fluid is not None:
-            if self.plan.mesh == "moving":
+            if isinstance(self.bodies, FlowBodies):
+                from .coupling.free_flow import FreeBodyFlow
+
+                self.flow = self.bodies.flow = FreeBodyFlow(scene, self)
+            elif self.plan.mesh == "moving":
                 from .coupling.moving_flow import MovingMeshFlow
 
                 self.flow = MovingMeshFlow(scene, self)

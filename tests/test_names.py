@@ -61,6 +61,12 @@ def _scene_motion(v):
     return Scene.from_dict(d).bodies[0].motion
 
 
+def _scene_coupling(v):
+    d = _fluid_scene()
+    d["fluid"]["coupling"] = v
+    return Scene.from_dict(d).fluid.coupling
+
+
 def _scene_side_type(v):
     d = _fluid_scene()
     d["domain"] = {"box": _BOX, "left": v, "right": v, "inflow_profile": {"type": "uniform", "umax": 1.0}}
@@ -86,7 +92,8 @@ def _scene_profile(v):
 
 SCENE = {"solver": _scene_solver, "convection": _scene_convection, "element": _scene_element,
          "fluid model": _scene_model, "strategy": _scene_strategy, "shape": _scene_shape, "motion": _scene_motion,
-         "side type": _scene_side_type, "side": _scene_side, "profile": _scene_profile}
+         "side type": _scene_side_type, "side": _scene_side, "profile": _scene_profile,
+         "coupling": _scene_coupling}
 
 
 # ---------------------------------------------------------------------------------------

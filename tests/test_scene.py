@@ -103,7 +103,7 @@ def test_every_contract_key_is_parsed(contract_file):
     assert (s.output.dir, s.output.every) == ("out", 10)
     plan = s.plan()
     assert plan.on("fluid") and plan.on("inertia") and plan.mesh == "moving"
-    assert any("free bodies in a fluid" in u for u in plan.unsupported)
+    assert not plan.unsupported and plan.on("coupling")
 
 
 def _area_centroid(v):
@@ -230,8 +230,8 @@ def test_plan_fluid_effects():
                              "velocity": [0.1, 0.0]}], t_end=0.1)
     assert one.plan().mesh == "once" and not one.plan().unsupported
     free = _fluid("stokes", [{"shape": "disk", "radius": 0.1, "position": [1.0, 0.5]}], gravity=[0.0, -1.0])
-    assert any("free bodies in a fluid" in u for u in free.plan().unsupported)
-    assert free.plan().on("buoyancy")
+    assert not free.plan().unsupported and free.plan().on("buoyancy")
+    assert dict((e.name, e.value) for e in free.plan().effects)["coupling"] == "mobility"
     per = _fluid("stokes", [], domain={"box": [0.0, 2.0, 0.0, 1.0], "left": "periodic", "right": "periodic"})
     assert not per.plan().unsupported and per.plan().on("periodic")
     assert "left/right (period 2 in x)" in per.plan().effect("periodic").why

@@ -1,4 +1,4 @@
-"""Built-in cases: DFG 2D-1/2D-2/2D-3 and the square cylinder at Re = 100."""
+"""Built-in cases: DFG 2D-1/2D-2/2D-3, the square cylinder at Re = 100 and a settling disk."""
 
 from .base import CASES, CaseResult, get_case  # noqa: F401
-from . import dfg, square_cylinder  # noqa: F401  (register the cases)
+from . import dfg, square_cylinder, settling  # noqa: F401  (register the cases, in the registry's order)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DEMBodies", "KinematicBodies", "LinearPath"]
+__all__ = ["DEMBodies", "FlowBodies", "KinematicBodies", "LinearPath"]
 
 
 class LinearPath:
@@ -93,6 +93,31 @@ class KinematicBodies:
 
     def set_state(self, s):
         self.t = s["t"]
+
+
+class FlowBodies(KinematicBodies):
+    """Bodies in a fluid with free ones among them: the flow (:class:`fluidem.coupling.free_flow.FreeBodyFlow`)
+    moves them; poses and velocities are read from it (``flow`` is set once the flow exists)."""
+
+    def __init__(self, scene):
+        super().__init__(scene)
+        self.flow = None
+
+    @property
+    def positions(self):
+        return self.flow.poses[:, :2].copy()
+
+    @property
+    def angles(self):
+        return self.flow.poses[:, 2].copy()
+
+    @property
+    def velocities(self):
+        return self.flow.body_velocities[:, :2].copy()
+
+    @property
+    def omegas(self):
+        return self.flow.body_velocities[:, 2].copy()
 
 
 class DEMBodies:

@@ -73,3 +73,10 @@ def velocity_bcs(scene, centers):
         else:
             bcs.append(VelocityBC(b.name, RigidMotion(b.velocity, b.omega, tuple(map(float, c)))))
     return bcs
+
+
+def viscous_form_of(scene) -> str:
+    """``"stress"`` when a body may rotate (free, or prescribed with ω ≠ 0): the torque on it
+    needs the true viscous traction (:mod:`fluidem.fluid.forms`); ``"laplacian"`` otherwise."""
+    return "stress" if any(b.motion == "free" or (b.motion == "prescribed" and b.omega) for b in scene.bodies) \
+        else "laplacian"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 from ..cost import CostSplit
-from .boundary import periodic_axes_of, velocity_bcs
+from .boundary import periodic_axes_of, velocity_bcs, viscous_form_of
 from .loads import FlowLoads
 
 __all__ = ["FixedMeshFlow"]
@@ -65,7 +65,7 @@ class FixedMeshFlow(FlowLoads):
         bcs = velocity_bcs(scene, [b.position for b in scene.bodies])
         self.rho = fl.density
         self.problem = FlowProblem(self.space, fl.viscosity, bcs, rho=fl.density, body_force=fl.body_force,
-                                   periodic=self.periodic)
+                                   periodic=self.periodic, viscous=viscous_form_of(scene))
         self.stokes = fl.model == "stokes"
         self.centers = [b.position for b in scene.bodies]
         self.names = [b.name for b in scene.bodies]

@@ -29,7 +29,7 @@ import numpy as np
 from ..cost import CostSplit
 from ..geometry import barycentric
 from .bodies import LinearPath
-from .boundary import periodic_axes_of, velocity_bcs
+from .boundary import periodic_axes_of, velocity_bcs, viscous_form_of
 from .loads import FlowLoads
 
 __all__ = ["LAGGED_REFACTOR_ITERATIONS", "MovingMeshFlow", "Outline", "p1_at_dofs", "transfer_change"]
@@ -186,7 +186,8 @@ class MovingMeshFlow(FlowLoads):
         self.space = FlowSpace(self.mesh, fl.element)
         self.centers = self._poses(t)[:, :2]
         self.problem = FlowProblem(self.space, fl.viscosity, velocity_bcs(self.scene, self.centers), rho=fl.density,
-                                   body_force=fl.body_force, moving=True, periodic=self.mm.periodic)
+                                   body_force=fl.body_force, moving=True, periodic=self.mm.periodic,
+                                   viscous=viscous_form_of(self.scene))
         self.rigid = RigidModes(self.space, self.names, self.centers)
 
     def _refit(self, t) -> bool:
@@ -213,18 +214,7 @@ class MovingMeshFlow(FlowLoads):
 
         cost = CostSplit()
         t_new = self.t + dt
-        t0 = time.perf_counter()
-        ev = self.mm.update(self._poses(t_new))
-        self.last_event = ev
-        cost.add("mesh", time.perf_counter() - t0)
-        if ev.retriangulated:
-            self.sim.counters["triangulations"] += 1
-        t0 = time.perf_counter()
-        old_space = self.space
-        rebuilt = ev.retriangulated or not self._refit(t_new)
-        if rebuilt:
-            self._build(t_new)
-        cost.add("rebuild", time.perf_counter() - t0)
+        ev, rebuilt, old_space = self._move_mesh(self._poses(t_new), t_new, cost)
         if self.stokes:
             t0 = time.perf_counter()
             solve0 = self.problem.timings.solve
@@ -235,6 +225,37 @@ class MovingMeshFlow(FlowLoads):
             cost.add("solve", solve)
             self._finish(cost)
             return
+        st = self.stepper
+        self._hand_over(ev, rebuilt, old_space, dt, cost)
+        t0 = time.perf_counter()
+        st.step()
+        wall = time.perf_counter() - t0
+        cost.add("assembly", wall - st.last_cost.solve)
+        cost.add("solve", st.last_cost.solve)
+        self.t = st.t
+        self.x = st.state.x
+        self._finish(cost)
+
+    def _move_mesh(self, poses, t_new, cost):
+        """Move the mesh to ``poses`` (n_bodies, 3) and the problem with it (rebuilt at a
+        re-triangulation); returns (MeshEvent, rebuilt, the space before)."""
+        t0 = time.perf_counter()
+        ev = self.mm.update(poses)
+        self.last_event = ev
+        cost.add("mesh", time.perf_counter() - t0)
+        if ev.retriangulated:
+            self.sim.counters["triangulations"] += 1
+        t0 = time.perf_counter()
+        old_space = self.space
+        rebuilt = ev.retriangulated or not self._refit(t_new)
+        if rebuilt:
+            self._build(t_new)
+        cost.add("rebuild", time.perf_counter() - t0)
+        return ev, rebuilt, old_space
+
+    def _hand_over(self, ev, rebuilt, old_space, dt, cost):
+        """Give the stepper u^n, u^{n−1} on the current DOFs (transferred at a re-triangulation)
+        and the mesh velocity of this step."""
         st = self.stepper
         t0 = time.perf_counter()
         if ev.retriangulated:
@@ -250,14 +271,6 @@ class MovingMeshFlow(FlowLoads):
         cost.add("mesh", t1 - t0)
         cost.add("rebuild", time.perf_counter() - t1)
         st.take_over(self.problem, u_n, u_p, mesh_velocity=w, renumbered=rebuilt)
-        t0 = time.perf_counter()
-        st.step()
-        wall = time.perf_counter() - t0
-        cost.add("assembly", wall - st.last_cost.solve)
-        cost.add("solve", st.last_cost.solve)
-        self.t = st.t
-        self.x = st.state.x
-        self._finish(cost)
 
     def _transfer(self, ev, old_space, u_n, u_p):
         """u^n, u^{n−1} on the new DOFs after a re-triangulation (``ev.history``, :meth:`MovingMesh.node_history`).

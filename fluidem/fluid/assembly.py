@@ -162,6 +162,19 @@ class VectorAssembler:
         S = sum(np.matmul(self.dpsi[d] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1)) for d in range(2))
         return self._block_diagonal(S)
 
+    def stress_data(self) -> np.ndarray:
+        """Pattern data of 2 ε(u) : ε(v) = ∇u : ∇v + ∇uᵀ : ∇v (:func:`fluidem.fluid.forms.viscous_stress`,
+        multiply by ν), (nnz,): the Laplacian blocks plus, for test φ_t e_d and trial φ_s e_c,
+        ∫ ∂_c φ_t ∂_d φ_s."""
+        nb = 2 * self.ns
+        S = sum(np.matmul(self.dpsi[d] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1)) for d in range(2))
+        local = np.zeros((S.shape[0], nb, nb))
+        for c in range(2):
+            local[:, c::2, c::2] = S
+            for d in range(2):
+                local[:, d::2, c::2] += np.matmul(self.dpsi[c] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1))
+        return self._scatter_local(local)
+
     # -- data arrays on the fixed pattern ----------------------------------------------
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         """CSR matrix of the velocity block from a data array on the pattern (no copy)."""

@@ -1,8 +1,13 @@
 """Weak forms of the incompressible Navier–Stokes equations, one small function per term.
 
-Gradient (not symmetric-gradient) form of the viscous term, so that the natural boundary
-condition is the "do-nothing" outflow ν ∂u/∂n − p n = 0 of the DFG benchmark
-(Schäfer & Turek 1996; Heywood, Rannacher & Turek 1996).  Forms are in kinematic units
+Gradient (not symmetric-gradient) form of the viscous term by default, so that the natural
+boundary condition is the "do-nothing" outflow ν ∂u/∂n − p n = 0 of the DFG benchmark
+(Schäfer & Turek 1996; Heywood, Rannacher & Turek 1996).  Its boundary term is the
+pseudo-traction ν ∂u/∂n, which misses ν (∇u)ᵀ n: on a body at rest or in translation that
+part integrates to zero against the rigid modes (u is constant along the outline), on a
+rotating body it does not (a spinning disk would feel half its torque), so flows with rotating
+bodies use the stress form :func:`viscous_stress`, 2 ε(u) : ε(v), whose boundary term is the
+true viscous traction (natural condition: traction-free).  Forms are in kinematic units
 (divided by the density ρ); ``grad(u)[i, j] = ∂u_i/∂x_j``.
 """
 
@@ -10,7 +15,7 @@ from skfem import BilinearForm, LinearForm
 from skfem.helpers import ddot, div, dot, grad, mul
 
 __all__ = [
-    "viscous", "divergence", "mass", "pressure_mass", "convection",
+    "viscous", "viscous_stress", "divergence", "mass", "pressure_mass", "convection",
     "convection_newton", "convection_jacobian", "convection_residual", "body_force",
 ]
 
@@ -19,6 +24,12 @@ __all__ = [
 def viscous(u, v, w):
     """Viscous term ∇u : ∇v (multiply by ν)."""
     return ddot(grad(u), grad(v))
+
+
+@BilinearForm
+def viscous_stress(u, v, w):
+    """Viscous term in stress form 2 ε(u) : ε(v) = ∇u : ∇v + ∇uᵀ : ∇v (multiply by ν)."""
+    return ddot(grad(u), grad(v)) + ddot(grad(u).transpose((1, 0, 2, 3)), grad(v))
 
 
 @BilinearForm

@@ -74,6 +74,11 @@ class FlowProblem:
         sides take no velocity condition and are no do-nothing boundary.  A body force (or
         the equivalent mean pressure gradient, ``body_force = −∇p̄ / ρ``) drives a periodic
         channel.
+    viscous : {"laplacian", "stress"}
+        Form of the viscous term (:mod:`fluidem.fluid.forms`): ``"laplacian"`` ν ∇u : ∇v
+        (natural condition: do-nothing, ν ∂u/∂n − p n = 0; exact loads on fixed and
+        translating bodies) or ``"stress"`` 2ν ε(u) : ε(v) (natural condition: traction-free;
+        exact torques on rotating bodies too).
 
     Attributes
     ----------
@@ -85,7 +90,10 @@ class FlowProblem:
     """
 
     def __init__(self, space: FlowSpace, nu: float, bcs: Sequence[VelocityBC] = (), rho: float = 1.0,
-                 body_force=(0.0, 0.0), moving: bool = False, periodic=()):
+                 body_force=(0.0, 0.0), moving: bool = False, periodic=(), viscous: str = "laplacian"):
+        if viscous not in ("laplacian", "stress"):
+            raise ValueError(f"viscous must be 'laplacian' or 'stress', got {viscous!r}")
+        self.viscous = viscous
         if not (np.isfinite(nu) and nu > 0):
             raise ValueError(f"viscosity nu must be a positive number, got {nu!r}")
         if not (np.isfinite(rho) and rho > 0):
@@ -152,7 +160,8 @@ class FlowProblem:
         if moving:
             self._refill_forms()
         else:
-            self.A_data = self.assembler.pattern_data(self.nu * asm(forms.viscous, ub))
+            form = forms.viscous_stress if viscous == "stress" else forms.viscous
+            self.A_data = self.assembler.pattern_data(self.nu * asm(form, ub))
             self.M_data = self.assembler.pattern_data(asm(forms.mass, ub))
             self.A = self.assembler.matrix(self.A_data)
             self.M = self.assembler.matrix(self.M_data)
@@ -211,6 +220,15 @@ class FlowProblem:
         return FoldedSystem(self.assembler, self.B, self._fold, len(self.free))
 
     # -- the condensed unknowns ----------------------------------------------------------
+    def condensed_index(self) -> np.ndarray:
+        """Row of every DOF of ``[u, p]`` in the condensed system (its representative's with
+        periodic sides), −1 for fixed DOFs: ``(n_u + n_p,)`` int."""
+        if self._fold is not None:
+            return self._fold
+        fold = np.full(self.space.n_dofs, -1, dtype=np.int64)
+        fold[self.free] = np.arange(len(self.free))
+        return fold
+
     def reduce(self, r: np.ndarray) -> np.ndarray:
         """A full residual ``(n_u + n_p,)`` on the condensed unknowns, ``(n_free,)``: ``Pᵀ r``
         restricted to the free DOFs (``r[free]`` without periodic sides)."""
@@ -238,7 +256,7 @@ class FlowProblem:
     def _refill_forms(self) -> None:
         """ν A, M, B and the body-force vector from the assembler's current basis values."""
         va, pb = self.assembler, self.space.pb
-        self.A_data = self.nu * va.viscous_data()
+        self.A_data = self.nu * (va.stress_data() if self.viscous == "stress" else va.viscous_data())
         self.M_data = va.mass_data()
         self.A = va.matrix(self.A_data)
         self.M = va.matrix(self.M_data)

@@ -59,6 +59,11 @@ class FluidSpec:
         (:func:`fluidem.fluid.solvers.make_solver`), not the scene's.  ``"direct"``
         (a fresh LU every step) makes restarts reproduce bit for bit; an LU reused as a GMRES
         preconditioner reproduces them only to the GMRES tolerance.
+    coupling : {"implicit", "explicit"}
+        Free bodies: ``"implicit"`` solves fluid and bodies together every step
+        (:mod:`fluidem.coupling.free_bodies`); ``"explicit"`` moves the bodies by the fluid
+        forces of the last step and then solves the fluid (staggered), unstable when the
+        fluid's added mass exceeds the body mass (density ratio ≲ 1 for a disk).
     """
 
     density: float = 1.0
@@ -68,8 +73,9 @@ class FluidSpec:
     element: str = "p2b"
     convection: str = "semi-implicit"
     solver: str = "auto"
+    coupling: str = "implicit"
 
-    KEYS = ("density", "viscosity", "model", "body_force", "element", "convection", "solver")
+    KEYS = ("density", "viscosity", "model", "body_force", "element", "convection", "solver", "coupling")
 
     def validate(self, where="fluid"):
         """Check and convert every value (names made canonical); ``SceneError`` names the first bad one."""
@@ -80,6 +86,7 @@ class FluidSpec:
         self.element = names.lookup("element", self.element, f"{where}.element", SceneError)
         self.convection = names.lookup("convection", self.convection, f"{where}.convection", SceneError)
         self.solver = names.lookup("solver", self.solver, f"{where}.solver", SceneError)
+        self.coupling = names.lookup("coupling", self.coupling, f"{where}.coupling", SceneError)
 
 
 @dataclass

@@ -1,0 +1,163 @@
+"""The saddle-point system of a fluid with free rigid bodies in it, one matrix for both.
+
+Combined (fictitious-domain-free, body-fitted) formulation of Glowinski, Pan, Hesla & Joseph
+(1999, Int. J. Multiphase Flow 25) and Hu, Patankar & Zhu (2001, J. Comput. Phys. 169): the
+velocity on the outline of a free body k is its rigid motion U_k + ω_k e_z × (x − X_k), so
+the outline velocity DOFs are not unknowns but the prolongation Π V of the body velocities
+V = (U_x, U_y, ω)_k; the test functions are the free fluid DOFs and the rigid modes.  With the
+fluid's discrete residual r(x) on all DOFs (kinematic, no conditions applied) and
+x = S z_F + Π V + x_D (S: the free DOFs, x_D: the Dirichlet data of walls and prescribed
+bodies, zero on free-body outlines), the equations are
+
+    Sᵀ r(x) = 0                                    (fluid: momentum and continuity)
+    Πᵀ r_u(x) + (m_k/ρ) D_t V − F_ext,k/ρ = 0       (bodies: Newton–Euler)
+
+where Πᵀ = R is the rigid-mode operator (:class:`fluidem.fluid.forces.RigidModes`), so
+Πᵀ r_u = −F_hyd/ρ is the hydrodynamic load by the volume-integral definition (John 2004), and
+D_t the BDF2 derivative of the body velocity (the fluid's).  Linearised as the fluid is, the
+system matrix is Tᵀ K T + blockdiag(0, M_b a0/(ρ Δt)) with T = [S | Π]: the condensed fluid
+matrix bordered by 3 rows and columns per free body.  Its structure is fixed per
+connectivity (refilled each step like :class:`fluidem.fluid.assembly.CondensedSystem`), so
+a lagged LU serves the coupled system as it serves the fluid alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["RigidBodySystem"]
+
+
+def _expand(indptr: np.ndarray, rows: np.ndarray):
+    """For each of ``rows`` (m,), the positions of its entries in a CSR structure: (owner, position)."""
+    cnt = indptr[rows + 1] - indptr[rows]
+    owner = np.repeat(np.arange(len(rows)), cnt)
+    start = np.repeat(indptr[rows] - (np.cumsum(cnt) - cnt), cnt)
+    return owner, start + np.arange(int(cnt.sum()))
+
+
+class RigidBodySystem:
+    """Coupled fluid–body matrix ``Tᵀ K T + body mass`` on the unknowns z = [free fluid DOFs, V].
+
+    Parameters
+    ----------
+    problem : FlowProblem
+        The flow problem (its velocity-block pattern, divergence matrix and condensed unknowns,
+        folded onto one unknown per periodic pair).  The outline DOFs of the free bodies are
+        Dirichlet DOFs of the problem (so not among its free DOFs); their values are ignored.
+    rigid : RigidModes
+        Rigid-mode operator of *all* bodies of the problem (rows 3k, 3k+1, 3k+2), whose data
+        it refills when the mesh moves.
+    bodies : (n_bodies_free,) int
+        Which bodies of ``rigid`` are free.
+
+    Attributes
+    ----------
+    n_fluid, n_bodies, shape : sizes; ``z = [z_F (n_fluid), V (3 n_bodies)]``.
+    """
+
+    def __init__(self, problem, rigid, bodies):
+        assembler, B = problem.assembler, problem.B
+        self.problem = problem
+        self.rigid = rigid
+        self.bodies = np.asarray(bodies, dtype=np.int64)
+        n_u, n_p = assembler.n, B.shape[0]
+        n = n_u + n_p
+        self.n_u = n_u
+        fold = problem.condensed_index()
+        self._fold_src = np.flatnonzero(fold >= 0)
+        self._fold_dst = fold[self._fold_src]
+        self.free = np.asarray(problem.free, dtype=np.int64)  # one representative per unknown
+        self.n_fluid = len(self.free)
+        self.n_bodies = len(self.bodies)
+        nz = self.n_fluid + 3 * self.n_bodies
+        self.shape = (nz, nz)
+        # rows of R belonging to the free bodies, in the order of ``bodies``
+        R = rigid.matrix
+        self._rrows = (3 * self.bodies[:, None] + np.arange(3)[None, :]).ravel()
+        # T (n, nz) with data = weight source: 0 -> 1.0, 1 + j -> R.data[j]
+        rr, rpos = _expand(R.indptr, self._rrows)          # entries of R in the free bodies' rows
+        t_rows = np.concatenate([self._fold_src, R.indices[rpos]])
+        t_cols = np.concatenate([self._fold_dst, self.n_fluid + rr])
+        t_src = np.concatenate([np.zeros(len(self._fold_src), np.int64), 1 + rpos])
+        T = sp.csr_matrix((np.arange(1, len(t_rows) + 1, dtype=float), (t_rows, t_cols)), shape=(n, nz))
+        T.sort_indices()
+        t_src = t_src[T.data.astype(np.int64) - 1]
+        # K coded: uu entry j -> +(j+1), B entry j -> −(j+1) (in B and Bᵀ)
+        B = sp.csr_matrix(B)
+        B.sum_duplicates()
+        self._B_indptr, self._B_indices = B.indptr.copy(), B.indices.copy()
+        code_uu = assembler.matrix(np.arange(1, assembler.nnz + 1, dtype=float))
+        code_B = sp.csr_matrix((-np.arange(1, B.nnz + 1, dtype=float), B.indices, B.indptr), shape=B.shape)
+        K = sp.bmat([[code_uu, code_B.T], [code_B, None]], format="coo", dtype=float)
+        code = K.data.astype(np.int64)
+        # expand every K entry (r, c) by the T entries of row r and of row c
+        e1, p1 = _expand(T.indptr, K.row)
+        e2, p2 = _expand(T.indptr, K.col[e1])
+        e = e1[e2]
+        a, b = T.indices[p1[e2]], T.indices[p2]
+        wr, wc = t_src[p1[e2]], t_src[p2]
+        # the body diagonal (mass terms) is always in the structure
+        diag = np.arange(self.n_fluid, nz)
+        keys = np.concatenate([a.astype(np.int64) * nz + b, diag.astype(np.int64) * nz + diag])
+        uniq, scatter = np.unique(keys, return_inverse=True)
+        rows, cols = np.divmod(uniq, nz)
+        self._indices = cols.astype(np.int32)
+        self._indptr = np.searchsorted(rows, np.arange(nz + 1)).astype(np.int32)
+        self._nnz = len(uniq)
+        m = len(e)
+        self._scatter = scatter[:m]
+        self._diag_pos = scatter[m:]
+        c = code[e]
+        self._uu = c > 0
+        self._src_uu = c[self._uu] - 1
+        self._src_B = -c[~self._uu] - 1
+        self._wr, self._wc = wr, wc
+        self._t = T
+        self._t_src = t_src
+
+    # -- matrix -------------------------------------------------------------------------------
+    def _weights(self) -> np.ndarray:
+        return np.concatenate([[1.0], self.rigid.matrix.data])
+
+    def matrix(self, uu_data: np.ndarray, body_diagonal: np.ndarray) -> sp.csr_matrix:
+        """The coupled matrix for velocity-block data ``uu_data`` and the body rows' own diagonal
+        ``body_diagonal`` (3 n_bodies,), e.g. m a0/(ρ Δt); the divergence is the problem's current one."""
+        B = sp.csr_matrix(self.problem.B)
+        B.sum_duplicates()
+        if not (np.array_equal(B.indptr, self._B_indptr) and np.array_equal(B.indices, self._B_indices)):
+            raise ValueError("RigidBodySystem.matrix: B's structure changed; build a new system")
+        w = self._weights()
+        vals = np.empty(len(self._scatter))
+        vals[self._uu] = uu_data[self._src_uu]
+        vals[~self._uu] = B.data[self._src_B]
+        vals *= w[self._wr] * w[self._wc]
+        data = np.bincount(self._scatter, weights=vals, minlength=self._nnz)
+        data[self._diag_pos] += body_diagonal
+        return sp.csr_matrix((data, self._indices, self._indptr), shape=self.shape)
+
+    # -- vectors ------------------------------------------------------------------------------
+    def restrict(self, r: np.ndarray) -> np.ndarray:
+        """Tᵀ r (nz,) of a full residual ``r`` (n_u + n_p,): condensed rows (periodic pairs summed),
+        then Πᵀ r_u per free body."""
+        rF = np.bincount(self._fold_dst, weights=r[self._fold_src], minlength=self.n_fluid)
+        return np.concatenate([rF, self.rigid.matrix[self._rrows] @ r[: self.n_u]])
+
+    def split(self, z: np.ndarray):
+        """(z_F, V (n_bodies, 3)) of a coupled vector."""
+        return z[: self.n_fluid], z[self.n_fluid:].reshape(-1, 3)
+
+    def prolong(self, z: np.ndarray, x_dirichlet: np.ndarray) -> np.ndarray:
+        """Full ``x`` = S z_F + Π V + x_D for a coupled vector ``z`` and the Dirichlet part ``x_D`` (n,)."""
+        x = np.array(x_dirichlet, dtype=float, copy=True)
+        zF, V = self.split(z)
+        x[self._fold_src] = zF[self._fold_dst]
+        R = self.rigid.matrix[self._rrows]
+        outline = np.unique(R.indices)
+        x[outline] = (R.T @ V.ravel())[outline]
+        return x
+
+    def gather(self, x: np.ndarray, V) -> np.ndarray:
+        """The coupled vector of a full ``x`` and body velocities ``V`` (n_bodies, 3)."""
+        return np.concatenate([x[self.free], np.asarray(V, float).ravel()])
