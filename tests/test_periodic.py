@@ -340,21 +340,23 @@ def _galilean_pair(omega, h=0.05, n=100, U=1.0, dt=0.01):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("omega, first, settled_tol, lift_tol", [(0.0, 5e-3, 1.3e-2, 1.6e-2),
-                                                                 (2.0, 1.1e-2, 1.6e-2, 0.14)])
-def test_galilean_check_translating_disk_in_a_periodic_channel(omega, first, settled_tol, lift_tol):
+@pytest.mark.parametrize("omega, first, settled_tol, jump_tol, lift_tol", [(0.0, 4.3e-3, 5.3e-3, 3.5e-2, 1.6e-2),
+                                                                           (2.0, 4.7e-3, 4.7e-3, 3.7e-2, 4.4e-2)])
+def test_galilean_check_translating_disk_in_a_periodic_channel(omega, first, settled_tol, jump_tol, lift_tol):
     """Lab frame (moving mesh) against body frame (fixed mesh): the forces agree to the
-    discretisation error between re-triangulations, and each re-triangulation injects a
-    transient that decays in about ten steps (the field transfer; a separate item).
+    discretisation error between re-triangulations, and a re-triangulation (ALE transfer through
+    the old mesh motion) changes them by about 1 %.
 
-    Measured (h = 0.05, dt = 0.01, 100 steps, 17.6k / 26.4k DOFs; tolerances 2.5x these):
+    Measured (h = 0.05, dt = 0.01, 100 steps, 17.6k / 26.4k DOFs; tolerances 2.5x these, the
+    lift of ω = 0 and the torque 2x and 1.45x):
 
-    * ω = 0 (5 re-triangulations, 50 s): drag differs ≤ 0.21 % from step 6 to the first
-      re-triangulation, ≤ 0.52 % ten or more steps after any, 18.4 % at the worst
-      re-triangulation step; lift difference ≤ 0.64 % of the drag.
-    * ω = 2 rad/time (17 re-triangulations, 100 s): drag ≤ 0.42 % before the first
-      re-triangulation, ≤ 0.61 % ten or more steps after any, 18.2 % at the worst; torque
-      ≤ 0.65 % before the first; lift (Magnus, 0.15) difference ≤ 5.3 % of the drag.
+    * ω = 0 (8 re-triangulations): drag differs ≤ 0.17 % from step 6 to the first
+      re-triangulation, ≤ 0.21 % ten or more steps after any, 1.41 % at the worst
+      re-triangulation step (18.4 % with the former Eulerian transfer); lift difference
+      ≤ 0.81 % of the drag.
+    * ω = 2 rad/time (23 re-triangulations): drag ≤ 0.19 % before the first re-triangulation
+      and ten or more steps after any, 1.49 % at the worst (18.2 % before); torque ≤ 1.1 % before
+      the first; lift (Magnus, 0.15) difference ≤ 1.8 % of the drag (5.3 % before).
     """
     F, re = _galilean_pair(omega)
     lab, body = F[:, 0], F[:, 1]
@@ -366,7 +368,7 @@ def test_galilean_check_translating_disk_in_a_periodic_channel(omega, first, set
     for k in re:
         settled[k:k + 10] = False
     assert rel[settled].max() < settled_tol
-    assert rel[5:].max() < 0.46
+    assert rel[5:].max() < jump_tol
     assert (np.abs(lab[5:, 1] - body[5:, 1]) / np.abs(body[5:, 0])).max() < lift_tol
     if omega:
         assert (np.abs(lab[3:re[0], 2] - body[3:re[0], 2]) / np.abs(body[3:re[0], 2])).max() < 1.6e-2
