@@ -66,6 +66,18 @@ def test_loading_never_executes_code(tmp_path):
         load_checkpoint(pkl)
 
 
+@pytest.fixture(autouse=True)
+def _signals_handled():
+    """Ctrl-C and SIGTERM as an interactive shell leaves them: a shell starting the tests in the
+    background sets SIGINT to 'ignore', which a run rightly leaves alone."""
+    old = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    yield
+    for sig, handler in old.items():
+        signal.signal(sig, handler)
+
+
 def _interrupt_at(k, sig=signal.SIGINT):
     def progress(step, n, t, cost):
         if step == k:
