@@ -404,6 +404,9 @@ def make_plan(scene: Scene) -> Plan:
             unsupported.append(f"free bodies in a fluid ({len(free)}) need the moving-mesh layer "
                                "(fluidem.mesh.MovingMesh), which is not available in this installation")
         elif free:
+            if fl.solver == "iterative":
+                notes.append("solver = 'iterative': the coupled fluid-body system uses the lagged LU (the block "
+                             "preconditioner has no body block yet)")
             if c_on:
                 notes.append("contacts inside the fluid step are not modelled yet: free bodies must stay apart "
                              "and off the walls (the run stops with a message if they overlap)")

@@ -94,7 +94,23 @@ class FreeBodyFlow(MovingMeshFlow):
             self._solve_mobility(0.0)
         else:
             self.coupled = FreeBodyStepper(self.stepper, self.system, self.mass, self.inertia, rho_f,
-                                           velocities=self.body_velocities[self.free], solver=self.stepper.solver)
+                                           velocities=self.body_velocities[self.free], solver=self._coupled_solver())
+
+    def _coupled_solver(self):
+        """The fluid's solver when it is an LU (fresh or lagged); otherwise (``"auto"`` above the
+        iterative threshold, ``"iterative"``) the lagged LU: the block preconditioner has no body
+        block yet."""
+        from ..fluid.solvers import AutoSolver, DirectSolver, LaggedLUSolver
+        from .moving_flow import LAGGED_REFACTOR_ITERATIONS
+
+        s = self.stepper.solver
+        if isinstance(s, (DirectSolver, LaggedLUSolver)):
+            return s
+        if isinstance(s, AutoSolver):  # "auto" without the iterative path: lagged for a run of steps
+            return AutoSolver(direct_options=s.direct_options, iterative_options={"dt": self.scene.time.dt},
+                              lagged_options=s.lagged_options)
+        return LaggedLUSolver(direct=self.problem.direct_solver(),
+                              max_iterations_before_refactor=LAGGED_REFACTOR_ITERATIONS)
 
     # -- poses --------------------------------------------------------------------------------
     def _poses(self, t):

@@ -124,7 +124,6 @@ class MovingMeshFlow(FlowLoads):
 
     def __init__(self, scene, sim):
         from ..fluid.navier_stokes import BDF2Stepper
-        from ..fluid.solvers import make_solver
         from ..mesh import MovingMesh
 
         fl, ms = scene.fluid, scene.mesh
@@ -162,9 +161,7 @@ class MovingMeshFlow(FlowLoads):
             # matrix changes more per step than on a fixed mesh (geometry and mesh velocity):
             # 9-15 iterations after a few steps, where one LU costs 40-60 GMRES iterations
             # (Taylor-Hood, 20k-80k DOFs), so refactorise only above LAGGED_REFACTOR_ITERATIONS
-            lagged = {"max_iterations_before_refactor": LAGGED_REFACTOR_ITERATIONS}
-            solver = make_solver(fl.solver, problem=self.problem, dt=scene.time.dt,
-                                 **(lagged if fl.solver in ("auto", "lagged") else {}))
+            solver = self._make_solver()
             self.stepper = BDF2Stepper(self.problem, scene.time.dt, convection=fl.convection, solver=solver,
                                        mesh_velocity=np.zeros(self.space.n_u))
             self.x = self.stepper.state.x
@@ -173,6 +170,29 @@ class MovingMeshFlow(FlowLoads):
 
     def _poses(self, t):
         return np.array([[*p(t)[0], p(t)[1]] for p in self.path]).reshape(-1, 3)
+
+    def _make_solver(self):
+        """The scene's linear solver for the current problem (lagged LU options of the moving mesh)."""
+        from ..fluid.solvers import make_solver
+
+        fl = self.scene.fluid
+        lagged = {"max_iterations_before_refactor": LAGGED_REFACTOR_ITERATIONS}
+        return make_solver(fl.solver, problem=self.problem, dt=self.scene.time.dt,
+                           **(lagged if fl.solver in ("auto", "lagged") else {}))
+
+    def _retarget_solver(self):
+        """After a re-triangulation: the solver's problem data (velocity DOFs, pressure and velocity
+        masses of the block preconditioner) for the new problem; an LU is refactorised anyway."""
+        from ..fluid.solvers import AutoSolver, BlockKrylovSolver
+
+        s = self.stepper.solver
+        if isinstance(s, AutoSolver):
+            fresh = self._make_solver()
+            s.n_u, s.iterative_options = fresh.n_u, fresh.iterative_options
+            if s.chosen == "iterative":
+                s.solver = None  # rebuilt for the new sizes at the next factorize
+        elif isinstance(s, BlockKrylovSolver):
+            self.stepper.solver = self._make_solver()
 
     def _build(self, t):
         """A new space, problem and rigid-mode operator on the current mesh (after a re-triangulation)."""
@@ -250,6 +270,8 @@ class MovingMeshFlow(FlowLoads):
         rebuilt = ev.retriangulated or not self._refit(t_new)
         if rebuilt:
             self._build(t_new)
+            if self.stepper is not None:
+                self._retarget_solver()
         cost.add("rebuild", time.perf_counter() - t0)
         return ev, rebuilt, old_space
 
