@@ -170,7 +170,8 @@ def test_settling_disk_reaches_its_steady_terminal_velocity():
     from fluidem.cases.settling import settling_disk
 
     r = settling_disk()
-    # measured: extrapolated terminal speed 1.2e-4 below the steady one (0.091923 vs 0.091935),
-    # 0.7 % below it at t = 5 (still approaching); sideways drift 1.4e-5 of the distance fallen
+    # measured: extrapolated terminal speed 1.7e-5 below the steady one (0.091933 vs 0.091935;
+    # 1.2e-4 on the meshes before the node budget), 0.7 % below it at t = 5 (still approaching);
+    # sideways drift 1.1e-5 of the distance fallen (1.4e-5)
     assert r.relative_errors()["u_terminal"] < 3e-4
-    assert r.quantities["drift"] < 4e-5
+    assert r.quantities["drift"] < 3e-5
