@@ -26,6 +26,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..fluid.assembly import coded_saddle_matrix
+
 __all__ = ["RigidBodySystem"]
 
 
@@ -85,12 +87,8 @@ class RigidBodySystem:
         T.sort_indices()
         t_src = t_src[T.data.astype(np.int64) - 1]
         # K coded: uu entry j -> +(j+1), B entry j -> −(j+1) (in B and Bᵀ)
-        B = sp.csr_matrix(B)
-        B.sum_duplicates()
+        K, B = coded_saddle_matrix(assembler, B, "coo")
         self._B_indptr, self._B_indices = B.indptr.copy(), B.indices.copy()
-        code_uu = assembler.matrix(np.arange(1, assembler.nnz + 1, dtype=float))
-        code_B = sp.csr_matrix((-np.arange(1, B.nnz + 1, dtype=float), B.indices, B.indptr), shape=B.shape)
-        K = sp.bmat([[code_uu, code_B.T], [code_B, None]], format="coo", dtype=float)
         code = K.data.astype(np.int64)
         # expand every K entry (r, c) by the T entries of row r and of row c
         e1, p1 = _expand(T.indptr, K.row)

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["VectorAssembler", "CondensedSystem", "DivergencePattern"]
+__all__ = ["VectorAssembler", "CondensedSystem", "DivergencePattern", "coded_saddle_matrix"]
 
 
 def csr_pattern(row_dofs: np.ndarray, col_dofs: np.ndarray, n_rows: int, n_cols: int):
@@ -244,6 +244,29 @@ class VectorAssembler:
         return out
 
 
+def coded_saddle_matrix(assembler: VectorAssembler, B, format: str = "csr"):
+    """The saddle-point structure [[K_uu, Bᵀ], [B, 0]] with entry codes instead of values.
+
+    Velocity-block entry j of the assembler's pattern carries the code j + 1, entry j of ``B``
+    (summed CSR) the code −(j + 1) in both ``B`` and ``Bᵀ``: a condensed, folded or bordered
+    system built from it knows where each of its entries comes from and is refilled per step
+    by gathering (or summing) pattern data.
+
+    Returns
+    -------
+    K : sparse matrix (n_u + n_p, n_u + n_p) in ``format``
+    B : (n_p, n_u) csr_matrix
+        ``B`` with duplicates summed (the numbering of the codes).
+    """
+    n_p = B.shape[0]
+    B = sp.csr_matrix(B)
+    B.sum_duplicates()
+    code_uu = assembler.matrix(np.arange(1, assembler.nnz + 1, dtype=float))
+    code_B = sp.csr_matrix((-np.arange(1, B.nnz + 1, dtype=float), B.indices, B.indptr), shape=B.shape)
+    K = sp.bmat([[code_uu, code_B.T], [code_B, sp.csr_matrix((n_p, n_p))]], format=format)
+    return K, B
+
+
 class CondensedSystem:
     """The saddle-point matrix [[K_uu, Bᵀ], [B, 0]] restricted to free DOFs, refilled in place.
 
@@ -261,13 +284,7 @@ class CondensedSystem:
     """
 
     def __init__(self, assembler: VectorAssembler, B, free: np.ndarray):
-        n_p = B.shape[0]
-        nnz = assembler.nnz
-        B = sp.csr_matrix(B)
-        B.sum_duplicates()
-        code_uu = assembler.matrix(np.arange(1, nnz + 1, dtype=float))
-        code_B = sp.csr_matrix((-np.arange(1, B.nnz + 1, dtype=float), B.indices, B.indptr), shape=B.shape)
-        K = sp.bmat([[code_uu, code_B.T], [code_B, sp.csr_matrix((n_p, n_p))]], format="csr")
+        K, B = coded_saddle_matrix(assembler, B, "csr")
         Kff = K[free][:, free].tocsr()
         Kff.sort_indices()
         codes = Kff.data

@@ -31,6 +31,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import MeshError
+from .assembly import coded_saddle_matrix
 from ..mesh.periodic import SIDE_PAIRS
 
 __all__ = ["periodic_pairs", "representatives", "FoldedSystem"]
@@ -118,13 +119,7 @@ class FoldedSystem:
     """
 
     def __init__(self, assembler, B, fold: np.ndarray, n_free: int):
-        n_p = B.shape[0]
-        nnz = assembler.nnz
-        B = sp.csr_matrix(B)
-        B.sum_duplicates()
-        code_uu = assembler.matrix(np.arange(1, nnz + 1, dtype=float))
-        code_B = sp.csr_matrix((-np.arange(1, B.nnz + 1, dtype=float), B.indices, B.indptr), shape=B.shape)
-        K = sp.bmat([[code_uu, code_B.T], [code_B, sp.csr_matrix((n_p, n_p))]], format="coo")
+        K, B = coded_saddle_matrix(assembler, B, "coo")
         r, c, code = fold[K.row], fold[K.col], K.data
         keep = (r >= 0) & (c >= 0)
         r, c, code = r[keep], c[keep], code[keep]
