@@ -101,9 +101,9 @@ class FreeBodyStepper:
         dt = st.dt
         tm = CostSplit()
         t0 = time.perf_counter()
-        a0, a1, a2 = st._bdf()
-        hist = st._history_term(a1, a2)
-        b = st._convecting_velocity()
+        a0, a1, a2 = st.bdf_coefficients()
+        hist = st.history_term(a1, a2)
+        b = st.convecting_velocity()
         t_new = st.t + dt
         x = st.state.x.copy()
         if st.previous_velocity is not None:
@@ -131,18 +131,7 @@ class FreeBodyStepper:
         z -= self.solver.solve(rz)
         tm.add("solve", time.perf_counter() - t0)
         x = sysm.prolong(z, x)
-        st._check_finite(x, t_new, v)
-        pr.normalise_pressure(x)
         self.V_prev = self.V
         self.V = sysm.split(z)[1].copy()
-        # hand the new state to the fluid stepper (its loads and next step read it)
-        st._last = (a0, hist)
-        st.last_b = b
-        st._u_prev = st.state.u.copy()
-        st.state = FlowState(x, n_u, t_new)
-        st.t = t_new
-        st.n_steps += 1
-        pr.timings += tm
-        st.last_cost = tm
         self.last_cost = tm
-        return st.state
+        return st.accept(x, v, a0, hist, tm, b=b)  # the fluid stepper's loads and next step read it

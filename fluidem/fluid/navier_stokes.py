@@ -300,14 +300,38 @@ class BDF2Stepper:
             else:
                 raise NewtonError(f"Newton did not converge in time step {self.n_steps + 1} (t = {t_new:g})", [res])
             self.last_b = b
-        self._check_finite(x, t_new, v)
+        return self.accept(x, v, a0, hist, tm)
+
+    # -- the parts of a step, for solvers that extend it (free bodies) ------------------------
+    def bdf_coefficients(self) -> tuple[float, float, float]:
+        """(a0, a1, a2) of the next step's derivative (a0 u^{n+1} + a1 u^n + a2 u^{n−1}) / dt."""
+        return self._bdf()
+
+    def history_term(self, a1: float, a2: float) -> np.ndarray:
+        """M (a1 u^n + a2 u^{n−1}) / dt, (n_u,), with M of the current geometry."""
+        return self._history_term(a1, a2)
+
+    def convecting_velocity(self) -> np.ndarray:
+        """The semi-implicit step's convecting velocity 2u^n − u^{n−1} − w, (n_u,)."""
+        return self._convecting_velocity()
+
+    def accept(self, x: np.ndarray, boundary_values: np.ndarray, a0: float, hist: np.ndarray,
+               cost: CostSplit, b: np.ndarray | None = None) -> FlowState:
+        """Make ``x`` (n_dofs,) the state at t + dt after a solve: checked to be finite, pressure
+        normalised, u^n becomes u^{n−1}, the residual terms (a0, hist, and the convecting velocity
+        ``b`` if given) kept for the loads."""
+        pr = self.problem
+        t_new = self.t + self.dt
+        self._check_finite(x, t_new, boundary_values)
         pr.normalise_pressure(x)
-        pr.timings += tm
-        self.last_cost = tm
+        pr.timings += cost
+        self.last_cost = cost
         self._refactorize = False
         self._last = (a0, hist)
+        if b is not None:
+            self.last_b = b
         self._u_prev = self.state.u.copy()
-        self.state = FlowState(x, n_u, t_new)
+        self.state = FlowState(x, pr.space.n_u, t_new)
         self.t = t_new
         self.n_steps += 1
         return self.state
