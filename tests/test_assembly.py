@@ -26,13 +26,14 @@ def test_convection_matches_skfem(element, curved):
 
 @pytest.mark.parametrize("element, curved", [("p2b", True), ("th", False), ("mini", False), ("p3", True)])
 def test_constant_forms_match_skfem(element, curved):
-    """The pattern refill of the moving mesh: viscous, mass and divergence as scikit-fem assembles them."""
+    """The pattern refill of the moving mesh: viscous (both forms), mass and divergence as scikit-fem assembles them."""
     from fluidem.fluid.assembly import DivergencePattern
 
     space = FlowSpace(dfg_mesh(0, curved=curved), element)
     ub, pb = space.ub, space.pb
     va = VectorAssembler(ub)
-    for form, data in ((forms.viscous, va.viscous_data()), (forms.mass, va.mass_data())):
+    for form, data in ((forms.viscous, va.viscous_data()), (forms.viscous_stress, va.stress_data()),
+                       (forms.mass, va.mass_data())):
         ref = asm(form, ub)
         assert abs(va.matrix(data) - ref).max() < 1e-12 * abs(ref).max()
     ref = asm(forms.divergence, ub, pb)

@@ -112,8 +112,12 @@ class RigidBodySystem:
         self._src_uu = c[self._uu] - 1
         self._src_B = -c[~self._uu] - 1
         self._wr, self._wc = wr, wc
-        self._t = T
-        self._t_src = t_src
+        # the free bodies' rows of R as positions into its data (the structure is fixed per
+        # connectivity, the data refilled as the mesh moves), and their outline DOFs
+        self._r_pos = rpos
+        self._r_cols = R.indices[rpos]
+        self._r_rows = rr
+        self._outline = np.unique(self._r_cols)
 
     # -- matrix -------------------------------------------------------------------------------
     def _weights(self) -> np.ndarray:
@@ -140,7 +144,9 @@ class RigidBodySystem:
         """Tᵀ r (nz,) of a full residual ``r`` (n_u + n_p,): condensed rows (periodic pairs summed),
         then Πᵀ r_u per free body."""
         rF = np.bincount(self._fold_dst, weights=r[self._fold_src], minlength=self.n_fluid)
-        return np.concatenate([rF, self.rigid.matrix[self._rrows] @ r[: self.n_u]])
+        w = self.rigid.matrix.data[self._r_pos]
+        rV = np.bincount(self._r_rows, weights=w * r[self._r_cols], minlength=3 * self.n_bodies)
+        return np.concatenate([rF, rV])
 
     def split(self, z: np.ndarray):
         """(z_F, V (n_bodies, 3)) of a coupled vector."""
@@ -151,9 +157,9 @@ class RigidBodySystem:
         x = np.array(x_dirichlet, dtype=float, copy=True)
         zF, V = self.split(z)
         x[self._fold_src] = zF[self._fold_dst]
-        R = self.rigid.matrix[self._rrows]
-        outline = np.unique(R.indices)
-        x[outline] = (R.T @ V.ravel())[outline]
+        w = self.rigid.matrix.data[self._r_pos]
+        u = np.bincount(self._r_cols, weights=w * V.ravel()[self._r_rows], minlength=self.n_u)
+        x[self._outline] = u[self._outline]
         return x
 
     def gather(self, x: np.ndarray, V) -> np.ndarray:
