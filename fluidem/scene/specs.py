@@ -136,6 +136,8 @@ class DomainSpec:
     inflow_profile: dict | None = None
 
     KEYS = ("box",) + names.choices("side") + ("inflow_profile",)
+    #: keys of an inflow profile table (``inflow_profile`` or a side's ``profile``)
+    PROFILE_KEYS = ("type", "umax", "ramp")
 
     def side(self, name) -> SideSpec:
         """The :class:`SideSpec` of side ``name`` (a name of ``names.choices("side")``)."""
@@ -194,7 +196,7 @@ class DomainSpec:
     def _check_profile(key, prof):
         if not isinstance(prof, dict):
             raise fail(key, prof, "a table { type = 'parabolic' | 'uniform', umax = ..., ramp = ... }", SceneError)
-        check_keys(prof, ("type", "umax", "ramp"), key, error=SceneError)
+        check_keys(prof, DomainSpec.PROFILE_KEYS, key, error=SceneError)
         out = {"type": names.lookup("profile", prof.get("type", "parabolic"), f"{key}.type", SceneError)}
         if "umax" not in prof:
             raise SceneError(f"{key} has no umax: the inflow speed is required (a finite number, length/time)")
@@ -376,12 +378,14 @@ class MeshSpec:
     curved: bool = True
 
     KEYS = ("h", "grading", "strategy", "retriangulate_every", "curved")
+    #: keys of the ``grading`` table
+    GRADING_KEYS = ("region", "growth", "h_max")
 
     def validate(self, where="mesh"):
         self.h = positive(f"{where}.h", self.h, error=SceneError)
         if self.grading is not None:
             g = self.grading
-            check_keys(g, ("region", "growth", "h_max"), f"{where}.grading", error=SceneError)
+            check_keys(g, self.GRADING_KEYS, f"{where}.grading", error=SceneError)
             region = g.get("region", "bodies")
             if region != "bodies":
                 if (not isinstance(region, (list, tuple)) or len(region) != 4
@@ -458,6 +462,14 @@ _TABLES = {"fluid": FluidSpec, "domain": DomainSpec, "contact": ContactSpec, "me
            "output": OutputSpec}
 _TOP_KEYS = ("name", "description", "gravity", "fluid", "domain", "bodies", "bodies_table", "contact", "mesh", "time",
              "output")
+#: where keys that belong elsewhere go (the hint an unknown key's error gives instead of the nearest key)
+_BODY_HINTS = {"file": "a CSV body table is [bodies_table] file = ..., not a key of a body",
+               "x": "the centre is position = [x, y]", "y": "the centre is position = [x, y]",
+               "vx": "the velocity is velocity = [vx, vy]", "vy": "the velocity is velocity = [vx, vy]"}
+_TOP_HINTS = {"file": "a CSV body table is [bodies_table] file = ...", "h": "the mesh size is [mesh] h",
+              "dt": "the time step is [time] dt", "t_end": "the end time is [time] t_end",
+              "viscosity": "the viscosity is [fluid] viscosity", "density": "a density is [fluid] density or a "
+              "body's density", "box": "the box is [domain] box"}
 
 
 @dataclass
@@ -520,7 +532,7 @@ class Scene:
     @classmethod
     def from_dict(cls, data: dict, base_dir=".") -> Scene:
         """Build and validate a scene from the nested dict of a TOML file."""
-        check_keys(data, _TOP_KEYS, "", error=SceneError)
+        check_keys(data, _TOP_KEYS, "", error=SceneError, hints=_TOP_HINTS)
         kw = {}
         for key, spec in _TABLES.items():
             if key in data:
@@ -538,10 +550,15 @@ class Scene:
                 kw[k] = data[k]
         bodies = []
         raw = data.get("bodies", [])
+        if isinstance(raw, dict) and "file" in raw:  # [bodies] file = ...: the CSV table is [bodies_table]
+            raise SceneError(f"bodies.file = {raw['file']!r}: a CSV body table is given as [bodies_table] with "
+                             f"file = {raw['file']!r} (and defaults for every row); [[bodies]] (double brackets) "
+                             "is one table per body")
         if not isinstance(raw, list):
-            raise fail("bodies", raw, "an array of tables [[bodies]]", SceneError)
+            raise fail("bodies", raw, "an array of tables [[bodies]] (one per body; a CSV table of bodies is "
+                       "[bodies_table] file = ...)", SceneError)
         for i, b in enumerate(raw):
-            check_keys(b, BodySpec.KEYS, f"bodies[{i}]", error=SceneError)
+            check_keys(b, BodySpec.KEYS, f"bodies[{i}]", error=SceneError, hints=_BODY_HINTS)
             bodies.append(BodySpec(**b))
         if "bodies_table" in data:
             bodies.extend(BodySpec(**rec) for rec in files.read_bodies_table(data["bodies_table"], base_dir))
