@@ -21,7 +21,18 @@ import numpy as np
 from .errors import InputError
 from .io import PathLike, read_history, read_pvd
 
-__all__ = ["plot_run"]
+__all__ = ["plot_run", "require_matplotlib"]
+
+
+def require_matplotlib(what: str = "plotting") -> None:
+    """Raise :class:`fluidem.errors.InputError` naming ``what`` and the install command if matplotlib is missing.
+
+    ``fluidem run --plot`` calls it before the run, so that a missing matplotlib costs nothing.
+    """
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise InputError(f'{what} needs matplotlib: pip install "fluidem[plot]"') from None
 
 
 def _outlines(vtu):
