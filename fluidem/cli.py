@@ -175,10 +175,14 @@ def _add_scene_commands(sub) -> None:
                    description="Print every table and key a scene file takes, with type, default, unit and "
                                "allowed values (the text of docs/scenes.md).")
     pt = sub.add_parser("plot", help="draw PNG figures of a run directory",
-                        description="Mesh with bodies, velocity magnitude with streamlines, pressure and body "
-                                    "trajectories, as PNG files in DIR/plots (or --to).")
+                        description="Mesh, velocity magnitude with streamlines, pressure, bodies, body "
+                                    "trajectories and the history over time (loads, velocities, energy, mesh "
+                                    "quality), as PNG files in DIR/plots (or --to). Needs matplotlib: pip install "
+                                    "\"fluidem[plot]\".")
     pt.add_argument("dir", help="output directory of 'fluidem run'")
     pt.add_argument("--to", metavar="DIR", help="where to write the PNG files")
+    pt.add_argument("--units", choices=("SI", "CGS"), help="name the units in the labels (the scene must be in "
+                    "that system; nothing is converted); default: dimensions, e.g. [length]")
 
 
 class _ProgressBar:
@@ -271,7 +275,7 @@ def _scene_main(args) -> int:
     if args.command == "plot":
         from .plotting import plot_run
 
-        for path in plot_run(args.dir, args.to):
+        for path in plot_run(args.dir, args.to, units=args.units):
             print(path)
         return 0
     scene = _scene_from_args(args)
