@@ -400,7 +400,7 @@ def _history_figure(plt, h, mass, quality, scene, u):
             panels.append((f"body kinetic energy [{u('mass·length²/time²')}]", lines))
         if np.any(h["contacts"]):
             panels.append(("contacts [1]", [("contacts, summed over the bodies", t, total("contacts"))]))
-    if quality is not None:
+    if quality is not None and len(quality["t"]) > 1:  # a mesh built once has one row: nothing over time
         panels.append(("mesh angles [deg]", [("min angle", quality["t"], quality["min_angle"]),
                                              ("max angle", quality["t"], quality["max_angle"])]))
     if not panels:
