@@ -181,8 +181,9 @@ def _add_scene_commands(sub) -> None:
                                     "\"fluidem[plot]\".")
     pt.add_argument("dir", help="output directory of 'fluidem run'")
     pt.add_argument("--to", metavar="DIR", help="where to write the PNG files")
-    pt.add_argument("--units", choices=("SI", "CGS"), help="name the units in the labels (the scene must be in "
-                    "that system; nothing is converted); default: dimensions, e.g. [length]")
+    pt.add_argument("--units", **_named("units"), help="name the units in the labels (the scene must be in "
+                    "that system; nothing is converted); default: the scene's units, else dimensions, e.g. "
+                    "[length]")
 
 
 class _ProgressBar:

@@ -15,7 +15,8 @@
 :func:`plot_run` saves them as ``<name>.png``.  Every axis is labelled with its quantity and
 unit and every field figure has a labelled colorbar.  Units are the scene's (one consistent
 system, see :mod:`fluidem.scene`): by default written as dimensions (``x [length]``,
-``|u| [length/time]``); ``units="SI"`` or ``"CGS"`` names them (``x [m]``, ``|u| [m/s]``).
+``|u| [length/time]``); a scene with ``units = "SI"`` or ``"CGS"`` (or ``units=`` here) names
+them (``x [m]``, ``|u| [m/s]``).
 In the field figures the bodies are the holes of the fluid mesh of that output step, so
 geometry and field are from the same instant.  A box longer than 4:1 is split into up to three
 stacked views, or, longer still, cropped to a 4:1 view around the bodies (the title says so).
@@ -31,12 +32,13 @@ from pathlib import Path
 
 import numpy as np
 
+from . import names
 from .errors import InputError
 from .io import HISTORY_UNITS, PathLike, read_history, read_pvd
 
 __all__ = ["plot_run", "figures", "require_matplotlib", "view_windows", "UNIT_SYSTEMS"]
 
-#: named unit systems for the labels (nothing is converted: the scene must be in that system)
+#: the unit names of each unit system of ``names.choices("units")`` (labels only: nothing is converted)
 UNIT_SYSTEMS = {"SI": {"length": "m", "time": "s", "mass": "kg", "force": "N"},
                 "CGS": {"length": "cm", "time": "s", "mass": "g", "force": "dyn"}}
 
@@ -188,8 +190,8 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
     out_dir : str or Path
         Directory written by :meth:`fluidem.Simulation.run`.
     units : {None, "SI", "CGS"}
-        How the axis labels name units: ``None`` by dimension (``[length]``), else in that
-        system (``[m]``); nothing is converted.
+        How the axis labels name units: in that system (``[m]``), or ``None``: the scene's
+        ``units`` if it names them, else by dimension (``[length]``); nothing is converted.
 
     Returns
     -------
@@ -205,8 +207,8 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
         is missing.
     """
     require_matplotlib("plotting")
-    if units is not None and units not in UNIT_SYSTEMS:
-        raise InputError(f"units = {units!r}: expected one of {', '.join(map(repr, UNIT_SYSTEMS))} or None")
+    if units is not None:
+        units = names.lookup("units", units, "units")
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -218,6 +220,8 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
         raise InputError(f"out_dir = {str(out_dir)!r} is not a fluidem run directory: expected a directory written "
                          "by 'fluidem run' (with a history.csv)")
     scene = _scene(out_dir)
+    if units is None and scene is not None:
+        units = scene.units
     u = lambda dim: _unit(dim, units)  # noqa: E731
     h = read_history(out_dir)
     bodies_series = read_pvd(out_dir / "bodies.pvd") if (out_dir / "bodies.pvd").exists() else []

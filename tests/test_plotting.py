@@ -106,3 +106,23 @@ def test_view_windows_split_and_crop():
     assert crop and views == [(0.0, 1.0, pytest.approx(38.1), pytest.approx(42.1))]
     views, crop = view_windows((-24, 24, -1, 1), focus=(-0.2, 23.9, -0.2, 0.2))  # bodies far apart: a wider view
     assert crop and views == [(pytest.approx(-2.1), 24.0, -1.0, 1.0)]
+
+
+def test_scene_units_name_the_labels(tmp_path):
+    from fluidem import names
+    from fluidem.plotting import UNIT_SYSTEMS
+
+    assert tuple(UNIT_SYSTEMS) == names.choices("units")
+    s = fluidem.Scene.from_dict({"units": "cgs", "gravity": [0, -981], "domain": {"box": [0, 10, 0, 10]},
+                                 "bodies": [{"shape": "disk", "radius": 0.5, "position": [5, 5]}],
+                                 "time": {"dt": 0.01, "t_end": 0.02}})
+    assert s.units == "CGS"  # the alias stored canonically
+    fluidem.Simulation(s).run(out_dir=tmp_path)
+    assert fluidem.Scene.from_toml(tmp_path / "scene.toml").units == "CGS"  # the scene as run keeps it
+    figs = figures(tmp_path)
+    assert figs["trajectories"].axes[0].get_xlabel() == "x [cm]"
+    assert "body velocity [cm/s]" in [ax.get_ylabel() for ax in figs["history"].axes]
+    assert figures(tmp_path, units="SI")["trajectories"].axes[0].get_xlabel() == "x [m]"  # the argument wins
+    import matplotlib.pyplot as plt
+
+    plt.close("all")

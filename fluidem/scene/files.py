@@ -177,6 +177,8 @@ def scene_toml(scene) -> str:
     d = scene.to_dict()
     lines = [f"name = {toml_value(d.pop('name'))}", f"description = {toml_value(d.pop('description'))}",
              f"gravity = {toml_value(d.pop('gravity'))}"]
+    if "units" in d:
+        lines.insert(2, f"units = {toml_value(d.pop('units'))}")
     bodies = d.pop("bodies")
     for key, tab in d.items():
         lines.append(f"\n[{key}]")

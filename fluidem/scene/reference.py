@@ -54,7 +54,7 @@ TABLES = {
 
 #: names a key takes from :mod:`fluidem.names` (key -> registry kind)
 NAME_KINDS = {
-    "fluid.model": "fluid model", "fluid.element": "element", "fluid.convection": "convection",
+    ".units": "units", "fluid.model": "fluid model", "fluid.element": "element", "fluid.convection": "convection",
     "fluid.solver": "solver", "fluid.coupling": "coupling", "domain.bottom": "side type",
     "domain.right": "side type", "domain.top": "side type", "domain.left": "side type",
     "domain.<side>.type": "side type", "domain.inflow_profile.type": "profile", "bodies.shape": "shape",
@@ -89,6 +89,8 @@ _BODY = {
 KEY_DOCS = {
     ".name": ("string", "—", "scene name (plan, run record)", "the file name without .toml"),
     ".description": ("string", "—", "one line shown by `fluidem examples`", '`""`'),
+    ".units": ("name", "—", "the unit system the numbers are in, for the labels of figures only (`x [m]` "
+               "instead of `x [length]`); nothing is converted", "not named: labels give dimensions"),
     ".gravity": ("[gx, gy]", "length/time²", "acceleration of gravity (e.g. `[0, -9.81]` in SI, `[0, -981]` in "
                  "CGS); on the fluid with fixed or prescribed bodies only it adds a hydrostatic pressure and is "
                  "left out", "`[0.0, 0.0]`"),

@@ -460,8 +460,8 @@ class OutputSpec:
 
 _TABLES = {"fluid": FluidSpec, "domain": DomainSpec, "contact": ContactSpec, "mesh": MeshSpec, "time": TimeSpec,
            "output": OutputSpec}
-_TOP_KEYS = ("name", "description", "gravity", "fluid", "domain", "bodies", "bodies_table", "contact", "mesh", "time",
-             "output")
+_TOP_KEYS = ("name", "description", "units", "gravity", "fluid", "domain", "bodies", "bodies_table", "contact", "mesh",
+             "time", "output")
 #: where keys that belong elsewhere go (the hint an unknown key's error gives instead of the nearest key)
 _BODY_HINTS = {"file": "a CSV body table is [bodies_table] file = ..., not a key of a body",
                "x": "the centre is position = [x, y]", "y": "the centre is position = [x, y]",
@@ -493,6 +493,9 @@ class Scene:
         ``None``: contacts off.
     mesh, time, output : MeshSpec, TimeSpec, OutputSpec
     name, description : str
+    units : {None, "SI", "CGS"}
+        The unit system the numbers are in, for labels only (figures write ``x [m]`` instead
+        of ``x [length]``); nothing is converted.  ``None``: not named.
 
     Examples
     --------
@@ -514,6 +517,7 @@ class Scene:
     output: OutputSpec = field(default_factory=OutputSpec)
     name: str = "scene"
     description: str = ""
+    units: str | None = None
     source: str | None = None
     #: tables or keys the scene did not give and that took their defaults ("time", "mesh.h"); the plan names them
     defaulted: list = field(default_factory=list, compare=False, repr=False)
@@ -543,6 +547,8 @@ class Scene:
             raise SceneError("the scene has no [domain] table; it needs at least box = [xmin, xmax, ymin, ymax]")
         if "gravity" in data:
             kw["gravity"] = data["gravity"]
+        if "units" in data:
+            kw["units"] = data["units"]
         for k in ("name", "description"):
             if k in data:
                 if not isinstance(data[k], str):
@@ -583,6 +589,8 @@ class Scene:
             (a ``ValueError``) naming the first bad key, its value and what is allowed.
         """
         self.gravity = pair("gravity", self.gravity, error=SceneError)
+        if self.units is not None:
+            self.units = names.lookup("units", self.units, "units", SceneError)
         if self.fluid is not None:
             self.fluid.validate()
         self.domain.validate()
@@ -690,6 +698,8 @@ class Scene:
              "domain": _plain(asdict(self.domain)), "mesh": _plain(asdict(self.mesh)),
              "time": _plain(asdict(self.time)), "output": _plain(asdict(self.output)),
              "bodies": [{k: v for k, v in _plain(asdict(b)).items() if v is not None} for b in self.bodies]}
+        if self.units is not None:  # only when named: scenes without it keep their key (run.json)
+            d["units"] = self.units
         if self.fluid is not None:
             d["fluid"] = _plain(asdict(self.fluid))
         if self.contact is not None:
