@@ -126,3 +126,16 @@ def test_scene_units_name_the_labels(tmp_path):
     import matplotlib.pyplot as plt
 
     plt.close("all")
+
+
+def test_no_bodies_gives_field_figures_only(tmp_path, recwarn):
+    s = fluidem.Scene.from_dict({"fluid": {"model": "stokes"}, "mesh": {"h": 0.1}, "time": {"dt": 1.0, "t_end": 1.0},
+                                 "domain": {"box": [0, 1, 0, 1], "top": {"type": "moving-wall", "velocity": [1, 0]}}})
+    fluidem.Simulation(s).run(out_dir=tmp_path)
+    figs = figures(tmp_path)
+    assert list(figs) == ["mesh", "velocity", "pressure"]  # an empty history.csv: no history figure
+    _check_labelled(figs)
+    assert not [w for w in recwarn if "loadtxt" in str(w.message)]
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
