@@ -416,7 +416,7 @@ def _history_figure(plt, h, mass, quality, scene, u):
             ax.plot(x, y, marker="." if len(x) < 30 else None, label=label)
         ax.set_ylabel(ylabel, fontsize=9)
         ax.grid(True, linewidth=0.3)
-        if 1 < len(lines) <= 8:
+        if len(lines) <= 8:  # which body, or which sum or maximum over the bodies
             ax.legend(fontsize=7, loc="best")
     axes[-1].set_xlabel(f"t [{u('time')}]")
     axes[0].set_title("history" + (f" of {len(ids)} bod{'y' if len(ids) == 1 else 'ies'}" if len(ids) else ""),
