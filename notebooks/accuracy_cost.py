@@ -24,7 +24,6 @@ import time
 from pathlib import Path
 
 import matplotlib.pyplot as plt
-import numpy as np
 
 from fluidem.cases.dfg import REFERENCE, dfg_2d1, dfg_mesh
 
