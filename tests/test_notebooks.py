@@ -14,9 +14,9 @@ import pytest
 
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 
-#: name -> measured wall seconds of the script (2-core machine, load ~10 from other jobs;
-#: about half that on an idle machine)
-WALKTHROUGHS = {"accuracy_cost": 11, "moving_mesh": 7, "dry_heap": 30, "settling_disk": 38}
+#: name -> measured wall seconds of the script under pytest (2-core machine, one worker,
+#: load average ~9 from other jobs): 67 s together
+WALKTHROUGHS = {"accuracy_cost": 11, "moving_mesh": 3, "dry_heap": 23, "settling_disk": 30}
 
 
 def test_every_walkthrough_is_tested():
