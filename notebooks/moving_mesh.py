@@ -223,7 +223,7 @@ assert disp[hexagons].max() == 0.0  # bodies at rest keep their outline nodes
 # %%
 ev = log[first][0]
 plate = (1.1, 1.7, 0.2, 0.8)
-fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), sharey=True)
+fig, axes = plt.subplots(1, 2, figsize=(9, 4.2))
 draw(axes[0], ev.old_points, ev.old_triangles, trajectory[first + 1], f"step {ev.step}: dragged", plate)
 draw(axes[1], *meshes[first], trajectory[first + 1], f"step {ev.step}: re-triangulated", plate)
 fig.tight_layout()

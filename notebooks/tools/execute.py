@@ -27,7 +27,8 @@ def execute(name: str, timeout: int = 900) -> float:
     env_backend = os.environ.pop("MPLBACKEND", None)  # the kernel must use the inline backend
     try:
         t0 = time.perf_counter()
-        NotebookClient(nb, timeout=timeout, kernel_name="python3",
+        # no per-cell timestamps: a re-execution changes only what the cells print and draw
+        NotebookClient(nb, timeout=timeout, kernel_name="python3", record_timing=False,
                        resources={"metadata": {"path": str(HERE)}}).execute()
         seconds = time.perf_counter() - t0
     finally:
