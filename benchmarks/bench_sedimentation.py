@@ -78,6 +78,8 @@ def run(case: str, max_steps: int | None = None, **over) -> dict:
     t0 = time.perf_counter()
     sim = Simulation(sc)
     t_build = time.perf_counter() - t0
+    dofs_start = int(sim.flow.dofs)
+    cpu0 = time.process_time()
     a = 0.5 * D
     rows, failure = [], None
     n_max = sim.plan.n_steps if max_steps is None else max_steps
@@ -98,8 +100,11 @@ def run(case: str, max_steps: int | None = None, **over) -> dict:
         if y - a < 2 * p["h"]:
             break
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - cpu0
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     tr = np.array(rows).reshape(-1, 7)
-    out = {"case": case, "params": p, "dofs": int(sim.flow.dofs), "steps": len(rows), "wall_s": wall,
+    out = {"case": case, "params": p, "dofs": int(sim.flow.dofs), "dofs_start": dofs_start, "steps": len(rows),
+           "wall_s": wall, "cpu_s": cpu, "note": f"Load average {load:.1f} at the end of the run.",
            "build_s": t_build, "triangulations": sim.counters["triangulations"], "failure": failure,
            "trajectory": {k: tr[:, i].tolist() for i, k in enumerate(("t", "x", "y", "theta", "vx", "vy", "omega"))},
            "segments": max(64, int(np.ceil(np.pi * D / p["h"])))}
@@ -121,18 +126,20 @@ def summary(tr: np.ndarray, p: dict) -> dict:
     band = (y > 1.5) & (y < 2.5)
     s["u_terminal"] = float(-vy[band].mean()) if band.any() else None
     s["u_terminal_spread"] = float(np.ptp(vy[band])) if band.any() else None
-    # lateral oscillation: onset when |x - 1| first exceeds 0.04 d; amplitude and period from the
-    # extremes of x after it (sign changes of vx)
+    s["u_band"] = (float(-vy[band][0]), float(-vy[band][-1])) if band.any() else None
+    # lateral motion: onset when |x - x_c| first exceeds max(3 × the release offset, 1e-3 d), x_c = 1 the
+    # centre line; its extremes are the sign changes of vx after the onset (amplitude: the largest
+    # |x - x_c| there; period: twice the mean spacing of the extremes, when there are three or more)
     dev = x - 1.0
-    onset = np.flatnonzero(np.abs(dev) > 0.04 * D)
+    onset = np.flatnonzero(np.abs(dev) > max(3 * abs(p["offset"]), 1e-3 * D))
     s["lateral_max"] = float(np.abs(dev).max())
     s["lateral_onset_t"] = float(t[onset[0]]) if onset.size else None
     ext = np.flatnonzero(np.sign(vx[1:]) != np.sign(vx[:-1])) + 1
-    if onset.size:
-        ext = ext[ext >= onset[0]]
+    ext = ext[ext >= onset[0]] if onset.size else ext[:0]
     s["lateral_extremes"] = [(float(t[i]), float(dev[i])) for i in ext]
     s["lateral_period"] = float(2 * np.diff(t[ext]).mean()) if ext.size >= 3 else None
     s["lateral_amplitude"] = float(np.abs(dev[ext]).max()) if ext.size else None
+    s["max_lateral_speed"] = float(np.abs(vx).max())
     return s
 
 
@@ -193,23 +200,38 @@ def write(res: dict) -> None:
     plot(res, RESULTS / f"{name}.png")
     p = res["params"]
     onset = "none" if res["lateral_onset_t"] is None else f"t = {res['lateral_onset_t']:.4f} s"
+    extremes = ", ".join(f"({a:.3f}, {b:+.2e})" for a, b in res["lateral_extremes"]) or "none"
+    amplitude = "none" if res["lateral_amplitude"] is None else f"{res['lateral_amplitude']:.3g} cm"
+    period = (f"{res['lateral_period']:.3g} s" if res["lateral_period"] is not None else
+              "not measurable (fewer than three extremes before the floor)")
+    u0, u1 = res["u_band"]
+    if res["u_terminal_spread"] > 0.01 * res["u_terminal"]:
+        terminal = (f"no terminal state: −v_y rises from {u0:.4f} to {u1:.4f} cm/s across it (mean "
+                    f"{res['u_terminal']:.4f})")
+    else:
+        terminal = (f"terminal speed {res['u_terminal']:.5f} cm/s (mean of −v_y; it varies by "
+                    f"{res['u_terminal_spread']:.2g} cm/s across the band)")
+    cpu = f", CPU time {res['cpu_s']:.0f} s" if "cpu_s" in res else ""
+    dofs = f"{res['dofs_start']} DOFs at the start, {res['dofs']} at the end" if "dofs_start" in res else \
+        f"{res['dofs']} DOFs at the end"
     lines = [f"# Sedimentation of one disk, case {res['case'].upper()} (Glowinski et al. 2001; Wan & Turek 2006)", "",
              f"Machine: {machine}; run niced beside other jobs.", "",
              f"Channel 2 × 6 cm, closed; disk d = {D} cm ({res['segments']}-gon) released at rest at "
              f"({1 + p['offset']:g}, 4); ρs/ρf = {p['density']:g}, ν = {p['nu']:g} cm²/s, g = {G:g} cm/s²; "
              f"P2+bubble/P1dc, h = {p['h']:g} cm at the disk graded to {p['h_max']:g} cm, dt = {p['dt']:g} s, "
-             f"{res['dofs']} DOFs, {res['steps']} steps, {res['triangulations']} triangulations, "
-             f"wall time {res['wall_s']:.0f} s (`benchmarks/bench_sedimentation.py`).", "",
+             f"{dofs}, {res['steps']} steps, {res['triangulations']} triangulations, "
+             f"wall time {res['wall_s']:.0f} s{cpu} (`benchmarks/bench_sedimentation.py`).", "",
              "| quantity | value |", "|---|---|",
              f"| stopped at | t = {res['t_end']:.4f} s, gap to the floor {res['gap_end']:.4f} cm |",
              f"| maximum speed | {res['max_speed']:.4f} cm/s at t = {res['t_max_speed']:.4f} s |",
              f"| max Re, fluid density (ρf U d/μ) | {res['re_max_fluid']:.2f} |",
              f"| max Re, particle density (ρs U d/μ) | {res['re_max_particle']:.2f} |",
-             f"| terminal settling speed (mean of −v_y for 1.5 < y < 2.5 cm) | {res['u_terminal']:.4f} cm/s "
-             f"(spread {res['u_terminal_spread']:.2g} cm/s) |",
+             f"| settling speed for 1.5 < y < 2.5 cm | {terminal} |",
              f"| largest lateral excursion \\|x − 1\\| | {res['lateral_max']:.4g} cm |",
-             f"| lateral onset (\\|x − 1\\| > 0.04 d) | {onset} |",
-             f"| lateral amplitude, period after onset | {res['lateral_amplitude']} cm, {res['lateral_period']} s |"]
+             f"| lateral onset (\\|x − 1\\| > max(3 offset, 0.001 d)) | {onset} |",
+             f"| extremes of x − 1 after the onset (t s, cm) | {extremes} |",
+             f"| largest lateral speed \\|v_x\\| | {res['max_lateral_speed']:.4g} cm/s |",
+             f"| lateral amplitude, period after onset | {amplitude}, {period} |"]
     if res.get("reference"):
         r = res["reference"]
         lines.append(f"| steady reference terminal speed | {r['U']:.5f} cm/s ({r['dofs']} DOFs, {r['iterations']} "
@@ -217,6 +239,8 @@ def write(res: dict) -> None:
     if res["failure"]:
         f = res["failure"]
         lines.append(f"| failure | step {f['step']}, t = {f['t']:.4f} s: {f['message']} |")
+    if res.get("note"):
+        lines += ["", res["note"]]
     lines += ["", f"![case {res['case'].upper()}]({name}.png)", ""]
     (RESULTS / f"{name}.md").write_text("\n".join(lines))
 
