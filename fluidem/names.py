@@ -107,6 +107,9 @@ REGISTRY: dict[str, Kind] = {
         "wall-correction": "Stokes drag of a disk between two walls (Faxen)",
         "dry-heap": "granular heap, DEM only",
         "column-collapse": "granular column collapse, DEM only",
+        "settling-disk": "a free disk settling from rest in a closed channel (Navier-Stokes), against its steady "
+                         "terminal velocity",
+        "jeffery-orbit": "a free ellipse (aspect ratio 2) turning in a Stokes shear cell, half a Jeffery period",
     }),
     "schur": Kind("Schur-complement approximation", {
         "auto": "cahouet-chabard when a time step is given, mass otherwise",
