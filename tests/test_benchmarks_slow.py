@@ -11,14 +11,17 @@ import pytest
 from fluidem.cases.dfg import dfg_2d1
 
 
-@pytest.mark.slow(seconds=12)
-def test_dfg_2d1_finest_level_p3():
-    """P3/P2 at level 3 (120k DOFs): measured c_D 8.8e-8, c_L 3.8e-7, Δp 1.5e-5 relative."""
-    res = dfg_2d1("p3", 3)
+@pytest.mark.slow(seconds=20)
+def test_dfg_2d1_p3_level_2():
+    """P3/P2 at level 2 (107k DOFs; 19 s CPU, 140 s wall at a load average of 9): measured c_D
+    3.2e-7, c_L 2.6e-6, Δp 2.9e-4 relative.  (The fixed-slope level-3 mesh, 120k DOFs, had
+    c_D 8.8e-8, c_L 3.8e-7, Δp 1.5e-5: at equal DOFs it puts more cells at the cylinder;
+    level 3 of the halving family, 442k DOFs, is too slow for this suite.)"""
+    res = dfg_2d1("p3", 2)
     errs = res.relative_errors()
-    assert errs["cd"] < 1e-7
-    assert errs["cl"] < 1e-5
-    assert errs["dp"] < 3e-5
+    assert errs["cd"] < 8e-7
+    assert errs["cl"] < 6.5e-6
+    assert errs["dp"] < 7.3e-4
 
 
 # Relative errors (c_D, c_L, Δp) measured on the default (halving) meshes, and on the fixed-slope
