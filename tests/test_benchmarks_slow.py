@@ -89,7 +89,8 @@ def test_dfg_2d3_drag_maximum():
     measured c_D,max 2.950977 at t = 3.9375 (+1.9e-5 against John 2004: 2.950921575 at 3.93625),
     Δp(8) −0.11145 (−1.3e-3).  c_L,max is +1.5 % (0.48491 at t = 5.690 against 0.47795 at 5.693),
     outside the 1 % target (second order in dt: +5.7 % at dt = 0.005, +0.38 % at dt = 0.00125,
-    ~24 CPU minutes); the check holds the current figure (3 %) so a regression shows.  c_D,max and Δp(8) are held at ~2.5x their measured errors."""
+    ~24 CPU minutes); the check holds the current figure (3 %) so a regression shows.  c_D,max
+    and Δp(8) are held at ~2.5x their measured errors."""
     from fluidem.cases.dfg import dfg_2d3
 
     res = dfg_2d3()
