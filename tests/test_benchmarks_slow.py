@@ -11,9 +11,9 @@ import pytest
 from fluidem.cases.dfg import dfg_2d1
 
 
-@pytest.mark.slow(seconds=20)
+@pytest.mark.slow(seconds=19)
 def test_dfg_2d1_p3_level_2():
-    """P3/P2 at level 2 (107k DOFs; 19 s CPU, 140 s wall at a load average of 9): measured c_D
+    """P3/P2 at level 2 (107k DOFs; 19 s at a load average of 2, 140 s at 9): measured c_D
     3.2e-7, c_L 2.6e-6, Δp 2.9e-4 relative.  (The fixed-slope level-3 mesh, 120k DOFs, had
     c_D 8.8e-8, c_L 3.8e-7, Δp 1.5e-5: at equal DOFs it puts more cells at the cylinder;
     level 3 of the halving family, 442k DOFs, is too slow for this suite.)"""
@@ -39,13 +39,13 @@ _P2_LEVELS = {
 }
 
 
-@pytest.mark.parametrize("element", [pytest.param("th", marks=pytest.mark.slow(seconds=120)),
-                                     pytest.param("p2b", marks=pytest.mark.slow(seconds=70))])
+@pytest.mark.parametrize("element", [pytest.param("th", marks=pytest.mark.slow(seconds=58)),
+                                     pytest.param("p2b", marks=pytest.mark.slow(seconds=18))])
 def test_dfg_2d1_p2_elements_converge_at_second_order(element):
     """P2/P1 from level 2 to 3 and P2+bubble/P1dc from level 1 to 2 on DFG 2D-1: every error
     falls at least 4x per level (second order), and the finer level is within 2.5x of the
     measured errors above; both fail on the fixed-slope meshes (c_D ratios 2.6 and 3.4).
-    (Seconds measured at a load average of ~8 on 2 cores: 16 + 106 s and 4 + 65 s.)"""
+    (Seconds measured at a load average of ~2 on 2 cores; at ~8: 122 s and 69 s.)"""
     (coarse, fine), bound, rated = _P2_LEVELS[element]
     e0 = dfg_2d1(element, coarse).relative_errors()
     e1 = dfg_2d1(element, fine).relative_errors()
