@@ -395,6 +395,7 @@ def make_plan(scene: Scene) -> Plan:
     if hit:
         notes.append("prescribed motion brings " + "; ".join(hit[:3]) + (" ..." if len(hit) > 3 else "")
                      + " before t_end (prescribed bodies feel no contact forces)")
+    contact_warnings = []
     # what this version cannot do (the plan still says what would be needed)
     if periodic and fl is None:
         unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the DEM "
@@ -407,9 +408,27 @@ def make_plan(scene: Scene) -> Plan:
             if fl.solver == "iterative":
                 notes.append("solver = 'iterative': the coupled fluid-body system uses the lagged LU (the block "
                              "preconditioner has no body block yet)")
-            if c_on:
-                notes.append("contacts inside the fluid step are not modelled yet: free bodies must stay apart "
-                             "and off the walls (the run stops with a message if they overlap)")
+            if c_on and fl.model == "stokes":
+                notes.append("contacts are not modelled for Stokes free bodies (no inertia to sub-step): they must "
+                             "stay apart and off the walls (the run stops with a message if they overlap)")
+            elif c_on:
+                c = scene.contact
+                if c.repulsion_force is None and (not g_on or all(b.density == fl.density for b in free)):
+                    contact_warnings.append(
+                        "contacts in a fluid with neither gravity nor a density difference: the default repulsion "
+                        "force scale (the largest buoyant weight) is 0, so bodies that meet overlap and the run stops; "
+                        "expected contact.repulsion_force > 0 (a force per unit depth, e.g. the largest load that "
+                        "presses bodies together)")
+                rng = f"{c.repulsion_range:g}" if c.repulsion_range is not None else f"mesh.h = {scene.mesh.h:g}"
+                force = (f"{c.repulsion_force:g}" if c.repulsion_force is not None
+                         else "the largest buoyant weight of a free body")
+                notes.append(f"contacts inside the fluid step: the DEM contact law on overlaps and a short-range "
+                             f"repulsion (Glowinski et al. 2001) below the range {rng} (gaps the mesh cannot resolve), "
+                             f"force scale {force}, epsilon {c.repulsion_epsilon:g}; sub-stepped with the fluid's "
+                             "force held whenever outlines come within reach")
+            elif nb + nw:
+                notes.append("no [contact] table: free bodies must stay apart and off the walls (the run stops with "
+                             "a message if they overlap); add [contact] for contacts and short-range repulsion")
         elif mesh == "moving":
             if not _moving_mesh_available():
                 unsupported.append("moving bodies in fluid need the moving-mesh layer (fluidem.mesh.MovingMesh), "
@@ -431,6 +450,7 @@ def make_plan(scene: Scene) -> Plan:
     if fl is not None:
         estimate = mesh_estimate(scene)
         warnings, refuse = _mesh_warnings(scene, estimate)
+        warnings = contact_warnings + warnings
         unsupported += refuse
         if free and fl.coupling == "explicit" and fl.model != "stokes":
             light = min(free, key=lambda b: b.density)

@@ -68,6 +68,10 @@ class FreeBodyStepper:
         self.rho = float(rho)
         self.V = np.zeros((nb, 3)) if velocities is None else np.array(velocities, float).reshape(nb, 3)
         self.V_prev = None
+        #: contact load iteration (see :meth:`step`): relative tolerance and most extra solves
+        self.contact_tolerance = 1e-3
+        self.contact_iterations = 8
+        self.last_contact_iterations = 0
         self.solver = solver or fluid.problem.direct_solver()
         #: the next factorisation must not reuse an LU of another numbering (a re-triangulation)
         self.refactorize = False
@@ -81,14 +85,23 @@ class FreeBodyStepper:
         """(3 n_bodies,) kinematic body inertia m, m, I over ρ."""
         return (np.column_stack([self.mass, self.mass, self.inertia]) / self.rho).ravel()
 
-    def step(self, external) -> FlowState:
+    def step(self, external, contact=None) -> FlowState:
         """Advance fluid and bodies by one step.
 
         Parameters
         ----------
         external : (n_bodies, 3) float
-            External force (x, y) and torque on each body at the new time (buoyant weight,
-            contacts), per unit depth.
+            External force (x, y) and torque on each body at the new time (buoyant weight),
+            per unit depth.
+        contact : callable or None
+            ``contact(V, F) -> F_new or None``: the mean contact load (n_bodies, 3) over the
+            step that the bodies' contacts give when the solve yields the body velocities ``V``
+            with the contact load ``F`` in it (:meth:`fluidem.coupling.contacts.FluidContacts.mean_load`);
+            None when no body is within reach.  The load is found by fixed-point iteration, each
+            iterate one more solve with the same matrix (only the body rows of the right-hand
+            side change), until it changes by less than ``contact_tolerance`` × the largest
+            |external| (at most ``contact_iterations`` solves); fluid and bodies then agree on
+            the body velocities.  ``last_contact_iterations`` counts the extra solves.
 
         Returns
         -------
@@ -130,8 +143,31 @@ class FreeBodyStepper:
         self.refactorize = False
         z -= self.solver.solve(rz)
         tm.add("solve", time.perf_counter() - t0)
+        self.last_contact_iterations = 0
+        if contact is not None:
+            self._iterate_contacts(z, contact, np.abs(np.asarray(external, float)).max(), tm)
         x = sysm.prolong(z, x)
         self.V_prev = self.V
         self.V = sysm.split(z)[1].copy()
         self.last_cost = tm
         return st.accept(x, v, a0, hist, tm, b=b)  # the fluid stepper's loads and next step read it
+
+    def _iterate_contacts(self, z, contact, scale, tm):
+        """Fixed point of the contact load in place on ``z`` (see :meth:`step`)."""
+        sysm = self.system
+        F = np.zeros((sysm.n_bodies, 3))
+        e = np.zeros_like(z)
+        tol = self.contact_tolerance * max(scale, 1e-300)
+        for _ in range(self.contact_iterations):
+            F_new = contact(sysm.split(z)[1], F)
+            if F_new is None:
+                return
+            dF = F_new - F
+            if np.abs(dF).max() <= tol:
+                return
+            t0 = time.perf_counter()
+            e[sysm.n_fluid:] = dF.ravel() / self.rho  # external load enters the body rows as −F/ρ
+            z += self.solver.solve(e)
+            tm.add("solve", time.perf_counter() - t0)
+            F = F_new
+            self.last_contact_iterations += 1
