@@ -123,8 +123,8 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray):
     Wi, Wj = W[i], W[j]
     K = W.shape[1]
 
-    def vertex_to_outline(V, O):  # V (P, K, 2) vertices, O (P, K, 2) outline of the other body
-        A, B = O, np.roll(O, -1, axis=1)
+    def vertex_to_outline(V, other):  # V (P, K, 2) vertices, other (P, K, 2) the other body's outline
+        A, B = other, np.roll(other, -1, axis=1)
         Q, d = _point_segment(V[:, :, None, :], A[:, None, :, :], B[:, None, :, :])  # (P, K, K)
         k = np.argmin(d, axis=2)
         take = np.take_along_axis
