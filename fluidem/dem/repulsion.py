@@ -59,7 +59,7 @@ class Repulsion:
     Examples
     --------
     >>> r = Repulsion(range=0.01, force=2.0, epsilon=1e-4)
-    >>> round(r.magnitude(np.array([0.01, 0.005, 0.0]))[1] * r.epsilon / r.force, 6)
+    >>> round(float(r.magnitude(np.array([0.01, 0.005, 0.0]))[1]) * r.epsilon / r.force, 6)
     0.25
     >>> round(r.rest_gap(2.0) / r.range, 6)
     0.99
