@@ -161,7 +161,7 @@ class FreeBodyFlow(MovingMeshFlow):
         t0 = time.perf_counter()
         if self.stokes:
             self.t = t_new
-            self._solve_mobility(t_new, cost)
+            self._solve_mobility(t_new, cost, rebuilt)
             self._V_prev = V
             self.poses = self._mesh_poses.copy()
         else:
@@ -241,7 +241,22 @@ class FreeBodyFlow(MovingMeshFlow):
         self.t, self.x = st.t, st.state.x
         self._finish(cost)
 
-    def _solve_mobility(self, t, cost=None):
+    def _mobility_solver(self, rebuilt):
+        """Stokes: a fresh LU every step for ``solver = "direct"`` (bit-for-bit restarts), otherwise
+        one lagged LU kept between steps (the matrix changes only with the geometry) and refactorised
+        at re-triangulations or when GMRES needs many iterations."""
+        from ..fluid.solvers import LaggedLUSolver
+        from .moving_flow import LAGGED_REFACTOR_ITERATIONS
+
+        if self.scene.fluid.solver == "direct":
+            return self.problem.direct_solver()
+        s = getattr(self, "_lagged_mobility", None)
+        if s is None or rebuilt:
+            s = self._lagged_mobility = LaggedLUSolver(direct=self.problem.direct_solver(),
+                                                       max_iterations_before_refactor=LAGGED_REFACTOR_ITERATIONS)
+        return s
+
+    def _solve_mobility(self, t, cost=None, rebuilt=True):
         """Stokes: the velocities of the free bodies at which fluid forces balance the external loads."""
         t0 = time.perf_counter()
         pr, sysm = self.problem, self.system
@@ -252,7 +267,7 @@ class FreeBodyFlow(MovingMeshFlow):
         rz[sysm.n_fluid:] -= self._weight.ravel() / self.rho
         K = sysm.matrix(pr.A_data, np.zeros(3 * len(self.free)))
         t1 = time.perf_counter()
-        solver = pr.direct_solver()
+        solver = self._mobility_solver(rebuilt)
         solver.factorize(K)
         z -= solver.solve(rz)
         t2 = time.perf_counter()
@@ -287,6 +302,7 @@ class FreeBodyFlow(MovingMeshFlow):
         self._poses_prev = None if b["poses_prev"] is None else np.array(b["poses_prev"], float)
         self._V_prev = None if b["V_prev"] is None else np.array(b["V_prev"], float)
         super().set_state(s)
+        self._lagged_mobility = None
         self.system = RigidBodySystem(self.problem, self.rigid, self.free)
         if self.contacts is not None and "contacts" in b:
             self.contacts.set_state(b["contacts"])
