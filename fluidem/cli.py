@@ -1,6 +1,7 @@
 """Command line: ``fluidem bench NAME``, ``fluidem cases``.  ``python -m fluidem`` is the same.
 
-Scenes: ``fluidem run SCENE``, ``fluidem plan SCENE``, ``fluidem examples``, ``fluidem plot DIR``.
+Scenes: ``fluidem run SCENE``, ``fluidem plan SCENE``, ``fluidem examples [--show NAME]``,
+``fluidem new NAME DIR``, ``fluidem reference``, ``fluidem plot DIR``.
 
 Every name an option takes (cases, element pairs, convection schemes, solvers, example
 scenes) comes from :mod:`fluidem.names`, the table scene files and the Python factories
@@ -138,7 +139,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 def _add_scene_commands(sub) -> None:
-    """``run``, ``plan``, ``examples`` and ``plot``: the scene path."""
+    """``run``, ``plan``, ``examples``, ``new``, ``reference`` and ``plot``: the scene path."""
     r = sub.add_parser("run", help="run a scene file (or a built-in example) and write its output",
                        description="Run a scene: history.csv, fields and body outlines (VTU + PVD), mesh "
                                    "quality, events.log, checkpoints and run.json in the output directory. "
@@ -161,38 +162,76 @@ def _add_scene_commands(sub) -> None:
     pl.add_argument("scene", nargs="?", help="scene TOML file")
     pl.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file: "
                     + ", ".join(names.choices("example")))
-    sub.add_parser("examples", help="list the built-in example scenes",
-                   description="List the built-in example scenes ('fluidem run --example NAME').")
+    ex = sub.add_parser("examples", help="list the built-in example scenes, or print one to copy",
+                        description="List the built-in example scenes ('fluidem run --example NAME'); --show "
+                                    "NAME prints one as TOML to start a scene of your own from.")
+    ex.add_argument("--show", metavar="NAME", help="print the scene file of example NAME (its CSV body table, "
+                    "if any, is named in a comment at the top)")
+    nw = sub.add_parser("new", help="copy a built-in example scene (and its CSV body table) into a directory",
+                        description="Copy the scene file of example NAME, and its CSV body table if it has one, "
+                                    "into DIR (created if missing; existing files are not overwritten).")
+    nw.add_argument("name", metavar="NAME", help="example scene: " + ", ".join(names.choices("example")))
+    nw.add_argument("dir", metavar="DIR", help="directory to copy it into")
+    sub.add_parser("reference", help="print the scene file reference (Markdown)",
+                   description="Print every table and key a scene file takes, with type, default, unit and "
+                               "allowed values (the text of docs/scenes.md).")
     pt = sub.add_parser("plot", help="draw PNG figures of a run directory",
-                        description="Mesh with bodies, velocity magnitude with streamlines, pressure and body "
-                                    "trajectories, as PNG files in DIR/plots (or --to).")
+                        description="Mesh, velocity magnitude with streamlines, pressure, bodies, body "
+                                    "trajectories and the history over time (loads, velocities, energy, mesh "
+                                    "quality), as PNG files in DIR/plots (or --to). Needs matplotlib: pip install "
+                                    "\"fluidem[plot]\".")
     pt.add_argument("dir", help="output directory of 'fluidem run'")
     pt.add_argument("--to", metavar="DIR", help="where to write the PNG files")
+    pt.add_argument("--units", **_named("units"), help="name the units in the labels (the scene must be in "
+                    "that system; nothing is converted); default: the scene's units, else dimensions, e.g. "
+                    "[length]")
 
 
 class _ProgressBar:
-    """Progress bar on stderr: steps, simulated time, ETA and the last step's cost split."""
+    """Progress on ``stream`` (default stderr): steps, simulated time, ETA and the last step's cost split.
 
-    def __init__(self, width: int = 30):
+    On a terminal one bar is redrawn in place (``\\r``, at most five times a second); written to
+    a file or a pipe (``stream.isatty()`` false) each update is a line of its own, printed at
+    the first step, whenever another ``plain_fraction`` of the steps is done or ``plain_seconds``
+    have passed since the last line, and at the last step.
+    """
+
+    def __init__(self, width: int = 30, stream=None, plain_fraction: float = 0.05, plain_seconds: float = 10.0):
         self.t0 = time.perf_counter()
         self.width = width
+        self.stream = stream
         self.k0 = None
         self.last = 0.0
+        self.plain_fraction = plain_fraction
+        self.plain_seconds = plain_seconds
+        self.k_last = None
+
+    def _out(self):
+        return self.stream if self.stream is not None else sys.stderr
 
     def __call__(self, k, n, t, cost):
         now = time.perf_counter()
+        out = self._out()
+        tty = bool(getattr(out, "isatty", lambda: False)())
         if self.k0 is None:
             self.k0 = k - 1
-        if k < n and now - self.last < 0.2:
+        if tty:
+            if k < n and now - self.last < 0.2:
+                return
+        elif k < n and self.k_last is not None and k - self.k_last < self.plain_fraction * n \
+                and now - self.last < self.plain_seconds:
             return
-        self.last = now
+        self.last, self.k_last = now, k
         el = now - self.t0
         done = k - self.k0
         eta = el / max(done, 1) * (n - k)
+        text = f"{k}/{n}  t = {t:.4g}  elapsed {el:.0f} s  ETA {eta:.0f} s  last step: {cost}"
+        if not tty:
+            print(f"step {text}", file=out, flush=True)
+            return
         fill = int(self.width * k / max(n, 1))
         bar = "#" * fill + "." * (self.width - fill)
-        print(f"\r[{bar}] {k}/{n}  t = {t:.4g}  elapsed {el:.0f} s  ETA {eta:.0f} s  last step: {cost}   ",
-              end="\n" if k >= n else "", file=sys.stderr, flush=True)
+        print(f"\r[{bar}] {text}   ", end="\n" if k >= n else "", file=out, flush=True)
 
 
 def _scene_from_args(args):
@@ -212,15 +251,33 @@ def _scene_from_args(args):
 
 def _scene_main(args) -> int:
     if args.command == "examples":
-        from .cases.scenes import example_descriptions
+        from .cases.scenes import example_descriptions, example_text
 
+        if args.show:
+            print(example_text(args.show), end="")
+            return 0
         for name, desc in example_descriptions().items():
             print(f"{name:18s} {desc}")
         return 0
+    if args.command == "new":
+        from .cases.scenes import copy_example
+
+        for path in copy_example(args.name, args.dir):
+            print(path)
+        return 0
+    if args.command == "reference":
+        from .scene.reference import markdown
+
+        print(markdown(), end="")
+        return 0
+    if args.command == "plot" or getattr(args, "plot", False):  # before anything runs
+        from .plotting import require_matplotlib
+
+        require_matplotlib("--plot" if args.command == "run" else "'fluidem plot'")
     if args.command == "plot":
         from .plotting import plot_run
 
-        for path in plot_run(args.dir, args.to):
+        for path in plot_run(args.dir, args.to, units=args.units):
             print(path)
         return 0
     scene = _scene_from_args(args)
@@ -272,7 +329,7 @@ def _dispatch(args, parser) -> int:
         for name in names.choices("case"):
             print(f"{name:16s} {(get_case(name).__doc__ or '').strip().splitlines()[0]}")
         return 0
-    if args.command in ("run", "plan", "examples", "plot"):
+    if args.command in ("run", "plan", "examples", "plot", "new", "reference"):
         return _scene_main(args)
     if args.command == "bench":
         return _bench_main(args, parser)

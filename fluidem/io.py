@@ -401,7 +401,7 @@ def read_history(path: PathLike) -> dict[str, np.ndarray]:
     with open(path) as f:
         lines = [ln for ln in f if not ln.startswith("#")]
     header = lines[0].strip().split(",")
-    data = np.loadtxt(lines[1:], delimiter=",", ndmin=2)
+    data = np.loadtxt(lines[1:], delimiter=",", ndmin=2) if len(lines) > 1 else np.zeros((0, len(header)))
     out = {}
     for k, name in enumerate(header):
         col = data[:, k] if data.size else np.zeros(0)

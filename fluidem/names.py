@@ -115,6 +115,10 @@ REGISTRY: dict[str, Kind] = {
         "cahouet-chabard": "nu M_p^-1 + (alpha/dt) (B D_u^-1 B^T)^-1 (unsteady)",
         "lsc": "least-squares commutator",
     }),
+    "units": Kind("unit system", {
+        "SI": "m, kg, s, N (labels only: the numbers must be in this system, nothing converts)",
+        "CGS": "cm, g, s, dyn (labels only: the numbers must be in this system, nothing converts)",
+    }, aliases={"si": "SI", "cgs": "CGS"}),
 }
 
 

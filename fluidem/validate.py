@@ -30,7 +30,7 @@ import numpy as np
 from .errors import InputError
 
 __all__ = ["fail", "number", "positive", "nonnegative", "fraction", "integer", "pair", "choice", "boolean",
-           "check_keys"]
+           "check_keys", "nearest"]
 
 _REAL = (int, float, np.integer, np.floating)
 
@@ -101,13 +101,48 @@ def boolean(key: str, value, error=InputError) -> bool:
     return value
 
 
-def check_keys(table: dict, allowed, where: str, error=InputError) -> None:
-    """Every key of ``table`` is in ``allowed``; ``where`` is the table's name (``""``: top level)."""
+def nearest(value: str, allowed) -> str | None:
+    """The name of ``allowed`` closest to ``value`` (case ignored, :mod:`difflib`), or ``None`` if none is close.
+
+    >>> nearest("viscocity", ("density", "viscosity", "model"))
+    'viscosity'
+    >>> nearest("e", ("E", "mu", "gamma"))
+    'E'
+    >>> nearest("colour", ("density", "viscosity")) is None
+    True
+    """
+    import difflib
+
+    if not isinstance(value, str):
+        return None
+    lower = {str(a).lower(): a for a in allowed}
+    if value.lower() in lower:
+        return lower[value.lower()]
+    close = difflib.get_close_matches(value.lower(), list(lower), n=1, cutoff=0.6)
+    return lower[close[0]] if close else None
+
+
+def check_keys(table: dict, allowed, where: str, error=InputError, hints: dict | None = None) -> None:
+    """Every key of ``table`` is in ``allowed``; ``where`` is the table's name (``""``: top level).
+
+    An unknown key's message names the key, its value, the nearest allowed key (or the hint
+    ``hints[key]``, for keys that belong elsewhere) and every allowed key::
+
+        unknown key fluid.viscocity = 0.01 (did you mean fluid.viscosity?); allowed keys in [fluid]: ...
+    """
     if not isinstance(table, dict):
         raise fail(where, table, "a table", error)
     unknown = [k for k in table if k not in allowed]
     if unknown:
         k = unknown[0]
-        raise error(f"unknown key {where + '.' if where else ''}{k} = {table[k]!r}; "
+        prefix = where + "." if where else ""
+        best = nearest(k, allowed)
+        if hints and k in hints:
+            tip = f" ({hints[k]})"
+        elif best is not None:
+            tip = f" (did you mean {prefix}{best}?)"
+        else:
+            tip = ""
+        raise error(f"unknown key {prefix}{k} = {table[k]!r}{tip}; "
                     f"allowed keys{' in [' + where + ']' if where else ' at the top level'}: "
                     + ", ".join(allowed))

@@ -90,7 +90,11 @@ def _scene_profile(v):
     return Scene.from_dict(d).domain.profile_of("left")["type"]
 
 
-SCENE = {"solver": _scene_solver, "convection": _scene_convection, "element": _scene_element,
+def _scene_units(v):
+    return Scene.from_dict({"domain": {"box": _BOX}, "units": v}).units
+
+
+SCENE = {"units": _scene_units, "solver": _scene_solver, "convection": _scene_convection, "element": _scene_element,
          "fluid model": _scene_model, "strategy": _scene_strategy, "shape": _scene_shape, "motion": _scene_motion,
          "side type": _scene_side_type, "side": _scene_side, "profile": _scene_profile,
          "coupling": _scene_coupling}
@@ -128,8 +132,12 @@ def _cli_example(v):
     return _scene_from_args(args).name
 
 
+def _cli_units(v):
+    return _parser().parse_args(["plot", "out", "--units", v]).units
+
+
 CLI = {"solver": _cli("--solver"), "convection": _cli("--convection"), "element": _cli("--element"),
-       "case": _cli_case, "example": _cli_example}
+       "case": _cli_case, "example": _cli_example, "units": _cli_units}
 CLI_DEST = {"solver": "solver", "convection": "convection", "element": "element", "case": "name"}
 
 

@@ -178,7 +178,7 @@ def test_bad_table_column_and_missing_file(tmp_path):
     with pytest.raises(ValueError, match="particles.csv.*does not exist"):
         Scene.from_toml(p)
     (tmp_path / "particles.csv").write_text("shape,radius,xx,y\ndisk,0.1,1,1\n")
-    with pytest.raises(ValueError, match="unknown column 'xx'; allowed columns"):
+    with pytest.raises(ValueError, match=r"unknown column 'xx' \(did you mean 'x'\?\); allowed columns"):
         Scene.from_toml(p)
     with pytest.raises(ValueError, match="does not exist"):
         Scene.from_toml(tmp_path / "nope.toml")

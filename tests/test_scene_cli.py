@@ -22,8 +22,10 @@ def test_run_plot_and_restart(tmp_path, capsys):
     captured = capsys.readouterr()
     assert "1/1" in captured.err and "ETA" in captured.err and "fluid" in captured.err
     for f in ("history.csv", "fields.pvd", "bodies.pvd", "events.log", "mesh_quality.csv", "scene.toml",
-              "plots/velocity.png", "plots/pressure.png", "plots/mesh.png", "plots/trajectories.png"):
+              "plots/velocity.png", "plots/pressure.png", "plots/mesh.png", "plots/trajectories.png",
+              "plots/history.png"):
         assert (out / f).exists(), f
+    _check_wall_correction_figures(out)
     assert len(read_pvd(out / "fields.pvd")) == 2
     h = read_history(out)
     assert h["fx"][-1] < 0  # drag on a cylinder moving in +x
@@ -92,3 +94,26 @@ def test_cli_accepts_registry_aliases():
     assert args.solver == "lagged"
     with pytest.raises(SystemExit):
         _build_parser().parse_args(["bench", "dfg-2d2", "--solver", "lu"])
+
+
+def _check_wall_correction_figures(out):
+    """A 24:1 box is cropped to a 4:1 view around the body; the body drawn over the field is the field mesh's hole."""
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from fluidem.plotting import figures
+
+    figs = figures(out)
+    (ax,) = [a for a in figs["velocity"].axes if a.get_label() != "<colorbar>"]
+    x0, x1 = ax.get_xlim()
+    assert x1 - x0 == pytest.approx(8.0) and ax.get_ylim() == (-1.0, 1.0) and "view" in ax.get_title()
+    assert ax.get_xlabel() == "x [length]" and ax.get_ylabel() == "y [length]"
+    # the quasi-steady flow of the single step is computed around x = 0, where the body was; its outline
+    # record at the end of the step is at x = 1: the field figure draws the hole of the field's mesh
+    holes = [c for c in ax.collections if c.__class__.__name__ == "PolyCollection"]
+    pts = np.vstack([p.vertices for c in holes for p in c.get_paths()])
+    assert 0.5 * (pts[:, 0].min() + pts[:, 0].max()) == pytest.approx(0.0, abs=1e-9)
+    assert pts[:, 0].max() == pytest.approx(0.2, rel=1e-9)  # the radius-0.2 disk about x = 0
+    assert read_history(out)["x"][-1] == pytest.approx(1.0)
+    for f in figs.values():
+        plt.close(f)

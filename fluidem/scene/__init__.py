@@ -79,7 +79,9 @@ Choices made here (see the CHANGELOG):
 * Contacts are off when no pair can meet before ``t_end`` (:mod:`fluidem.plan`).
 
 Layout: :mod:`fluidem.scene.specs` (the spec dataclasses and :class:`Scene`),
-:mod:`fluidem.scene.files` (TOML and CSV in, TOML out) and :mod:`fluidem.plan` (the plan).
+:mod:`fluidem.scene.files` (TOML and CSV in, TOML out), :mod:`fluidem.scene.reference` (the
+reference of every table and key, ``docs/scenes.md``, printed by ``fluidem reference``) and
+:mod:`fluidem.plan` (the plan).
 
 Examples
 --------

@@ -30,19 +30,21 @@ import csv
 from pathlib import Path
 
 from ..errors import SceneError
-from ..validate import check_keys, fail
+from ..validate import check_keys, fail, nearest
 
 try:  # Python >= 3.11
     import tomllib
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-__all__ = ["tomllib", "read_toml", "read_bodies_table", "TABLE_COLUMNS", "toml_value", "scene_toml",
+__all__ = ["tomllib", "read_toml", "read_bodies_table", "TABLE_COLUMNS", "TABLE_KEYS", "toml_value", "scene_toml",
            "write_scene_toml"]
 
 #: Columns a ``[bodies_table]`` CSV may have (``x``, ``y`` required; ``vx``, ``vy`` the velocity).
 TABLE_COLUMNS = ("shape", "radius", "segments", "width", "height", "a", "b", "x", "y", "angle", "density", "motion",
                  "vx", "vy", "omega", "vertices", "name")
+#: Keys of the ``[bodies_table]`` table: the CSV ``file`` and defaults for every row (per-row columns excepted).
+TABLE_KEYS = ("file",) + tuple(k for k in TABLE_COLUMNS if k not in ("x", "y", "vx", "vy"))
 _NUMERIC_COLUMNS = {"radius", "width", "height", "a", "b", "x", "y", "angle", "density", "vx", "vy", "omega"}
 
 
@@ -89,8 +91,7 @@ def read_bodies_table(tab, base_dir=".") -> list:
     """
     if not isinstance(tab, dict):
         raise fail("bodies_table", tab, "a table { file = 'bodies.csv', ... defaults }", SceneError)
-    check_keys(tab, ("file",) + tuple(k for k in TABLE_COLUMNS if k not in ("x", "y", "vx", "vy")), "bodies_table",
-               error=SceneError)
+    check_keys(tab, TABLE_KEYS, "bodies_table", error=SceneError)
     if "file" not in tab or not isinstance(tab["file"], str):
         raise fail("bodies_table.file", tab.get("file"), "the path of a CSV file (relative to the scene file)",
                    SceneError)
@@ -109,7 +110,9 @@ def read_bodies_table(tab, base_dir=".") -> list:
     header = [h.strip() for h in rows[0]]
     for h in header:
         if h not in TABLE_COLUMNS:
-            raise SceneError(f"bodies_table.file {tab['file']!r}: unknown column {h!r}; allowed columns: "
+            best = nearest(h, TABLE_COLUMNS)
+            raise SceneError(f"bodies_table.file {tab['file']!r}: unknown column {h!r}"
+                             + (f" (did you mean {best!r}?)" if best else "") + "; allowed columns: "
                              + ", ".join(TABLE_COLUMNS))
     for need in ("x", "y"):
         if need not in header:
@@ -174,6 +177,8 @@ def scene_toml(scene) -> str:
     d = scene.to_dict()
     lines = [f"name = {toml_value(d.pop('name'))}", f"description = {toml_value(d.pop('description'))}",
              f"gravity = {toml_value(d.pop('gravity'))}"]
+    if "units" in d:
+        lines.insert(2, f"units = {toml_value(d.pop('units'))}")
     bodies = d.pop("bodies")
     for key, tab in d.items():
         lines.append(f"\n[{key}]")

@@ -136,6 +136,8 @@ class DomainSpec:
     inflow_profile: dict | None = None
 
     KEYS = ("box",) + names.choices("side") + ("inflow_profile",)
+    #: keys of an inflow profile table (``inflow_profile`` or a side's ``profile``)
+    PROFILE_KEYS = ("type", "umax", "ramp")
 
     def side(self, name) -> SideSpec:
         """The :class:`SideSpec` of side ``name`` (a name of ``names.choices("side")``)."""
@@ -194,7 +196,7 @@ class DomainSpec:
     def _check_profile(key, prof):
         if not isinstance(prof, dict):
             raise fail(key, prof, "a table { type = 'parabolic' | 'uniform', umax = ..., ramp = ... }", SceneError)
-        check_keys(prof, ("type", "umax", "ramp"), key, error=SceneError)
+        check_keys(prof, DomainSpec.PROFILE_KEYS, key, error=SceneError)
         out = {"type": names.lookup("profile", prof.get("type", "parabolic"), f"{key}.type", SceneError)}
         if "umax" not in prof:
             raise SceneError(f"{key} has no umax: the inflow speed is required (a finite number, length/time)")
@@ -394,12 +396,14 @@ class MeshSpec:
     curved: bool = True
 
     KEYS = ("h", "grading", "strategy", "retriangulate_every", "curved")
+    #: keys of the ``grading`` table
+    GRADING_KEYS = ("region", "growth", "h_max")
 
     def validate(self, where="mesh"):
         self.h = positive(f"{where}.h", self.h, error=SceneError)
         if self.grading is not None:
             g = self.grading
-            check_keys(g, ("region", "growth", "h_max"), f"{where}.grading", error=SceneError)
+            check_keys(g, self.GRADING_KEYS, f"{where}.grading", error=SceneError)
             region = g.get("region", "bodies")
             if region != "bodies":
                 if (not isinstance(region, (list, tuple)) or len(region) != 4
@@ -474,8 +478,16 @@ class OutputSpec:
 
 _TABLES = {"fluid": FluidSpec, "domain": DomainSpec, "contact": ContactSpec, "mesh": MeshSpec, "time": TimeSpec,
            "output": OutputSpec}
-_TOP_KEYS = ("name", "description", "gravity", "fluid", "domain", "bodies", "bodies_table", "contact", "mesh", "time",
-             "output")
+_TOP_KEYS = ("name", "description", "units", "gravity", "fluid", "domain", "bodies", "bodies_table", "contact", "mesh",
+             "time", "output")
+#: where keys that belong elsewhere go (the hint an unknown key's error gives instead of the nearest key)
+_BODY_HINTS = {"file": "a CSV body table is [bodies_table] file = ..., not a key of a body",
+               "x": "the centre is position = [x, y]", "y": "the centre is position = [x, y]",
+               "vx": "the velocity is velocity = [vx, vy]", "vy": "the velocity is velocity = [vx, vy]"}
+_TOP_HINTS = {"file": "a CSV body table is [bodies_table] file = ...", "h": "the mesh size is [mesh] h",
+              "dt": "the time step is [time] dt", "t_end": "the end time is [time] t_end",
+              "viscosity": "the viscosity is [fluid] viscosity", "density": "a density is [fluid] density or a "
+              "body's density", "box": "the box is [domain] box"}
 
 
 @dataclass
@@ -499,6 +511,9 @@ class Scene:
         ``None``: contacts off.
     mesh, time, output : MeshSpec, TimeSpec, OutputSpec
     name, description : str
+    units : {None, "SI", "CGS"}
+        The unit system the numbers are in, for labels only (figures write ``x [m]`` instead
+        of ``x [length]``); nothing is converted.  ``None``: not named.
 
     Examples
     --------
@@ -520,6 +535,7 @@ class Scene:
     output: OutputSpec = field(default_factory=OutputSpec)
     name: str = "scene"
     description: str = ""
+    units: str | None = None
     source: str | None = None
     #: tables or keys the scene did not give and that took their defaults ("time", "mesh.h"); the plan names them
     defaulted: list = field(default_factory=list, compare=False, repr=False)
@@ -538,7 +554,7 @@ class Scene:
     @classmethod
     def from_dict(cls, data: dict, base_dir=".") -> Scene:
         """Build and validate a scene from the nested dict of a TOML file."""
-        check_keys(data, _TOP_KEYS, "", error=SceneError)
+        check_keys(data, _TOP_KEYS, "", error=SceneError, hints=_TOP_HINTS)
         kw = {}
         for key, spec in _TABLES.items():
             if key in data:
@@ -549,6 +565,8 @@ class Scene:
             raise SceneError("the scene has no [domain] table; it needs at least box = [xmin, xmax, ymin, ymax]")
         if "gravity" in data:
             kw["gravity"] = data["gravity"]
+        if "units" in data:
+            kw["units"] = data["units"]
         for k in ("name", "description"):
             if k in data:
                 if not isinstance(data[k], str):
@@ -556,10 +574,15 @@ class Scene:
                 kw[k] = data[k]
         bodies = []
         raw = data.get("bodies", [])
+        if isinstance(raw, dict) and "file" in raw:  # [bodies] file = ...: the CSV table is [bodies_table]
+            raise SceneError(f"bodies.file = {raw['file']!r}: a CSV body table is given as [bodies_table] with "
+                             f"file = {raw['file']!r} (and defaults for every row); [[bodies]] (double brackets) "
+                             "is one table per body")
         if not isinstance(raw, list):
-            raise fail("bodies", raw, "an array of tables [[bodies]]", SceneError)
+            raise fail("bodies", raw, "an array of tables [[bodies]] (one per body; a CSV table of bodies is "
+                       "[bodies_table] file = ...)", SceneError)
         for i, b in enumerate(raw):
-            check_keys(b, BodySpec.KEYS, f"bodies[{i}]", error=SceneError)
+            check_keys(b, BodySpec.KEYS, f"bodies[{i}]", error=SceneError, hints=_BODY_HINTS)
             bodies.append(BodySpec(**b))
         if "bodies_table" in data:
             bodies.extend(BodySpec(**rec) for rec in files.read_bodies_table(data["bodies_table"], base_dir))
@@ -584,6 +607,8 @@ class Scene:
             (a ``ValueError``) naming the first bad key, its value and what is allowed.
         """
         self.gravity = pair("gravity", self.gravity, error=SceneError)
+        if self.units is not None:
+            self.units = names.lookup("units", self.units, "units", SceneError)
         if self.fluid is not None:
             self.fluid.validate()
         self.domain.validate()
@@ -691,6 +716,8 @@ class Scene:
              "domain": _plain(asdict(self.domain)), "mesh": _plain(asdict(self.mesh)),
              "time": _plain(asdict(self.time)), "output": _plain(asdict(self.output)),
              "bodies": [{k: v for k, v in _plain(asdict(b)).items() if v is not None} for b in self.bodies]}
+        if self.units is not None:  # only when named: scenes without it keep their key (run.json)
+            d["units"] = self.units
         if self.fluid is not None:
             d["fluid"] = _plain(asdict(self.fluid))
         if self.contact is not None:
