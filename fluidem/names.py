@@ -108,6 +108,7 @@ REGISTRY: dict[str, Kind] = {
         "wall-correction": "Stokes drag of a disk between two walls (Faxen)",
         "dry-heap": "granular heap, DEM only",
         "column-collapse": "granular column collapse, DEM only",
+        "dkt": "drafting, kissing and tumbling of two disks settling in a channel (Glowinski et al. 2001)",
     }),
     "schur": Kind("Schur-complement approximation", {
         "auto": "cahouet-chabard when a time step is given, mass otherwise",

@@ -126,3 +126,19 @@ def test_head_on_collision_in_a_periodic_box_conserves_momentum_to_discretisatio
     assert r[:, 2].min() < fl.contacts.repulsion.range and r[-1, 3] < 0  # they met and bounced back
     assert r[:, 2].min() > 0.5 * fl.contacts.repulsion.range
     assert drift.max() < 8e-4, drift  # measured 2.8e-4
+
+
+def test_dkt_example_is_the_dkt_case_and_plans_its_contact_model():
+    """The shipped `dkt` example scene and `fluidem.cases.dkt.dkt_scene` describe the same run, and
+    the plan names the repulsion with its range."""
+    from fluidem.cases.dkt import dkt_scene
+    from fluidem.cases.scenes import example_scene
+
+    ex, case = example_scene("dkt"), dkt_scene()
+    assert ex.gravity == case.gravity and ex.domain.box == case.domain.box and ex.time.dt == case.time.dt
+    for a, b in zip(ex.bodies, case.bodies):
+        np.testing.assert_allclose(a.local_vertices(64), b.local_vertices(64), atol=1e-15)
+        assert a.position == b.position and a.density == b.density
+    assert (ex.fluid.viscosity, ex.fluid.density, ex.mesh.h) == (case.fluid.viscosity, case.fluid.density, case.mesh.h)
+    text = str(ex.plan())
+    assert "short-range repulsion" in text and "mesh.h = 0.02" in text and "coupling        on  [implicit]" in text
