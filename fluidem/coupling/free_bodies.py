@@ -72,6 +72,7 @@ class FreeBodyStepper:
         self.contact_tolerance = 1e-3
         self.contact_iterations = 8
         self.last_contact_iterations = 0
+        self.last_contact_load = np.zeros((nb, 3))
         self.solver = solver or fluid.problem.direct_solver()
         #: the next factorisation must not reuse an LU of another numbering (a re-triangulation)
         self.refactorize = False
@@ -85,7 +86,7 @@ class FreeBodyStepper:
         """(3 n_bodies,) kinematic body inertia m, m, I over ρ."""
         return (np.column_stack([self.mass, self.mass, self.inertia]) / self.rho).ravel()
 
-    def step(self, external, contact=None) -> FlowState:
+    def step(self, external, contact=None, contact_guess=None) -> FlowState:
         """Advance fluid and bodies by one step.
 
         Parameters
@@ -103,6 +104,10 @@ class FreeBodyStepper:
             ``contact_tolerance`` × the largest |external| (at most ``contact_iterations``); one
             solve to full accuracy then makes fluid and bodies agree on the body velocities.
             ``last_contact_iterations`` counts the corrections.
+        contact_guess : (n_bodies, 3) float or None
+            A first guess of the contact load (e.g. the last step's), solved with from the start;
+            when the contacts confirm it to the tolerance no correction solve is needed (bodies
+            resting on each other or a wall).  ``last_contact_load`` holds the load found.
 
         Returns
         -------
@@ -133,7 +138,9 @@ class FreeBodyStepper:
         D_t = (a0 * V_guess + a1 * self.V + (a2 * Vp if a2 else 0.0)) / dt
         minv = self._inertia_diagonal()
         rz = sysm.restrict(r)
-        rz[sysm.n_fluid:] += minv * D_t.ravel() - np.asarray(external, float).ravel() / self.rho
+        guess = np.zeros((sysm.n_bodies, 3)) if contact is None or contact_guess is None else \
+            np.asarray(contact_guess, float).reshape(sysm.n_bodies, 3)
+        rz[sysm.n_fluid:] += minv * D_t.ravel() - (np.asarray(external, float) + guess).ravel() / self.rho
         K = sysm.matrix(pr.A_data + pr.M_data * (a0 / dt) + pr.convection_data(b), minv * (a0 / dt))
         tm.add("assembly", time.perf_counter() - t0)
         t0 = time.perf_counter()
@@ -145,22 +152,26 @@ class FreeBodyStepper:
         z -= self.solver.solve(rz)
         tm.add("solve", time.perf_counter() - t0)
         self.last_contact_iterations = 0
+        self.last_contact_load = np.zeros((sysm.n_bodies, 3))
         if contact is not None:
-            self._iterate_contacts(z, contact, np.abs(np.asarray(external, float)).max(), tm)
+            self.last_contact_load = self._iterate_contacts(z, contact, guess,
+                                                            np.abs(np.asarray(external, float)).max(), tm)
         x = sysm.prolong(z, x)
         self.V_prev = self.V
         self.V = sysm.split(z)[1].copy()
         self.last_cost = tm
         return st.accept(x, v, a0, hist, tm, b=b)  # the fluid stepper's loads and next step read it
 
-    def _iterate_contacts(self, z, contact, scale, tm):
-        """Fixed point of the contact load in place on ``z`` (see :meth:`step`).
+    def _iterate_contacts(self, z, contact, guess, scale, tm):
+        """Fixed point of the contact load in place on ``z``, which was solved with the load
+        ``guess`` (see :meth:`step`); returns the load found.
 
         The iterates correct ``z`` with the solver's preconditioner alone (the stored, possibly
         lagged LU: one back-substitution each); once the load has settled, one solve to full
-        accuracy of the whole load from the load-free solution makes ``z`` exact for it."""
+        accuracy of the change from ``guess`` makes ``z`` exact for it (skipped when the first
+        iterate confirms ``guess``)."""
         sysm = self.system
-        F = np.zeros((sysm.n_bodies, 3))
+        F = guess.copy()
         z0 = z.copy()
         e = np.zeros_like(z)
         tol = self.contact_tolerance * max(scale, 1e-300)
@@ -168,7 +179,7 @@ class FreeBodyStepper:
         for _ in range(self.contact_iterations):
             F_new = contact(sysm.split(z)[1], F)
             if F_new is None:
-                return
+                F_new = np.zeros_like(F)
             dF = F_new - F
             F = F_new
             if np.abs(dF).max() <= tol:
@@ -180,8 +191,9 @@ class FreeBodyStepper:
             z += approx.matvec(e)
             tm.add("solve", time.perf_counter() - t0)
             self.last_contact_iterations += 1
-        if np.abs(F).max() > 0:
+        if self.last_contact_iterations:
             t0 = time.perf_counter()
-            e[sysm.n_fluid:] = F.ravel() / self.rho
+            e[sysm.n_fluid:] = (F - guess).ravel() / self.rho
             z[:] = z0 + self.solver.solve(e)
             tm.add("solve", time.perf_counter() - t0)
+        return F

@@ -172,7 +172,7 @@ class FreeBodyFlow(MovingMeshFlow):
             load = None if self.contacts is None else self.contacts.load_function(self.t, dt, self.poses,
                                                                                    self.body_velocities)
             dem_s = 0.0 if self.contacts is None else self.contacts.seconds
-            self.coupled.step(self._weight, contact=load)
+            self.coupled.step(self._weight, contact=load, contact_guess=self.coupled.last_contact_load)
             dem_s = 0.0 if self.contacts is None else self.contacts.seconds - dem_s
             tm = self.coupled.last_cost
             cost.add("assembly", tm.assembly)
@@ -290,6 +290,7 @@ class FreeBodyFlow(MovingMeshFlow):
         if self.contacts is not None:
             s["bodies"]["contacts"] = self.contacts.get_state()
         if self.coupled is not None:
+            s["bodies"]["contact_load"] = self.coupled.last_contact_load.copy()
             s["bodies"]["coupled_V"] = self.coupled.V.copy()
             s["bodies"]["coupled_V_prev"] = None if self.coupled.V_prev is None else self.coupled.V_prev.copy()
         return s
@@ -310,6 +311,8 @@ class FreeBodyFlow(MovingMeshFlow):
             self.coupled.fluid = self.stepper
             self.coupled.system = self.system
             self.coupled.V = np.array(b["coupled_V"], float)
+            if "contact_load" in b:
+                self.coupled.last_contact_load = np.array(b["contact_load"], float)
             self.coupled.V_prev = None if b["coupled_V_prev"] is None else np.array(b["coupled_V_prev"], float)
             self.coupled.refactorize = True
 

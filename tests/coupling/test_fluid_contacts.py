@@ -47,9 +47,10 @@ def test_disk_settling_on_the_floor_comes_to_rest_at_the_repulsion_gap():
     floor through the lubrication film, the repulsion (range mesh.h = 0.04, ε = 1e-4, force scale the
     buoyant weight W) stops it at g = ρ(1 − √ε) where it carries W — never touching — and it comes to
     rest there.  Measured to t = 5: smallest gap 0.03914 = 0.979 ρ (first contact at t = 2.0), last gap
-    1.1e-5 below the rest gap 0.0396, last speed 8e-5 of the largest, lateral drift 3.1e-5 (the fluid
-    alone holds the disk sideways, friction is 0), contact loads converged in a median of 4
-    corrections per contact step (the cap of 8 reached once, at the first contact)."""
+    1.2e-5 below the rest gap 0.0396, last speed 1.8e-4 of the largest, lateral drift 3.1e-5 (the fluid
+    alone holds the disk sideways, friction is 0), contact loads converged in a median of 2
+    corrections per contact step from the last step's load (the cap of 8 reached once, at the first
+    contact)."""
     sim, r = _run(_floor_scene(h=0.04, dt=0.04, t_end=5.0, start=0.2))
     fl = sim.flow
     rep = fl.contacts.repulsion
@@ -58,10 +59,10 @@ def test_disk_settling_on_the_floor_comes_to_rest_at_the_repulsion_gap():
     gap, v, iters = r[:, 2], r[:, 3], r[:, 4]
     assert gap.min() > 0.95 * rep.range
     assert gap[-1] == pytest.approx(rest, rel=3e-5)
-    assert abs(v[-1]) < 2.5e-4 * np.abs(v).max()
+    assert abs(v[-1]) < 5e-4 * np.abs(v).max()
     assert np.abs(r[:, 1]).max() < 1e-4
     active = iters[iters > 0]
-    assert np.median(active) <= 5 and (active >= fl.coupled.contact_iterations).sum() <= 2
+    assert np.median(active) <= 3 and (active >= fl.coupled.contact_iterations).sum() <= 2
 
 
 def _pair_scene(h=0.04, dt=0.01, t_end=1.3, element="th"):
