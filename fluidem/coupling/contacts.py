@@ -81,12 +81,14 @@ class FluidContacts:
     def __init__(self, scene, free, vertices, path):
         B = scene.bodies
         self.free = np.asarray(free, np.int64)
+        rho_f = scene.fluid.density
         bodies = []
         for k, b in enumerate(B):
             if b.motion == "prescribed":
                 bodies.append(Body.polygon(vertices[k], density=b.density, motion="prescribed", path=path[k]))
-            else:
-                bodies.append(Body.polygon(vertices[k], density=b.density, position=b.position, angle=b.angle,
+            else:  # free bodies: translational mass with the added mass ρ_f A (see mean_load)
+                bodies.append(Body.polygon(vertices[k], density=b.density + (rho_f if b.motion == "free" else 0.0),
+                                           position=b.position, angle=b.angle,
                                            velocity=b.velocity if b.motion == "free" else (0.0, 0.0),
                                            omega=b.omega if b.motion == "free" else 0.0, motion=b.motion))
         dens = np.array([B[k].density for k in self.free])
@@ -101,9 +103,8 @@ class FluidContacts:
                        repulsion=self.repulsion)
         self.radii = np.array([b.radius for b in bodies])
         self.walls = walls
-        # the DEM's translational mass: body plus the added mass ρ_f A (see mean_load)
-        rho_f = scene.fluid.density
-        self.dem.mass[self.free] = self.dem.mass[self.free] + rho_f * areas
+        # no rotational added mass: the free bodies' moments of inertia are their own, ρ_s J
+        self.dem.inertia[self.free] *= dens / (dens + rho_f)
         self.substeps = 0
         self.dem_calls = 0
         self.seconds = 0.0  # wall time in the DEM

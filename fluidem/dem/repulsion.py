@@ -101,7 +101,8 @@ def _point_segment(P, A, B):
     return Q, d
 
 
-def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray):
+def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray | None = None,
+              radii: np.ndarray | None = None, reach: float = np.inf):
     """Vertex–edge distances of body pairs, both ways.
 
     Parameters
@@ -111,6 +112,13 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray):
         harmless: they repeat a vertex).
     i, j : (P,) int
         Pairs.
+    centres, radii : (N, 2), (N,) float or None
+        Centres and bounding radii: with ``reach``, only vertices closer than ``radius + reach``
+        to the other body's centre are measured (the others get distance ``inf``).  A vertex
+        within ``reach`` of the other outline always passes, so distances below ``reach`` are
+        exact.
+    reach : float
+        Length.
 
     Returns
     -------
@@ -121,25 +129,38 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray):
         Their distances, length.
     """
     Wi, Wj = W[i], W[j]
-    K = W.shape[1]
 
-    def vertex_to_outline(V, other):  # V (P, K, 2) vertices, other (P, K, 2) the other body's outline
-        A, B = other, np.roll(other, -1, axis=1)
-        Q, d = _point_segment(V[:, :, None, :], A[:, None, :, :], B[:, None, :, :])  # (P, K, K)
-        k = np.argmin(d, axis=2)
-        take = np.take_along_axis
-        return take(Q, k[:, :, None, None], axis=2)[:, :, 0], take(d, k[:, :, None], axis=2)[:, :, 0]
+    def vertex_to_outline(V, other, c_other, r_other):  # V (P, K, 2) vertices, other (P, K, 2) outline
+        P, K = V.shape[:2]
+        Q = np.broadcast_to(V, V.shape).copy()
+        d = np.full((P, K), np.inf)
+        if c_other is None:
+            near = np.ones((P, K), bool)
+        else:
+            dc = V - c_other[:, None, :]
+            near = (dc * dc).sum(axis=-1) < (r_other[:, None] + reach) ** 2
+        pi, vi = np.nonzero(near)
+        if len(pi):
+            A, B = other[pi], np.roll(other, -1, axis=1)[pi]  # (M, K, 2) edges of the other body
+            Qm, dm = _point_segment(V[pi, vi][:, None, :], A, B)  # (M, K)
+            k = np.argmin(dm, axis=1)
+            Q[pi, vi] = Qm[np.arange(len(pi)), k]
+            d[pi, vi] = dm[np.arange(len(pi)), k]
+        return Q, d
 
-    Qj, dj = vertex_to_outline(Wi, Wj)  # vertices of i, feet on j
-    Qi, di = vertex_to_outline(Wj, Wi)  # vertices of j, feet on i
+    ci = cj = ri = rj = None
+    if centres is not None and np.isfinite(reach):
+        ci, cj, ri, rj = centres[i], centres[j], radii[i], radii[j]
+    Qj, dj = vertex_to_outline(Wi, Wj, cj, rj)  # vertices of i, feet on j
+    Qi, di = vertex_to_outline(Wj, Wi, ci, ri)  # vertices of j, feet on i
     p = np.concatenate([Wi, Qi], axis=1)
     q = np.concatenate([Qj, Wj], axis=1)
-    assert p.shape[1] == 2 * K
     return p, q, np.concatenate([dj, di], axis=1)
 
 
 def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.ndarray, j: np.ndarray,
-                     overlapping: np.ndarray, walls=None, movable: np.ndarray | None = None):
+                     overlapping: np.ndarray, walls=None, movable: np.ndarray | None = None,
+                     radii: np.ndarray | None = None):
     """Repulsive forces and torques on every body (module docstring).
 
     Parameters
@@ -157,6 +178,9 @@ def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.nda
         Walls (``±inf`` for none), length.
     movable : (N,) bool or None
         Bodies that may approach a wall (default all).
+    radii : (N,) float or None
+        Bounding radii about ``pos``: only vertices that can be within the range of the other
+        body are measured (same result, less work for many-sided outlines).
 
     Returns
     -------
@@ -175,7 +199,7 @@ def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.nda
         return F, T, 0
     rho = model.range
     if len(i):
-        p, q, d = pair_gaps(W, i, j)
+        p, q, d = pair_gaps(W, i, j, pos if radii is not None else None, radii, rho)
         gap = d.min(axis=1)
         near = gap < rho
         if near.any():

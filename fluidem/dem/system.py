@@ -363,7 +363,7 @@ class DEM:
                 body = C.j >= 0
                 touching = np.isin(ri * n + rj, np.minimum(C.i, C.j)[body] * n + np.maximum(C.i, C.j)[body])
             Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, self.world_vertices(x), pos, ri, rj,
-                                                            touching, self.walls, self.movable)
+                                                            touching, self.walls, self.movable, self.radii)
             forces = forces + Fr
             torques = torques + Tr
         order = np.argsort(C.key, kind="stable")
