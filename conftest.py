@@ -24,7 +24,7 @@ import pytest  # noqa: E402
 DOCTEST_REQUIRES = {"fluidem.plotting": ("matplotlib",)}
 
 #: Test modules whose tests share nothing, so each may run on any worker.
-INDEPENDENT_MODULES = ("tests/test_benchmarks_slow.py",)
+INDEPENDENT_MODULES = ("tests/test_benchmarks_slow.py", "tests/test_notebooks.py")
 
 #: Estimated wall seconds of a slow test without a ``seconds`` figure (for the order only).
 UNMEASURED_SLOW_SECONDS = 60.0

@@ -10,7 +10,10 @@ read too; old spellings are accepted as aliases.  An error fluidem raises on pur
 ``fluidem: error: <message>`` to stderr and exits with status 2; ``--debug`` shows the
 traceback instead.  A run stopped by Ctrl-C or SIGTERM exits with 130 or 143, a run whose
 step failed with 3, each after a one-line message saying where its last checkpoint is and
-how to continue (``fluidem run SCENE --out DIR --restart``).  ``--overwrite`` clears an
+how to continue (``fluidem run SCENE --out DIR --restart``).  ``fluidem plan`` exits with 2
+for a scene this version cannot run (the plan's ``unsupported`` reasons, one
+``fluidem: error:`` line each on stderr, after the plan on stdout), and ``fluidem run``
+refuses such a scene with the same lines before building anything.  ``--overwrite`` clears an
 earlier run's output in the directory (a fresh run into it is refused otherwise).
 """
 
@@ -158,7 +161,9 @@ def _add_scene_commands(sub) -> None:
     r.add_argument("--plot", action="store_true", help="draw the PNG figures at the end")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     pl = sub.add_parser("plan", help="print the effects a scene needs and why",
-                        description="Validate a scene and print its plan: which effects are on, and why.")
+                        description="Validate a scene and print its plan: which effects are on, and why. "
+                                    "Exits with status 2, one error line per reason, for a scene this version "
+                                    "cannot run.")
     pl.add_argument("scene", nargs="?", help="scene TOML file")
     pl.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file: "
                     + ", ".join(names.choices("example")))
@@ -281,9 +286,12 @@ def _scene_main(args) -> int:
             print(path)
         return 0
     scene = _scene_from_args(args)
+    plan = scene.plan()
     if args.command == "plan":
-        print(scene.plan())
-        return 0
+        print(plan)
+        return _refuse(plan)
+    if plan.unsupported:  # before anything is built: the same reasons as 'fluidem plan'
+        return _refuse(plan)
     from .simulation import Simulation
 
     sim = Simulation(scene)
@@ -299,6 +307,20 @@ def _scene_main(args) -> int:
         for path in plot_run(out):
             print(path)
     return 0
+
+
+#: exit status of ``fluidem plan`` and ``fluidem run`` for a scene this version cannot run
+CANNOT_RUN_STATUS = 2
+
+
+def _refuse(plan) -> int:
+    """0 when ``plan`` can run; otherwise one ``fluidem: error:`` line per reason it cannot (stderr)
+    and :data:`CANNOT_RUN_STATUS`."""
+    if not plan.unsupported:
+        return 0
+    for reason in plan.unsupported:
+        print(f"fluidem: error: scene {plan.scene_name!r} cannot run: {_one_line(reason)}", file=sys.stderr)
+    return CANNOT_RUN_STATUS
 
 
 def _bench_main(args, parser) -> int:

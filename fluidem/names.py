@@ -108,6 +108,9 @@ REGISTRY: dict[str, Kind] = {
         "wall-correction": "Stokes drag of a disk between two walls (Faxen)",
         "dry-heap": "granular heap, DEM only",
         "column-collapse": "granular column collapse, DEM only",
+        "settling-disk": "a free disk settling from rest in a closed channel (Navier-Stokes), against its steady "
+                         "terminal velocity",
+        "jeffery-orbit": "a free ellipse (aspect ratio 2) turning in a Stokes shear cell, half a Jeffery period",
         "dkt": "drafting, kissing and tumbling of two disks settling in a channel (Glowinski et al. 2001)",
     }),
     "schur": Kind("Schur-complement approximation", {

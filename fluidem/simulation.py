@@ -123,8 +123,9 @@ class Simulation:
     Raises
     ------
     ValueError
-        A scene this version cannot run (free bodies in a fluid, translating bodies in an
-        unsteady fluid, periodic sides), with the reason.
+        A scene this version cannot run (``plan.unsupported``: a mesh estimated above the
+        machine's memory, a fixed mesh under a moving outline, periodic sides in a dry scene,
+        ...), with the reasons, before anything is built.
 
     Examples
     --------

@@ -117,3 +117,58 @@ def _check_wall_correction_figures(out):
     assert read_history(out)["x"][-1] == pytest.approx(1.0)
     for f in figs.values():
         plt.close(f)
+
+
+_CANNOT_RUN = """name = "cannot-run"
+[fluid]
+model = "stokes"
+viscosity = 1.0
+[domain]
+box = [0.0, 10.0, 0.0, 10.0]
+[[bodies]]
+shape = "disk"
+radius = 0.5
+position = [5.0, 5.0]
+motion = "prescribed"
+velocity = [1.0, 0.0]
+[mesh]
+h = 1e-4
+strategy = "fixed"
+[time]
+dt = 0.1
+t_end = 0.2
+"""
+
+
+def test_plan_exits_non_zero_for_a_scene_it_cannot_run_one_line_per_reason(tmp_path, capsys, monkeypatch):
+    """Two reasons: a mesh far above any machine's memory, and a fixed mesh under a moving outline."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bad.toml").write_text(_CANNOT_RUN)
+    assert main(["plan", "bad.toml"]) == 2
+    cap = capsys.readouterr()
+    assert "cannot run yet:" in cap.out and "estimate:" in cap.out  # the plan itself is still printed
+    lines = cap.err.splitlines()
+    assert len(lines) == 2 and all(s.startswith("fluidem: error: scene 'cannot-run' cannot run: ") for s in lines)
+    assert "use strategy 'drag' or 'regenerate'" in lines[0] and "more than this machine's" in lines[1]
+    # a scene that can run: status 0 and nothing on stderr
+    assert main(["plan", "--example", "wall-correction"]) == 0 and capsys.readouterr().err == ""
+
+
+def test_run_refuses_a_scene_it_cannot_run_before_building_anything(tmp_path, capsys, monkeypatch):
+    import fluidem.simulation
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bad.toml").write_text(_CANNOT_RUN)
+    built = []
+    monkeypatch.setattr(fluidem.simulation.Simulation, "__init__", lambda self, *a, **k: built.append(1))
+    assert main(["run", "bad.toml", "--out", "o"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2 and "strategy = 'fixed'" in err[0] and "more than this machine's" in err[1]
+    assert not built and not (tmp_path / "o").exists()
+    # a dry scene with periodic sides: the DEM has none
+    (tmp_path / "per.toml").write_text('[domain]\nbox = [0.0, 1.0, 0.0, 1.0]\nleft = "periodic"\n'
+                                       'right = "periodic"\n[time]\ndt = 0.1\nt_end = 0.1\n')
+    assert main(["run", "per.toml", "--out", "p"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "periodic sides (right, left) are not supported yet by the DEM" in err
+    assert not built and not (tmp_path / "p").exists()
