@@ -101,11 +101,12 @@ def test_explicit_convection_blowup_is_reported():
 
 @pytest.mark.parametrize(
     "element, level, tol",
-    # tolerances: 2.5x the relative errors measured at these levels
-    # (p3/1: 5.9e-6, 1.1e-4, 2.1e-4; p2b/2: 8.5e-6, 4.9e-3, 1.9e-3; th/2: 1.4e-5, 1.2e-3, 1.6e-3)
-    [("p3", 1, {"cd": 1.5e-5, "cl": 2.7e-4, "dp": 5.2e-4}),
-     ("p2b", 2, {"cd": 2.1e-5, "cl": 1.2e-2, "dp": 4.8e-3}),
-     ("th", 2, {"cd": 3.5e-5, "cl": 3.1e-3, "dp": 3.9e-3})],
+    # tolerances: 2.5x the relative errors measured at these levels of the default meshes
+    # (p3/1, 26.9k DOFs: 1.15e-5, 2.44e-3, 8.0e-4; p2b/1, 21.8k: 2.43e-4, 4.82e-2, 3.31e-3;
+    # th/1, 11.1k: 2.77e-6, 8.54e-2, 1.77e-2; the finer levels are slow tests)
+    [("p3", 1, {"cd": 2.9e-5, "cl": 6.1e-3, "dp": 2.0e-3}),
+     ("p2b", 1, {"cd": 6.1e-4, "cl": 0.12, "dp": 8.3e-3}),
+     ("th", 1, {"cd": 6.9e-6, "cl": 0.21, "dp": 4.4e-2})],
 )
 def test_dfg_2d1_against_reference(element, level, tol):
     res = dfg_2d1(element, level)
@@ -122,6 +123,36 @@ def test_dfg_2d1_polygon_error_follows_4_over_n2():
     n = len(dfg_mesh(1).boundaries["cylinder"])  # straight segments on the outline
     rel = (curved - poly) / curved
     assert 2.0 / n**2 < rel < 6.0 / n**2
+
+
+def _cell_size_at(mesh, d, band=0.01):
+    """√(mean cell area) of the cells whose centroid is d ± band from the DFG cylinder, m."""
+    x = mesh.p[:, mesh.t[:3]]  # (2, 3, n_cells)
+    c = x.mean(axis=1)
+    r = np.hypot(c[0] - 0.2, c[1] - 0.2) - 0.05
+    e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+    area = 0.5 * np.abs(e1[0] * e2[1] - e1[1] * e2[0])
+    return float(np.sqrt(area[np.abs(r - d) < band].mean()))
+
+
+def test_dfg_mesh_levels_halve_the_cells_everywhere():
+    """The default family quarters the cell area everywhere per level (cells x4 within 10 %:
+    measured x4.06 from level 0 to 1 and x4.02 from 1 to 2); the fixed-slope family refines only
+    near the cylinder and far away (measured x2.52 and x2.50).  Level 0 is one mesh in both."""
+    n = {g: [dfg_mesh(lv, grading=g).t.shape[1] for lv in (0, 1, 2)] for g in ("halving", "fixed-slope")}
+    assert n["halving"][0] == n["fixed-slope"][0]
+    for a, b in zip(n["halving"], n["halving"][1:]):
+        assert b / a == pytest.approx(4.0, rel=0.1)
+    for a, b in zip(n["fixed-slope"], n["fixed-slope"][1:]):
+        assert b / a < 3.0
+    # 0.1 m from the cylinder, where the fixed-slope family hardly refines: cell size ratio of
+    # levels 1 and 2 measured 2.07 (halving) and 1.37 (fixed-slope)
+    assert _cell_size_at(dfg_mesh(1), 0.1) / _cell_size_at(dfg_mesh(2), 0.1) == pytest.approx(2.0, rel=0.1)
+    ratio_fixed = _cell_size_at(dfg_mesh(1, grading="fixed-slope"), 0.1) / _cell_size_at(
+        dfg_mesh(2, grading="fixed-slope"), 0.1)
+    assert ratio_fixed < 1.6
+    with pytest.raises(ValueError, match="grading = 'uniform': expected one of 'halving', 'fixed-slope'"):
+        dfg_mesh(1, grading="uniform")
 
 
 def test_periodic_stats_of_a_sine():

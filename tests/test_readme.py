@@ -15,7 +15,7 @@ def test_readme_python_example(capsys):
     exec(compile(blocks[0], "README.md", "exec"), {})
     out = capsys.readouterr().out
     cd = float(out.split("c_D =")[1].split()[0])
-    assert cd == pytest.approx(5.57953523384, rel=1.5e-5)  # level-1 P3 error measured 5.9e-6
+    assert cd == pytest.approx(5.57953523384, rel=3e-5)  # level-1 P3 error measured 1.15e-5
 
 
 def test_readme_other_python_examples_run(tmp_path, monkeypatch):
