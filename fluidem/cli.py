@@ -36,6 +36,7 @@ _CASE_OPTIONS = {
     "dfg-2d3": ("element", "level", "dt", "convection", "solver"),
     "square-cylinder": ("element", "level", "dt", "t_end", "convection", "solver"),
     "settling-disk": ("element", "dt", "t_end"),
+    "dkt": ("element", "dt", "t_end"),
 }
 
 

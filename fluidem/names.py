@@ -101,6 +101,7 @@ REGISTRY: dict[str, Kind] = {
         "dfg-2d3": "DFG flow around a cylinder, unsteady inflow, 0 <= t <= 8",
         "square-cylinder": "square cylinder at Re = 100 (Sohankar et al. 1998)",
         "settling-disk": "a free disk settling in a channel, against its steady terminal velocity",
+        "dkt": "drafting, kissing and tumbling of two disks (Glowinski et al. 2001), event times",
     }),
     "example": Kind("example scene", {
         "dfg-cylinder": "DFG 2D-1 channel as a scene: Navier-Stokes past a fixed cylinder, Re = 20",
@@ -110,6 +111,7 @@ REGISTRY: dict[str, Kind] = {
         "settling-disk": "a free disk settling from rest in a closed channel (Navier-Stokes), against its steady "
                          "terminal velocity",
         "jeffery-orbit": "a free ellipse (aspect ratio 2) turning in a Stokes shear cell, half a Jeffery period",
+        "dkt": "drafting, kissing and tumbling of two disks settling in a channel (Glowinski et al. 2001)",
     }),
     "schur": Kind("Schur-complement approximation", {
         "auto": "cahouet-chabard when a time step is given, mass otherwise",

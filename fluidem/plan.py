@@ -395,6 +395,7 @@ def make_plan(scene: Scene) -> Plan:
     if hit:
         notes.append("prescribed motion brings " + "; ".join(hit[:3]) + (" ..." if len(hit) > 3 else "")
                      + " before t_end (prescribed bodies feel no contact forces)")
+    contact_warnings = []
     # what this version cannot do (the plan still says what would be needed)
     if periodic and fl is None:
         unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the DEM "
@@ -407,9 +408,27 @@ def make_plan(scene: Scene) -> Plan:
             if fl.solver == "iterative":
                 notes.append("solver = 'iterative': the coupled fluid-body system uses the lagged LU (the block "
                              "preconditioner has no body block yet)")
-            if c_on:
-                notes.append("contacts inside the fluid step are not modelled yet: free bodies must stay apart "
-                             "and off the walls (the run stops with a message if they overlap)")
+            if c_on and fl.model == "stokes":
+                notes.append("contacts are not modelled for Stokes free bodies (no inertia to sub-step): they must "
+                             "stay apart and off the walls (the run stops with a message if they overlap)")
+            elif c_on:
+                c = scene.contact
+                if c.repulsion_force is None and (not g_on or all(b.density == fl.density for b in free)):
+                    contact_warnings.append(
+                        "contacts in a fluid with neither gravity nor a density difference: the default repulsion "
+                        "force scale (the largest buoyant weight) is 0, so bodies that meet overlap and the run stops; "
+                        "expected contact.repulsion_force > 0 (a force per unit depth, e.g. the largest load that "
+                        "presses bodies together)")
+                rng = f"{c.repulsion_range:g}" if c.repulsion_range is not None else f"mesh.h = {scene.mesh.h:g}"
+                force = (f"{c.repulsion_force:g}" if c.repulsion_force is not None
+                         else "the largest buoyant weight of a free body")
+                notes.append(f"contacts inside the fluid step: the DEM contact law on overlaps and a short-range "
+                             f"repulsion (Glowinski et al. 2001) below the range {rng} (gaps the mesh cannot resolve), "
+                             f"force scale {force}, epsilon {c.repulsion_epsilon:g}; sub-stepped with the fluid's "
+                             "force held whenever outlines come within reach")
+            elif nb + nw:
+                notes.append("no [contact] table: free bodies must stay apart and off the walls (the run stops with "
+                             "a message if they overlap); add [contact] for contacts and short-range repulsion")
         elif mesh == "moving":
             if not _moving_mesh_available():
                 unsupported.append("moving bodies in fluid need the moving-mesh layer (fluidem.mesh.MovingMesh), "
@@ -431,6 +450,7 @@ def make_plan(scene: Scene) -> Plan:
     if fl is not None:
         estimate = mesh_estimate(scene)
         warnings, refuse = _mesh_warnings(scene, estimate)
+        warnings = contact_warnings + warnings
         unsupported += refuse
         if free and fl.coupling == "explicit" and fl.model != "stokes":
             light = min(free, key=lambda b: b.density)
@@ -488,11 +508,44 @@ def _outline_stats(scene):
     return area, perim
 
 
+def _graded_cells(scene, fluid_area: float) -> float:
+    """∫ dA / h(x)² over the fluid for the graded size h = min(h_max, h + (growth − 1) d)
+    (:class:`fluidem.mesh.background.GradedSize`), d the distance to the grading region (the
+    bodies' bounding circles, or a box), by the midpoint rule on a grid of ~40k cells scaled to
+    the fluid area."""
+    from scipy.spatial import cKDTree
+
+    x0, x1, y0, y1 = scene.domain.box
+    g, h = scene.mesh.grading, scene.mesh.h
+    n = 200
+    nx = max(8, int(round(n * np.sqrt((x1 - x0) / (y1 - y0)))))
+    ny = max(8, int(round(n * n / nx)))
+    X, Y = np.meshgrid(x0 + (np.arange(nx) + 0.5) * (x1 - x0) / nx, y0 + (np.arange(ny) + 0.5) * (y1 - y0) / ny)
+    P = np.column_stack([X.ravel(), Y.ravel()])
+    reg = g["region"]
+    if reg == "bodies":
+        if not scene.bodies:
+            return fluid_area / h**2
+        C = np.array([b.position for b in scene.bodies], float)
+        R = np.array([b.bounding_radius for b in scene.bodies])
+        k = min(8, len(C))
+        dist, idx = cKDTree(C).query(P, k=k)
+        dist, idx = dist.reshape(len(P), k), idx.reshape(len(P), k)
+        d = np.maximum((dist - R[idx]).min(axis=1), 0.0)
+    else:
+        dx = np.maximum(np.maximum(reg[0] - P[:, 0], P[:, 0] - reg[1]), 0.0)
+        dy = np.maximum(np.maximum(reg[2] - P[:, 1], P[:, 1] - reg[3]), 0.0)
+        d = np.hypot(dx, dy)
+    size = np.minimum(g["h_max"], h + (g["growth"] - 1.0) * d)
+    box_area = (x1 - x0) * (y1 - y0)
+    return float(np.mean(1.0 / size**2)) * fluid_area if box_area > 0 else 0.0
+
+
 def mesh_estimate(scene) -> dict:
     """Rough size of a fluid scene's mesh and solve, before anything is built.
 
-    Triangles ≈ :data:`TRIANGLES_PER_AREA` × (fluid area) / h² (graded: the region at ``h``,
-    the rest at the geometric mean of ``h`` and ``h_max``); nodes ≈ triangles / 2; DOFs by
+    Triangles ≈ :data:`TRIANGLES_PER_AREA` × (fluid area) / h² (graded: × the mean of
+    (h/h(x))² over the box for the graded size h(x)); nodes ≈ triangles / 2; DOFs by
     :data:`DOFS_PER_VERTEX`; peak memory ≈ :data:`BYTES_BASE` + :data:`BYTES_PER_DOF` × DOFs
     (measured for a Taylor–Hood channel with the default solver).  Within a factor of ~2.
 
@@ -510,12 +563,7 @@ def mesh_estimate(scene) -> dict:
     if g is None:
         tri = TRIANGLES_PER_AREA * A / h**2
     else:
-        reg = g["region"]
-        if reg == "bodies":
-            a_reg = min(A, float(sum(np.pi * (2 * b.bounding_radius + 4 * h) ** 2 for b in scene.bodies)))
-        else:
-            a_reg = min(A, max(0.0, min(reg[1], x1) - max(reg[0], x0)) * max(0.0, min(reg[3], y1) - max(reg[2], y0)))
-        tri = TRIANGLES_PER_AREA * (a_reg / h**2 + (A - a_reg) / (h * g["h_max"]))
+        tri = TRIANGLES_PER_AREA * _graded_cells(scene, A)
     n_boundary = 2.0 * ((x1 - x0) + (y1 - y0)) / h + sum(scene.default_segments(b) for b in scene.bodies)
     tri = max(tri, n_boundary)  # at least the outline nodes, however coarse h is
     nodes = max(tri / 2.0, n_boundary)

@@ -323,7 +323,8 @@ class Simulation:
             check.flow(x[nd[0]], x[nd[1]], self.flow.mesh.p, t_new, x=x)
         return st
 
-    def _run_record(self, out_dir, status: str, n_steps: int, checkpoint=None, message: str = "") -> None:
+    def _run_record(self, out_dir, status: str, n_steps: int, checkpoint=None, message: str = "",
+                    totals: CostSplit | None = None) -> None:
         from . import __version__
         from .io import HISTORY_UNITS, write_run_record
 
@@ -335,7 +336,9 @@ class Simulation:
             "checkpoint": None if checkpoint is None else str(Path(checkpoint).relative_to(out_dir)),
             "message": message, "units": HISTORY_UNITS,
             "pressure": "VTU 'pressure' is dynamic (fluid density x kinematic pressure), 'kinematic_pressure' "
-                        "beside it; history loads are dynamic too"})
+                        "beside it; history loads are dynamic too",
+            **({} if totals is None else {"cost": {"seconds": dict(totals.parts), "counts": dict(totals.counts),
+                                                   "note": "wall seconds per part summed over this run's steps"}})})
 
     def _check_owner(self, out_dir) -> None:
         """Refuse to continue, in ``out_dir``, a run of another scene."""
@@ -520,7 +523,7 @@ class Simulation:
                 writer.event(self.step_index, self.t, "end", f"{self.counters['steps']} steps this run")
                 writer.close()
                 self._run_record(out_dir, "complete" if self.step_index >= self.plan.n_steps else "stopped", N,
-                                 last_ck)
+                                 last_ck, totals=totals)
             else:
                 self._stop(writer, out_dir, N, stop, snap, keep)
         if isinstance(self.bodies, DEMBodies):

@@ -73,6 +73,8 @@ def test_the_folder_records_its_scene(tmp_path):
     rec = json.loads((out / "run.json").read_text())
     assert rec["scene"] == "dry" and rec["status"] == "complete" and rec["source"].endswith("dry.toml")
     assert rec["units"]["fx"] == "force/depth" and "dynamic" in rec["pressure"]
+    # the run's cost split: every part non-negative, the bodies' part spent (a dry scene moves only bodies)
+    assert min(rec["cost"]["seconds"].values()) >= 0 and rec["cost"]["seconds"]["bodies"] > 0
     assert Scene.from_toml(out / "scene.toml").to_dict()["bodies"] == Scene.from_toml(_scene(tmp_path)).to_dict()[
         "bodies"]
     assert set(OUTPUT_ENTRIES) >= {p.name for p in out.iterdir()}

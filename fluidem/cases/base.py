@@ -93,7 +93,7 @@ def get_case(name: str) -> Callable:
     >>> get_case("dfg-2d4")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    fluidem.errors.InputError: case = 'dfg-2d4': expected one of 'dfg-2d1', ..., 'settling-disk' (benchmark case)
+    fluidem.errors.InputError: case = 'dfg-2d4': expected one of 'dfg-2d1', ..., 'dkt' (benchmark case)
     """
     if isinstance(name, str) and name in CASES:  # also cases registered outside fluidem.names
         return CASES[name]

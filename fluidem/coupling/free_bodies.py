@@ -68,6 +68,11 @@ class FreeBodyStepper:
         self.rho = float(rho)
         self.V = np.zeros((nb, 3)) if velocities is None else np.array(velocities, float).reshape(nb, 3)
         self.V_prev = None
+        #: contact load iteration (see :meth:`step`): relative tolerance and most iterations
+        self.contact_tolerance = 1e-3
+        self.contact_iterations = 8
+        self.last_contact_iterations = 0
+        self.last_contact_load = np.zeros((nb, 3))
         self.solver = solver or fluid.problem.direct_solver()
         #: the next factorisation must not reuse an LU of another numbering (a re-triangulation)
         self.refactorize = False
@@ -81,14 +86,28 @@ class FreeBodyStepper:
         """(3 n_bodies,) kinematic body inertia m, m, I over ρ."""
         return (np.column_stack([self.mass, self.mass, self.inertia]) / self.rho).ravel()
 
-    def step(self, external) -> FlowState:
+    def step(self, external, contact=None, contact_guess=None) -> FlowState:
         """Advance fluid and bodies by one step.
 
         Parameters
         ----------
         external : (n_bodies, 3) float
-            External force (x, y) and torque on each body at the new time (buoyant weight,
-            contacts), per unit depth.
+            External force (x, y) and torque on each body at the new time (buoyant weight),
+            per unit depth.
+        contact : callable or None
+            ``contact(V, F) -> F_new or None``: the mean contact load (n_bodies, 3) over the
+            step that the bodies' contacts give when the solve yields the body velocities ``V``
+            with the contact load ``F`` in it (:meth:`fluidem.coupling.contacts.FluidContacts.mean_load`);
+            None when no body is within reach.  The load is found by fixed-point iteration, each
+            iterate corrected by one back-substitution with the solver's stored LU (only the body
+            rows of the right-hand side change), until it changes by less than
+            ``contact_tolerance`` × the largest |external| (at most ``contact_iterations``); one
+            solve to full accuracy then makes fluid and bodies agree on the body velocities.
+            ``last_contact_iterations`` counts the corrections.
+        contact_guess : (n_bodies, 3) float or None
+            A first guess of the contact load (e.g. the last step's), solved with from the start;
+            when the contacts confirm it to the tolerance no correction solve is needed (bodies
+            resting on each other or a wall).  ``last_contact_load`` holds the load found.
 
         Returns
         -------
@@ -119,7 +138,9 @@ class FreeBodyStepper:
         D_t = (a0 * V_guess + a1 * self.V + (a2 * Vp if a2 else 0.0)) / dt
         minv = self._inertia_diagonal()
         rz = sysm.restrict(r)
-        rz[sysm.n_fluid:] += minv * D_t.ravel() - np.asarray(external, float).ravel() / self.rho
+        guess = np.zeros((sysm.n_bodies, 3)) if contact is None or contact_guess is None else \
+            np.asarray(contact_guess, float).reshape(sysm.n_bodies, 3)
+        rz[sysm.n_fluid:] += minv * D_t.ravel() - (np.asarray(external, float) + guess).ravel() / self.rho
         K = sysm.matrix(pr.A_data + pr.M_data * (a0 / dt) + pr.convection_data(b), minv * (a0 / dt))
         tm.add("assembly", time.perf_counter() - t0)
         t0 = time.perf_counter()
@@ -130,8 +151,49 @@ class FreeBodyStepper:
         self.refactorize = False
         z -= self.solver.solve(rz)
         tm.add("solve", time.perf_counter() - t0)
+        self.last_contact_iterations = 0
+        self.last_contact_load = np.zeros((sysm.n_bodies, 3))
+        if contact is not None:
+            self.last_contact_load = self._iterate_contacts(z, contact, guess,
+                                                            np.abs(np.asarray(external, float)).max(), tm)
         x = sysm.prolong(z, x)
         self.V_prev = self.V
         self.V = sysm.split(z)[1].copy()
         self.last_cost = tm
         return st.accept(x, v, a0, hist, tm, b=b)  # the fluid stepper's loads and next step read it
+
+    def _iterate_contacts(self, z, contact, guess, scale, tm):
+        """Fixed point of the contact load in place on ``z``, which was solved with the load
+        ``guess`` (see :meth:`step`); returns the load found.
+
+        The iterates correct ``z`` with the solver's preconditioner alone (the stored, possibly
+        lagged LU: one back-substitution each); once the load has settled, one solve to full
+        accuracy of the change from ``guess`` makes ``z`` exact for it (skipped when the first
+        iterate confirms ``guess``)."""
+        sysm = self.system
+        F = guess.copy()
+        z0 = z.copy()
+        e = np.zeros_like(z)
+        tol = self.contact_tolerance * max(scale, 1e-300)
+        approx = None
+        for _ in range(self.contact_iterations):
+            F_new = contact(sysm.split(z)[1], F)
+            if F_new is None:
+                F_new = np.zeros_like(F)
+            dF = F_new - F
+            F = F_new
+            if np.abs(dF).max() <= tol:
+                break
+            t0 = time.perf_counter()
+            if approx is None:
+                approx = self.solver.as_preconditioner()
+            e[sysm.n_fluid:] = dF.ravel() / self.rho  # an external load enters the body rows as −F/ρ
+            z += approx.matvec(e)
+            tm.add("solve", time.perf_counter() - t0)
+            self.last_contact_iterations += 1
+        if self.last_contact_iterations:
+            t0 = time.perf_counter()
+            e[sysm.n_fluid:] = (F - guess).ravel() / self.rho
+            z[:] = z0 + self.solver.solve(e)
+            tm.add("solve", time.perf_counter() - t0)
+        return F

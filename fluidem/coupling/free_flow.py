@@ -23,8 +23,14 @@ step and blows up once the added mass exceeds the body mass (a disk: m_a ≈ ρ_
 ρ_s/ρ_f ≲ 1; Causin, Gerbeau & Nobile 2005).
 
 External loads on a free body: its buoyant weight (ρ_s − ρ_f) A g (the fluid carries no
-gravity: its hydrostatic pressure is subtracted).  Contacts between bodies and with walls are
-not modelled inside the fluid step yet (the run's state checks stop it if bodies overlap).
+gravity: its hydrostatic pressure is subtracted).
+
+Contacts (scenes with a ``[contact]`` table whose bodies may meet):
+:class:`fluidem.coupling.contacts.FluidContacts` sub-steps the DEM contact law and the
+short-range repulsion over the step with the fluid's force held, and its mean load enters the
+coupled solve of step 3 by fixed-point iteration (a few back-substitutions, only in steps
+where outlines are within reach), or the staggered body update.  Stokes free bodies have no
+inertia to sub-step: contacts are not modelled there (the run stops if bodies overlap).
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ import time
 import numpy as np
 
 from ..cost import CostSplit
+from .contacts import FluidContacts
 from .free_bodies import FreeBodyStepper
 from .moving_flow import MovingMeshFlow
 from .rigid_system import RigidBodySystem
@@ -89,6 +96,10 @@ class FreeBodyFlow(MovingMeshFlow):
         self._weight[:, :2] = ((dens - rho_f) * self.area)[:, None] * g[None, :]
         self.system = RigidBodySystem(self.problem, self.rigid, self.free)
         self.explicit = scene.fluid.coupling == "explicit" and not self.stokes
+        self.contacts = None
+        if sim.plan.on("contacts") and not self.stokes and len(self.free):
+            self.contacts = FluidContacts(scene, self.free, [b.local_vertices(scene.default_segments(b)) for b in B],
+                                          self.path)
         if self.stokes:
             self.coupled = None
             self._solve_mobility(0.0)
@@ -150,7 +161,7 @@ class FreeBodyFlow(MovingMeshFlow):
         t0 = time.perf_counter()
         if self.stokes:
             self.t = t_new
-            self._solve_mobility(t_new, cost)
+            self._solve_mobility(t_new, cost, rebuilt)
             self._V_prev = V
             self.poses = self._mesh_poses.copy()
         else:
@@ -158,11 +169,18 @@ class FreeBodyFlow(MovingMeshFlow):
             self.coupled.system = self.system
             if rebuilt:
                 self.coupled.refactorize = True
-            self.coupled.step(self._weight)
+            load = None if self.contacts is None else self.contacts.load_function(self.t, dt, self.poses,
+                                                                                   self.body_velocities)
+            dem_s = 0.0 if self.contacts is None else self.contacts.seconds
+            self.coupled.step(self._weight, contact=load, contact_guess=self.coupled.last_contact_load)
+            dem_s = 0.0 if self.contacts is None else self.contacts.seconds - dem_s
             tm = self.coupled.last_cost
             cost.add("assembly", tm.assembly)
             cost.add("solve", tm.solve)
-            cost.add("coupling", time.perf_counter() - t0 - tm.assembly - tm.solve)
+            if load is not None:
+                cost.add("dem", dem_s)
+                cost.count("contact_solves", self.coupled.last_contact_iterations)
+            cost.add("coupling", time.perf_counter() - t0 - tm.assembly - tm.solve - dem_s)
             V_new = self.coupled.V
             X_corr = X + dt * V_new if self._poses_prev is None else (4 * X - self._poses_prev + 2 * dt * V_new) / 3
             self._poses_prev = X
@@ -193,6 +211,14 @@ class FreeBodyFlow(MovingMeshFlow):
         else:
             V_new = (2 * dt * load / m + 4 * V - self._V_prev) / 3
             X_new = (4 * X - self._poses_prev + 2 * dt * V_new) / 3
+        if self.contacts is not None:  # the contacts' mean load over the step, added to the body update
+            t1 = time.perf_counter()
+            load = self.contacts.load_function(self.t, dt, self.poses, self.body_velocities)
+            if load is not None:
+                c = 1.0 if self._V_prev is None else 2.0 / 3.0  # the load's weight in the BDF1/BDF2 update
+                V_new = V_new + c * dt * load(V_new, np.zeros_like(V_new)) / m
+                X_new = X + dt * V_new if self._V_prev is None else (4 * X - self._poses_prev + 2 * dt * V_new) / 3
+            cost.add("dem", time.perf_counter() - t1)
         P, Vp = self._prescribed(self.t + dt)
         self._mesh_poses = P.copy()
         self._mesh_poses[f] = X_new
@@ -215,7 +241,22 @@ class FreeBodyFlow(MovingMeshFlow):
         self.t, self.x = st.t, st.state.x
         self._finish(cost)
 
-    def _solve_mobility(self, t, cost=None):
+    def _mobility_solver(self, rebuilt):
+        """Stokes: a fresh LU every step for ``solver = "direct"`` (bit-for-bit restarts), otherwise
+        one lagged LU kept between steps (the matrix changes only with the geometry) and refactorised
+        at re-triangulations or when GMRES needs many iterations."""
+        from ..fluid.solvers import LaggedLUSolver
+        from .moving_flow import LAGGED_REFACTOR_ITERATIONS
+
+        if self.scene.fluid.solver == "direct":
+            return self.problem.direct_solver()
+        s = getattr(self, "_lagged_mobility", None)
+        if s is None or rebuilt:
+            s = self._lagged_mobility = LaggedLUSolver(direct=self.problem.direct_solver(),
+                                                       max_iterations_before_refactor=LAGGED_REFACTOR_ITERATIONS)
+        return s
+
+    def _solve_mobility(self, t, cost=None, rebuilt=True):
         """Stokes: the velocities of the free bodies at which fluid forces balance the external loads."""
         t0 = time.perf_counter()
         pr, sysm = self.problem, self.system
@@ -226,7 +267,7 @@ class FreeBodyFlow(MovingMeshFlow):
         rz[sysm.n_fluid:] -= self._weight.ravel() / self.rho
         K = sysm.matrix(pr.A_data, np.zeros(3 * len(self.free)))
         t1 = time.perf_counter()
-        solver = pr.direct_solver()
+        solver = self._mobility_solver(rebuilt)
         solver.factorize(K)
         z -= solver.solve(rz)
         t2 = time.perf_counter()
@@ -246,7 +287,10 @@ class FreeBodyFlow(MovingMeshFlow):
                        "mesh_poses": self._mesh_poses.copy(),
                        "poses_prev": None if self._poses_prev is None else self._poses_prev.copy(),
                        "V_prev": None if self._V_prev is None else self._V_prev.copy()}
+        if self.contacts is not None:
+            s["bodies"]["contacts"] = self.contacts.get_state()
         if self.coupled is not None:
+            s["bodies"]["contact_load"] = self.coupled.last_contact_load.copy()
             s["bodies"]["coupled_V"] = self.coupled.V.copy()
             s["bodies"]["coupled_V_prev"] = None if self.coupled.V_prev is None else self.coupled.V_prev.copy()
         return s
@@ -259,11 +303,16 @@ class FreeBodyFlow(MovingMeshFlow):
         self._poses_prev = None if b["poses_prev"] is None else np.array(b["poses_prev"], float)
         self._V_prev = None if b["V_prev"] is None else np.array(b["V_prev"], float)
         super().set_state(s)
+        self._lagged_mobility = None
         self.system = RigidBodySystem(self.problem, self.rigid, self.free)
+        if self.contacts is not None and "contacts" in b:
+            self.contacts.set_state(b["contacts"])
         if self.coupled is not None:
             self.coupled.fluid = self.stepper
             self.coupled.system = self.system
             self.coupled.V = np.array(b["coupled_V"], float)
+            if "contact_load" in b:
+                self.coupled.last_contact_load = np.array(b["contact_load"], float)
             self.coupled.V_prev = None if b["coupled_V_prev"] is None else np.array(b["coupled_V_prev"], float)
             self.coupled.refactorize = True
 

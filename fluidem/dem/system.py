@@ -28,6 +28,7 @@ from .bodies import Body, _box, _pair
 from .contact import (Contacts, ContactModel, contact_forces, grid_pairs, polygon_overlaps,
                       wall_overlaps)
 from .integrate import GEAR_ORDERS, Gear
+from .repulsion import Repulsion, repulsion_forces
 
 __all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS"]
 
@@ -78,6 +79,9 @@ class DEM:
         Largest overlap allowed at start, as a fraction of the smaller body's area.
     t0 : float
         Initial time, time units.
+    repulsion : Repulsion or None
+        A short-range repulsion between outlines closer than its range (bodies in a fluid,
+        :mod:`fluidem.dem.repulsion`); its stiffness enters :attr:`dt_max`.
 
     Attributes
     ----------
@@ -129,7 +133,7 @@ class DEM:
 
     def __init__(self, bodies, walls=None, gravity=(0.0, -9.81), contact: ContactModel | None = None,
                  order: int = 2, skin: float | None = None, overlap_tolerance: float = 0.01,
-                 t0: float = 0.0):
+                 t0: float = 0.0, repulsion: Repulsion | None = None):
         bodies = _check_bodies("DEM(bodies=...)", bodies)
         if not bodies:
             raise validate.fail("DEM(bodies=...)", bodies, "at least one fluidem.dem.Body")
@@ -142,6 +146,10 @@ class DEM:
         self.overlap_tolerance = validate.nonnegative("DEM(overlap_tolerance=...)", overlap_tolerance)
         self.time = validate.number("DEM(t0=...)", t0)
         self._skin_arg = None if skin is None else validate.nonnegative("DEM(skin=...)", skin)
+        if repulsion is not None and not isinstance(repulsion, Repulsion):
+            raise validate.fail("DEM(repulsion=...)", _Shown(repulsion), "None or a fluidem.dem.repulsion.Repulsion")
+        self.repulsion = repulsion
+        self.repulsion_pairs = 0  # pairs and body-wall pairs within the repulsion range in the last step
         self.cost = _new_cost()
         self.bodies: list[Body] = []
         self._setup(bodies)
@@ -180,6 +188,8 @@ class DEM:
         fr = self.radii[self.movable]
         rmax = float(fr.max()) if len(fr) else float(self.radii.max())
         self.skin = 0.2 * rmax if self._skin_arg is None else float(self._skin_arg)
+        if self.repulsion is not None:  # the Verlet list must hold the pairs within the range
+            self.skin = max(self.skin, 4.0 * self.repulsion.range)
         self._cell = 2.0 * rmax + self.skin
         self._nbr = None
         self._nbr_ref = None
@@ -196,7 +206,10 @@ class DEM:
             return np.inf
         k = int(np.flatnonzero(self.free)[np.argmin(self.mass[self.free])])
         self._lightest = k
-        return 0.1 * np.pi * np.sqrt(self.mass[k] / self.model.E)
+        stiffness = self.model.E
+        if self.repulsion is not None:  # the stiffer of the contact law and the repulsion at contact
+            stiffness = max(stiffness, self.repulsion.max_stiffness)
+        return 0.1 * np.pi * np.sqrt(self.mass[k] / stiffness)
 
     @property
     def walls(self):
@@ -269,7 +282,8 @@ class DEM:
         return [W[k, : self._nv[k]] for k in range(self.n)]
 
     # ---- contacts ----------------------------------------------------------------------
-    def _neighbours(self, pos):
+    def _neighbours(self, pos, extra: float = 0.0):
+        """Pairs whose bounding circles come closer than ``extra`` (length)."""
         t0 = time.perf_counter()
         rebuild = self._nbr is None
         if not rebuild:
@@ -281,7 +295,7 @@ class DEM:
             self.cost.count("rebuilds")
         i, j = self._nbr
         d = pos[j] - pos[i]
-        reach = self.radii[i] + self.radii[j]
+        reach = self.radii[i] + self.radii[j] + extra
         keep = (d * d).sum(axis=1) < reach * reach
         self.cost.add("broad", time.perf_counter() - t0)
         return i[keep], j[keep]
@@ -341,6 +355,17 @@ class DEM:
         tq = np.bincount(idx, np.concatenate([T, Tj]), minlength=n)
         forces = np.column_stack([fx, fy]) + self.mass[:, None] * self.gravity + self.external_force
         torques = tq + self.external_torque
+        if self.repulsion is not None:
+            ri, rj = self._neighbours(pos, self.repulsion.range)
+            touching = np.zeros(len(ri), bool)
+            if len(ri) and len(C):  # overlapping pairs are pushed along their centre line
+                n = self.n
+                body = C.j >= 0
+                touching = np.isin(ri * n + rj, np.minimum(C.i, C.j)[body] * n + np.maximum(C.i, C.j)[body])
+            Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, self.world_vertices(x), pos, ri, rj,
+                                                            touching, self.walls, self.movable, self.radii)
+            forces = forces + Fr
+            torques = torques + Tr
         order = np.argsort(C.key, kind="stable")
         self._hist = {"key": C.key[order], "xi": C.xi[order], "area": C.area[order],
                       "g": (self.model.E * C.area / (C.length * C.chord))[order],
@@ -438,6 +463,38 @@ class DEM:
         for _ in range(n):
             self.step(duration / n)
         return n
+
+    def set_motion(self, poses: np.ndarray, velocities: np.ndarray, time: float | None = None) -> None:
+        """Replace every body's pose and velocity (e.g. to sub-step a fluid step from its state).
+
+        Accelerations are evaluated afresh at the next step from the forces at the new state
+        (contacts, gravity, :attr:`external_force`); the tangential spring history of the
+        contacts is kept.
+
+        Parameters
+        ----------
+        poses : (N, 3) float
+            x, y (length), angle (rad).
+        velocities : (N, 3) float
+            U_x, U_y (length/time), ω (rad/time).
+        time : float or None
+            The new :attr:`time`; None keeps it.
+        """
+        x = np.array(poses, float).reshape(self.n, 3)
+        v = np.where((self.motion == "fixed")[:, None], 0.0, np.array(velocities, float).reshape(self.n, 3))
+        self.gear = Gear(x, v, np.zeros_like(x), self.order)
+        if time is not None:
+            self.time = validate.number("DEM.set_motion(time=...)", time)
+        self._fresh = True
+
+    @property
+    def spring_history(self) -> dict:
+        """The contacts' tangential spring state (arrays keyed by contact), for checkpoints."""
+        return self._hist
+
+    @spring_history.setter
+    def spring_history(self, h: dict) -> None:
+        self._hist = {k: np.asarray(v) for k, v in h.items()}
 
     # ---- adding bodies ---------------------------------------------------------------------
     def add_bodies(self, bodies) -> np.ndarray:

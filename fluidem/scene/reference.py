@@ -145,6 +145,14 @@ KEY_DOCS = {
     "contact.mu": ("number ≥ 0", "—", "Coulomb friction coefficient"),
     "contact.gamma": ("number ≥ 0", "—", "normal damping coefficient"),
     "contact.enabled": ("true or false", "—", "`false` switches contacts off whatever the geometry"),
+    "contact.repulsion_range": ("number > 0", "length", "fluid scenes: cut-off distance ρ of the short-range "
+                                "repulsion between outlines (and from walls), Glowinski et al. 2001; default "
+                                "`mesh.h` (gaps the mesh cannot resolve)"),
+    "contact.repulsion_force": ("number ≥ 0", "force (per unit depth)", "fluid scenes: force scale c of the "
+                                "repulsion, (c/ε)((ρ − g)/ρ)² at gap g; default the largest buoyant weight "
+                                "of a free body; 0 switches it off"),
+    "contact.repulsion_epsilon": ("number > 0", "—", "fluid scenes: stiffness ε of the repulsion (default "
+                                  "1e-4); a body pressed by c rests at the gap ρ(1 − √ε)"),
     "mesh.h": ("number > 0", "length", "target edge length of the fluid mesh",
                "min(L/20, d/4): L the box's shorter side, d the smallest body's bounding diameter"),
     "mesh.grading": ("table", "—", "finer mesh in a region, growing away from it (below)", "absent (uniform h)"),

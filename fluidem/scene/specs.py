@@ -340,20 +340,38 @@ class ContactSpec:
         Normal damping coefficient (dimensionless), ≥ 0.
     enabled : bool
         ``false`` switches contacts off whatever the geometry.
+    repulsion_range : float or None
+        Fluid scenes: cut-off distance ρ of the short-range repulsion between outlines
+        (:mod:`fluidem.dem.repulsion`, Glowinski et al. 2001), length, > 0; ``None`` takes the
+        mesh size ``mesh.h`` (gaps the mesh cannot resolve).
+    repulsion_force : float or None
+        Fluid scenes: its force scale c, force (per unit depth), ≥ 0 (0: no repulsion);
+        ``None`` takes the largest buoyant weight |ρ_s − ρ_f| A |g| of a free body.
+    repulsion_epsilon : float
+        Fluid scenes: its stiffness ε, > 0 (force c/ε at contact; a body pressed by c rests
+        at the gap ρ(1 − √ε)).
     """
 
     E: float = 1e7
     mu: float = 0.23
     gamma: float = 0.025
     enabled: bool = True
+    repulsion_range: float | None = None
+    repulsion_force: float | None = None
+    repulsion_epsilon: float = 1e-4
 
-    KEYS = ("E", "mu", "gamma", "enabled")
+    KEYS = ("E", "mu", "gamma", "enabled", "repulsion_range", "repulsion_force", "repulsion_epsilon")
 
     def validate(self, where="contact"):
         self.E = positive(f"{where}.E", self.E, error=SceneError)
         self.mu = nonnegative(f"{where}.mu", self.mu, error=SceneError)
         self.gamma = nonnegative(f"{where}.gamma", self.gamma, error=SceneError)
         self.enabled = boolean(f"{where}.enabled", self.enabled, error=SceneError)
+        if self.repulsion_range is not None:
+            self.repulsion_range = positive(f"{where}.repulsion_range", self.repulsion_range, error=SceneError)
+        if self.repulsion_force is not None:
+            self.repulsion_force = nonnegative(f"{where}.repulsion_force", self.repulsion_force, error=SceneError)
+        self.repulsion_epsilon = positive(f"{where}.repulsion_epsilon", self.repulsion_epsilon, error=SceneError)
 
 
 @dataclass
