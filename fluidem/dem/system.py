@@ -300,11 +300,11 @@ class DEM:
         self.cost.add("broad", time.perf_counter() - t0)
         return i[keep], j[keep]
 
-    def _overlaps(self, x):
+    def _overlaps(self, x, W=None):
         pos = x[:, :2]
         i, j = self._neighbours(pos)
         t0 = time.perf_counter()
-        W = self.world_vertices(x)
+        W = self.world_vertices(x) if W is None else W
         ovs = []
         if len(i):
             ovs.append(polygon_overlaps(W, self._nv, pos, i, j))
@@ -334,7 +334,8 @@ class DEM:
 
     def _evaluate(self, x, v, dt):
         """Contacts and total forces/torques at state (x, v); advances spring history by dt."""
-        ovs = self._overlaps(x)
+        W = self.world_vertices(x)
+        ovs = self._overlaps(x, W)
         t0 = time.perf_counter()
         pos = x[:, :2]
         parts = [contact_forces(ov, pos, v[:, :2], v[:, 2], self.mass, self.free, self.model, dt,
@@ -362,7 +363,7 @@ class DEM:
                 n = self.n
                 body = C.j >= 0
                 touching = np.isin(ri * n + rj, np.minimum(C.i, C.j)[body] * n + np.maximum(C.i, C.j)[body])
-            Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, self.world_vertices(x), pos, ri, rj,
+            Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, W, pos, ri, rj,
                                                             touching, self.walls, self.movable, self.radii)
             forces = forces + Fr
             torques = torques + Tr
