@@ -82,7 +82,10 @@ def report(recs: list) -> None:
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in recs:
         e = r.get("events", {})
-        f = (lambda k: f"{e[k]:.3f}" if k in e and np.isfinite(e[k]) else "–")
+
+        def f(k, e=e):
+            return f"{e[k]:.3f}" if k in e and np.isfinite(e[k]) else "–"
+
         lines.append(f"| {r['coupling']} {r['element']} | {r['dofs']} | {r['h']} | {r['dt']} | {r['steps']} | "
                      f"{r['wall_s']:.0f} | {r['wall_s'] / max(r['steps'], 1):.2f} | {f('t_draft')} | {f('t_kiss')} | "
                      f"{f('t_tumble')} | {e.get('min_gap', float('nan')):.4f} | {r['status']} |")
