@@ -83,6 +83,7 @@ class FreeBodyFlow(MovingMeshFlow):
                                          for b in B], float).reshape(-1, 3)
         self._poses_prev = None
         self._V_prev = None
+        self._lagged_mobility = None  # Stokes: the LU kept between steps (_mobility_solver)
         self._mesh_poses = self.poses.copy()  # where the mesh has the outlines
         super().__init__(scene, sim)
         rho_f = scene.fluid.density
@@ -139,6 +140,10 @@ class FreeBodyFlow(MovingMeshFlow):
         return P, V
 
     # -- stepping -----------------------------------------------------------------------------
+    def _bdf_pose(self, X, V, dt):
+        """Poses at t + dt from the velocities there: BDF2, (4Xⁿ − Xⁿ⁻¹ + 2Δt V)/3 (BDF1 on the first step)."""
+        return X + dt * V if self._poses_prev is None else (4 * X - self._poses_prev + 2 * dt * V) / 3
+
     def step(self, dt):
         """One coupled step to t + dt (see the module docstring)."""
         if self.explicit:
@@ -151,7 +156,7 @@ class FreeBodyFlow(MovingMeshFlow):
             X_new = X + dt * (V if self._V_prev is None else 1.5 * V - 0.5 * self._V_prev)
         else:
             V_star = V if self._V_prev is None else 2.0 * V - self._V_prev
-            X_new = X + dt * V_star if self._poses_prev is None else (4 * X - self._poses_prev + 2 * dt * V_star) / 3
+            X_new = self._bdf_pose(X, V_star, dt)
         P, Vp = self._prescribed(t_new)
         self._mesh_poses = P.copy()
         self._mesh_poses[f] = X_new
@@ -182,7 +187,7 @@ class FreeBodyFlow(MovingMeshFlow):
                 cost.count("contact_solves", self.coupled.last_contact_iterations)
             cost.add("coupling", time.perf_counter() - t0 - tm.assembly - tm.solve - dem_s)
             V_new = self.coupled.V
-            X_corr = X + dt * V_new if self._poses_prev is None else (4 * X - self._poses_prev + 2 * dt * V_new) / 3
+            X_corr = self._bdf_pose(X, V_new, dt)
             self._poses_prev = X
             self._V_prev = V
             self.poses = self._mesh_poses.copy()
@@ -207,18 +212,16 @@ class FreeBodyFlow(MovingMeshFlow):
         m = np.column_stack([self.mass, self.mass, self.inertia])
         if self._V_prev is None:  # BDF1
             V_new = V + dt * load / m
-            X_new = X + dt * V_new
         else:
             V_new = (2 * dt * load / m + 4 * V - self._V_prev) / 3
-            X_new = (4 * X - self._poses_prev + 2 * dt * V_new) / 3
         if self.contacts is not None:  # the contacts' mean load over the step, added to the body update
             t1 = time.perf_counter()
             load = self.contacts.load_function(self.t, dt, self.poses, self.body_velocities)
             if load is not None:
                 c = 1.0 if self._V_prev is None else 2.0 / 3.0  # the load's weight in the BDF1/BDF2 update
                 V_new = V_new + c * dt * load(V_new, np.zeros_like(V_new)) / m
-                X_new = X + dt * V_new if self._V_prev is None else (4 * X - self._poses_prev + 2 * dt * V_new) / 3
             cost.add("dem", time.perf_counter() - t1)
+        X_new = self._bdf_pose(X, V_new, dt)
         P, Vp = self._prescribed(self.t + dt)
         self._mesh_poses = P.copy()
         self._mesh_poses[f] = X_new
@@ -250,7 +253,7 @@ class FreeBodyFlow(MovingMeshFlow):
 
         if self.scene.fluid.solver == "direct":
             return self.problem.direct_solver()
-        s = getattr(self, "_lagged_mobility", None)
+        s = self._lagged_mobility
         if s is None or rebuilt:
             s = self._lagged_mobility = LaggedLUSolver(direct=self.problem.direct_solver(),
                                                        max_iterations_before_refactor=LAGGED_REFACTOR_ITERATIONS)
