@@ -8,16 +8,25 @@ with b = u on a fixed mesh and b = u − w (w: mesh velocity) on a moving one (A
 Dirichlet data on walls, inflow and obstacles; the do-nothing condition ν ∂u/∂n − p n = 0 on
 every boundary without a velocity condition.
 
-Time stepping: BDF2 with a BDF1 first step (Hairer & Wanner, *Solving ODEs II*, Sec. V.1),
-convection either
+Time stepping: BDF of order 2 (default) or 3, started with the lower orders (BDF1, then BDF2;
+Hairer & Wanner, *Solving ODEs II*, Sec. V.1):
 
-* ``"semi-implicit"``: linear in u^{n+1} with the extrapolated convecting velocity
-  b = 2u^n − u^{n−1} (one linear solve per step, second order; Simo & Armero 1994),
+    BDF2: (3/2 u^{n+1} − 2 u^n + 1/2 u^{n−1}) / Δt,
+    BDF3: (11/6 u^{n+1} − 3 u^n + 3/2 u^{n−1} − 1/3 u^{n−2}) / Δt,
+
+with the extrapolation of the same order for everything taken from the past,
+EXT2: 2u^n − u^{n−1}, EXT3: 3u^n − 3u^{n−1} + u^{n−2}.  Convection either
+
+* ``"semi-implicit"``: linear in u^{n+1} with the extrapolated convecting velocity b = EXT(u)
+  (one linear solve per step, of the scheme's order; Simo & Armero 1994),
 * ``"newton"``: fully implicit, solved by Newton's method each step, or
-* ``"explicit"``: the whole convection term extrapolated, (b·∇)b with b = 2u^n − u^{n−1}
-  (BDF2/EXT2, Karniadakis, Israeli & Orszag 1991): the matrix never changes, so one LU
-  serves the whole run, but the time step is bounded by a CFL condition (``last_cfl``;
-  keep it below about 0.3 with quadratic elements).
+* ``"explicit"``: the whole convection term extrapolated, (b·∇)b with b = EXT(u)
+  (BDF/EXT, "SBDF": Karniadakis, Israeli & Orszag 1991; Ascher, Ruuth & Wetton 1995): the
+  matrix never changes, so one factorisation serves the whole run, but the time step is
+  bounded by the convection's stability (``last_cfl``).  SBDF2 amplifies every undamped
+  convective mode (|ζ| = 1 + O((λΔt)⁴) on the imaginary axis: it leans on the viscosity),
+  while SBDF3 damps imaginary λΔt up to |λΔt| ≈ 0.6 (Ascher, Ruuth & Wetton 1995, Fig. 3):
+  with P3/P2 on DFG 2D-2 SBDF2 blew up at Δt = 1/1600 on a mesh where SBDF3 ran at 1/1200.
 
 Steady Navier–Stokes: Newton's method from a Stokes start (Girault & Raviart 1986, Ch. IV),
 with a stop on the residual norm (the lift coefficient of DFG 2D-1 needs ≲ 1e-11).
@@ -33,8 +42,8 @@ from ..cost import CostSplit
 from .problem import FlowProblem, FlowState
 from .solvers import AutoSolver, LaggedLUSolver, make_solver
 
-__all__ = ["FlowProblem", "FlowState", "NewtonError", "solve_stokes", "solve_steady", "BDF2Stepper", "Timings",
-           "make_flow_solver"]
+__all__ = ["FlowProblem", "FlowState", "NewtonError", "solve_stokes", "solve_steady", "BDFStepper", "BDF2Stepper",
+           "Timings", "make_flow_solver"]
 
 #: Former name of the per-phase timing record; the solvers now report a :class:`fluidem.cost.CostSplit`.
 Timings = CostSplit
@@ -131,8 +140,14 @@ def solve_steady(problem: FlowProblem, tol: float = 1e-11, max_iter: int = 25, s
                       history)
 
 
-class BDF2Stepper:
-    """Unsteady Navier–Stokes with BDF2 (BDF1 on the first step).
+#: BDF coefficients (a0, a1, ...) of (a0 u^{n+1} + a1 u^n + a2 u^{n−1} + ...) / Δt, by order.
+BDF_COEFFICIENTS = {1: (1.0, -1.0), 2: (1.5, -2.0, 0.5), 3: (11.0 / 6.0, -3.0, 1.5, -1.0 / 3.0)}
+#: Extrapolation weights (e1, e2, ...) of e1 u^n + e2 u^{n−1} + ... to t^{n+1}, by order.
+EXTRAPOLATION = {1: (1.0,), 2: (2.0, -1.0), 3: (3.0, -3.0, 1.0)}
+
+
+class BDFStepper:
+    """Unsteady Navier–Stokes with BDF2 or BDF3 (started with the lower orders).
 
     Parameters
     ----------
@@ -147,6 +162,9 @@ class BDF2Stepper:
     newton_tol : float
         Tolerance on the Euclidean norm of the residual (free DOFs, kinematic units) of the
         Newton iteration per step (``"newton"`` only).
+    order : {2, 3}
+        Order of the BDF formula and of the extrapolations (see the module docstring).  Order 3
+        needs a fixed mesh (:meth:`take_over` restarts it at order 2 for one step).
 
     The state advances with :meth:`step`; ``self.state`` holds the newest solution and
     ``self.residual(...)`` the discrete residual used for forces.
@@ -156,11 +174,14 @@ class BDF2Stepper:
 
     def __init__(self, problem: FlowProblem, dt: float, convection: str = "semi-implicit", solver=None,
                  start: FlowState | None = None, t0: float = 0.0, newton_tol: float = 1e-9,
-                 mesh_velocity: np.ndarray | None = None):
+                 mesh_velocity: np.ndarray | None = None, order: int = 2):
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"time step dt must be a positive number, got {dt!r}")
         if convection not in self.CONVECTION:
             raise ValueError(f"convection must be one of {self.CONVECTION}, got {convection!r}")
+        if order not in (2, 3):
+            raise ValueError(f"BDF order must be 2 or 3, got {order!r}")
+        self.order = int(order)
         self.problem = problem
         self.dt = float(dt)
         self.convection = convection
@@ -170,12 +191,14 @@ class BDF2Stepper:
         x0 = start.x.copy() if start is not None else problem.initial_vector(t0)
         self.state = FlowState(x0, problem.space.n_u, self.t)
         self._u_prev = None  # u^{n-1}
+        self._u_prev2 = None  # u^{n-2} (order 3 only)
         self.mesh_velocity = mesh_velocity
         self.n_steps = 0
         self.last_b = None
         self.last_cfl = None
         self._explicit_conv = None
         self._explicit_a0 = None
+        self._explicit_rhs = None  # hist + convection − f of the last explicit step, for its residual
         self._refactorize = False
         self.last_cost = CostSplit()
 
@@ -207,16 +230,39 @@ class BDF2Stepper:
         self.problem = problem
         self.state = FlowState(x, n_u, self.t)
         self._u_prev = None if u_prev is None else np.asarray(u_prev, dtype=float)
+        self._u_prev2 = None  # order 3 continues at order 2 for one step
         self.mesh_velocity = mesh_velocity
         self._explicit_a0 = None  # the explicit scheme's LU belongs to the old matrix
+        self._explicit_rhs = None
         self.__dict__.pop("_h_cache", None)
         self._refactorize = self._refactorize or renumbered
 
+    def _past(self) -> list:
+        """[u^n, u^{n−1}, ...]: the velocities the next step's formulas use (at most ``order``)."""
+        past = [self.state.u]
+        for u in (self._u_prev, self._u_prev2)[: self.order - 1]:
+            if u is None:
+                break
+            past.append(u)
+        return past
+
     def _bdf(self):
-        """Coefficients (a0, a1, a2) of (a0 u^{n+1} + a1 u^n + a2 u^{n-1}) / dt."""
+        """Order-2 coefficients (a0, a1, a2) of (a0 u^{n+1} + a1 u^n + a2 u^{n-1}) / dt (BDF1 first)."""
         if self._u_prev is None:
             return 1.0, -1.0, 0.0
         return 1.5, -2.0, 0.5
+
+    def _scheme(self) -> tuple[tuple, tuple]:
+        """BDF coefficients and extrapolation weights of the next step (order ≤ past steps + 1)."""
+        k = len(self._past())
+        return BDF_COEFFICIENTS[k], EXTRAPOLATION[k]
+
+    def _extrapolate(self, weights) -> np.ndarray:
+        past = self._past()
+        out = weights[0] * past[0]
+        for w, u in zip(weights[1:], past[1:]):
+            out = out + w * u
+        return out
 
     def _history_term(self, a1, a2):
         un = self.state.u
@@ -225,13 +271,23 @@ class BDF2Stepper:
             h = h + a2 * self._u_prev
         return self.problem.M @ h / self.dt
 
-    def _convecting_velocity(self):
-        """Extrapolated convecting velocity 2u^n − u^{n−1} (u^n on the first step), minus w on a moving mesh."""
-        un = self.state.u
-        b = un if self._u_prev is None else 2.0 * un - self._u_prev
+    def _history(self, a) -> np.ndarray:
+        """M (a1 u^n + a2 u^{n−1} + ...) / dt for BDF coefficients ``a``, (n_u,)."""
+        return self.problem.M @ self._extrapolate(a[1:]) / self.dt
+
+    def _convecting_velocity(self, weights=None):
+        """Extrapolated convecting velocity EXT(u) (u^n on the first step), minus w on a moving mesh."""
+        b = self._extrapolate(weights or self._scheme()[1])
         if self.mesh_velocity is not None:
             b = b - self.mesh_velocity
         return b
+
+    def _full_matrix(self, uu_data: np.ndarray):
+        """[[K_uu, Bᵀ], [B, 0]] on all DOFs (no conditions applied) for velocity-block data ``uu_data``."""
+        import scipy.sparse as sp
+
+        pr = self.problem
+        return sp.bmat([[pr.assembler.matrix(uu_data), pr.B.T], [pr.B, None]], format="csr")
 
     def residual(self, x: np.ndarray, a0: float, hist: np.ndarray, b: np.ndarray | None) -> np.ndarray:
         """Unsteady residual on all DOFs: M(a0 u)/dt + hist + A u + C(b)u + Bᵀp − f, and B u."""
@@ -248,19 +304,20 @@ class BDF2Stepper:
         """Advance one time step; returns the new state."""
         pr = self.problem
         n_u = pr.space.n_u
-        a0, a1, a2 = self._bdf()
+        a, ext = self._scheme()
+        a0 = a[0]
         t_new = self.t + self.dt
         tm = CostSplit()
         t0 = time.perf_counter()
-        hist = self._history_term(a1, a2)
+        hist = self._history(a)
         x = self.state.x.copy()
         if self._u_prev is not None:
-            x[:n_u] = 2.0 * self.state.u - self._u_prev  # extrapolated guess
+            x[:n_u] = self._extrapolate(ext)  # extrapolated guess
         d, v = pr.dirichlet_values(t_new)
         x[d] = v
         base = pr.A_data + pr.M_data * (a0 / self.dt)
         if self.convection == "semi-implicit":
-            b = self._convecting_velocity()
+            b = self._convecting_velocity(ext)
             K = base + pr.convection_data(b)
             r = self.residual(x, a0, hist, b)
             tm.add("assembly", time.perf_counter() - t0)
@@ -269,17 +326,21 @@ class BDF2Stepper:
             tm.add("solve", time.perf_counter() - t0)
             self.last_b = b
         elif self.convection == "explicit":
-            b = self._convecting_velocity()
+            ua = self._extrapolate(ext)  # EXT(u); convected with b = EXT(u) − w
+            b = ua if self.mesh_velocity is None else ua - self.mesh_velocity
             self.last_cfl = self._cfl(b)
-            self._explicit_conv = pr.convection_vector(b, b)
-            r = self.residual(x, a0, hist, None) + np.concatenate([self._explicit_conv, np.zeros(pr.space.n_p)])
+            self._explicit_conv = pr.convection_vector(ua, b)
+            if self._explicit_a0 != a0:  # the matrix changes only with the order (BDF1, BDF2, BDF3)
+                self._explicit_lu = pr.direct_solver().factorize(pr.condensed_matrix(base))
+                self._explicit_full = self._full_matrix(base)
+                self._explicit_a0 = a0
+            rhs = np.concatenate([hist + self._explicit_conv - pr._f, np.zeros(pr.space.n_p)])
+            r = self._explicit_full @ x + rhs  # the residual at the guess: one mat-vec
             tm.add("assembly", time.perf_counter() - t0)
             t0 = time.perf_counter()
-            if self._explicit_a0 != a0:  # the matrix changes only from the BDF1 to the BDF2 step
-                self._explicit_lu = pr.direct_solver().factorize(pr.condensed_matrix(base))
-                self._explicit_a0 = a0
             x -= pr.expand(self._explicit_lu.solve(pr.reduce(r)))
             tm.add("solve", time.perf_counter() - t0)
+            self._explicit_rhs = rhs
             self.last_b = None
         else:
             for it in range(30):
@@ -304,7 +365,9 @@ class BDF2Stepper:
 
     # -- the parts of a step, for solvers that extend it (free bodies) ------------------------
     def bdf_coefficients(self) -> tuple[float, float, float]:
-        """(a0, a1, a2) of the next step's derivative (a0 u^{n+1} + a1 u^n + a2 u^{n−1}) / dt."""
+        """(a0, a1, a2) of the next step's derivative (a0 u^{n+1} + a1 u^n + a2 u^{n−1}) / dt (order 2 only)."""
+        if self.order != 2:
+            raise ValueError(f"bdf_coefficients() gives the order-2 formula; this stepper has order {self.order}")
         return self._bdf()
 
     def history_term(self, a1: float, a2: float) -> np.ndarray:
@@ -312,7 +375,7 @@ class BDF2Stepper:
         return self._history_term(a1, a2)
 
     def convecting_velocity(self) -> np.ndarray:
-        """The semi-implicit step's convecting velocity 2u^n − u^{n−1} − w, (n_u,)."""
+        """The semi-implicit step's convecting velocity EXT(u) − w (2u^n − u^{n−1} − w at order 2), (n_u,)."""
         return self._convecting_velocity()
 
     def accept(self, x: np.ndarray, boundary_values: np.ndarray, a0: float, hist: np.ndarray,
@@ -330,6 +393,8 @@ class BDF2Stepper:
         self._last = (a0, hist)
         if b is not None:
             self.last_b = b
+        if self.order >= 3:
+            self._u_prev2 = self._u_prev
         self._u_prev = self.state.u.copy()
         self.state = FlowState(x, pr.space.n_u, t_new)
         self.t = t_new
@@ -342,7 +407,8 @@ class BDF2Stepper:
         def cp(a):
             return None if a is None else np.array(a, copy=True)
 
-        return {"t": self.t, "x": cp(self.state.x), "u_prev": cp(self._u_prev), "n_steps": self.n_steps,
+        return {"t": self.t, "x": cp(self.state.x), "u_prev": cp(self._u_prev), "u_prev2": cp(self._u_prev2),
+                "n_steps": self.n_steps,
                 "last": getattr(self, "_last", None), "last_b": cp(self.last_b),
                 "explicit_conv": cp(self._explicit_conv), "last_cfl": self.last_cfl}
 
@@ -351,6 +417,8 @@ class BDF2Stepper:
         self.t = float(state["t"])
         self.state = FlowState(np.array(state["x"], copy=True), self.problem.space.n_u, self.t)
         self._u_prev = None if state["u_prev"] is None else np.array(state["u_prev"], copy=True)
+        u2 = state.get("u_prev2")
+        self._u_prev2 = None if u2 is None else np.array(u2, copy=True)
         self.n_steps = int(state["n_steps"])
         if state.get("last") is not None:
             self._last = state["last"]
@@ -393,7 +461,13 @@ class BDF2Stepper:
     def last_residual(self) -> np.ndarray:
         """Residual of the last step's equations at the new state (for forces)."""
         a0, hist = self._last
+        if self.convection == "explicit" and getattr(self, "_explicit_rhs", None) is not None:
+            return self._explicit_full @ self.state.x + self._explicit_rhs  # one mat-vec
         r = self.residual(self.state.x, a0, hist, self.last_b)
         if self.convection == "explicit":
             r[: self.problem.space.n_u] += self._explicit_conv
         return r
+
+
+#: The stepper under its former name (order 2 by default, as it always was).
+BDF2Stepper = BDFStepper
