@@ -196,6 +196,7 @@ class BDFStepper:
         self.n_steps = 0
         self.last_b = None
         self.last_cfl = None
+        self.max_cfl = None  # the largest last_cfl of the run (explicit convection)
         self._explicit_conv = None
         self._explicit_a0 = None
         self._explicit_rhs = None  # hist + convection − f of the last explicit step, for its residual
@@ -329,6 +330,7 @@ class BDFStepper:
             ua = self._extrapolate(ext)  # EXT(u); convected with b = EXT(u) − w
             b = ua if self.mesh_velocity is None else ua - self.mesh_velocity
             self.last_cfl = self._cfl(b)
+            self.max_cfl = max(self.max_cfl or 0.0, self.last_cfl)
             self._explicit_conv = pr.convection_vector(ua, b)
             if self._explicit_a0 != a0:  # the matrix changes only with the order (BDF1, BDF2, BDF3)
                 self._explicit_lu = pr.direct_solver().factorize(pr.condensed_matrix(base))
