@@ -292,11 +292,14 @@ class Simulation:
             if outlines:
                 writer.bodies(self.step_index, self.t, outlines, b.velocities, b.omegas)
             if self.flow is not None and sc.output.fields:
-                from .io import fluid_point_data
+                from .io import fluid_point_data, full_order_fields
 
                 m = self.flow.mesh
                 writer.fields(self.step_index, self.t, m.p[:, :m.nvertices].T, _ccw(m),
                               fluid_point_data(self.flow.space, self.flow.x, sc.fluid.density))
+                if sc.output.full_order:
+                    writer.fields_full(self.step_index, self.t,
+                                       *full_order_fields(self.flow.space, self.flow.x, sc.fluid.density))
         return t_loads
 
     def _advance(self, dt: float, writer, check: StateCheck) -> CostSplit:

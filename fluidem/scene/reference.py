@@ -170,6 +170,9 @@ KEY_DOCS = {
     "output.checkpoint_every": ("integer ≥ 0", "steps", "checkpoints every this many steps (0: only at the end)",
                                 "about ten a run, the newest three kept"),
     "output.fields": ("true or false", "—", "`false` writes no fluid fields"),
+    "output.full_order": ("true or false", "—", "also write the fields at full resolution (`fields_full.pvd`: "
+                          "quadratic triangles for P2/P1, a refined linear mesh for P3, P2+bubble and MINI); "
+                          "`false`: vertex values only"),
     "output.checkpoint_seconds": ("number ≥ 0", "s (wall clock)", "a checkpoint at least this often (0: off)"),
 }
 

@@ -449,7 +449,8 @@ class TimeSpec:
 @dataclass
 class OutputSpec:
     """Output: directory ``dir``; fields and body outlines every ``every`` steps; history every
-    ``history_every`` steps; ``fields = false`` writes no fluid fields.
+    ``history_every`` steps; ``fields = false`` writes no fluid fields; ``full_order = false``
+    writes the fields at the mesh vertices only (no ``fields_full`` series).
 
     Checkpoints: every ``checkpoint_every`` steps (0: only at the end; not given: about ten a
     run, the newest three kept) and in any case every ``checkpoint_seconds`` of wall-clock
@@ -461,8 +462,9 @@ class OutputSpec:
     checkpoint_every: int | None = None
     fields: bool = True
     checkpoint_seconds: float = 600.0
+    full_order: bool = True
 
-    KEYS = ("dir", "every", "history_every", "checkpoint_every", "fields", "checkpoint_seconds")
+    KEYS = ("dir", "every", "history_every", "checkpoint_every", "fields", "checkpoint_seconds", "full_order")
 
     def validate(self, where="output"):
         if not isinstance(self.dir, str) or not self.dir:
@@ -474,6 +476,7 @@ class OutputSpec:
                                             error=SceneError)
         self.checkpoint_seconds = nonnegative(f"{where}.checkpoint_seconds", self.checkpoint_seconds, error=SceneError)
         self.fields = boolean(f"{where}.fields", self.fields, error=SceneError)
+        self.full_order = boolean(f"{where}.full_order", self.full_order, error=SceneError)
 
 
 _TABLES = {"fluid": FluidSpec, "domain": DomainSpec, "contact": ContactSpec, "mesh": MeshSpec, "time": TimeSpec,
