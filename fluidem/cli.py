@@ -20,6 +20,7 @@ earlier run's output in the directory (a fresh run into it is refused otherwise)
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import warnings
@@ -160,6 +161,9 @@ def _add_scene_commands(sub) -> None:
     r.add_argument("--steps", type=_positive_int, metavar="N", help="stop after N steps in total (N >= 1)")
     r.add_argument("--plot", action="store_true", help="draw the PNG figures at the end")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("-v", "--verbose", action="store_true",
+                   help="one line per step instead of the bar: linear solver iterations and residual, CFL number "
+                        "and the step's cost split")
     pl = sub.add_parser("plan", help="print the effects a scene needs and why",
                         description="Validate a scene and print its plan: which effects are on, and why. "
                                     "Exits with status 2, one error line per reason, for a scene this version "
@@ -299,7 +303,7 @@ def _scene_main(args) -> int:
     if not args.quiet:
         print(sim.plan, file=sys.stderr)
     result = sim.run(out_dir=out, restart=args.restart, n_steps=args.steps, overwrite=args.overwrite,
-                     progress=None if args.quiet else _ProgressBar())
+                     progress=None if args.quiet or args.verbose else _ProgressBar(), verbose=args.verbose)
     print(result)
     if args.plot:
         from .plotting import plot_run
@@ -308,6 +312,9 @@ def _scene_main(args) -> int:
             print(path)
     return 0
 
+
+#: exit status when standard output is a pipe closed by its reader (128 + SIGPIPE, as the shell reports it)
+BROKEN_PIPE_STATUS = 141
 
 #: exit status of ``fluidem plan`` and ``fluidem run`` for a scene this version cannot run
 CANNOT_RUN_STATUS = 2
@@ -366,7 +373,8 @@ def main(argv=None) -> int:
     ``fluidem: error: <message>`` on one line to stderr and return 2 (a run stopped by an
     interrupt or by a bad state returns its own status, see :mod:`fluidem.simulation`); any
     other exception prints one line too and returns 1; with ``--debug`` they propagate with
-    their traceback.  Usage errors exit through argparse (status 2).
+    their traceback.  Output into a pipe its reader closed (``fluidem examples | head``) stops
+    quietly with :data:`BROKEN_PIPE_STATUS`.  Usage errors exit through argparse (status 2).
     """
     parser = _build_parser()
     args = parser.parse_args(argv)
@@ -374,7 +382,15 @@ def main(argv=None) -> int:
         with warnings.catch_warnings():
             if not args.debug:
                 warnings.showwarning = _show_warning
-            return _dispatch(args, parser)
+            status = _dispatch(args, parser)
+            sys.stdout.flush()  # a closed pipe shows here, not at exit
+            return status
+    except BrokenPipeError:  # 'fluidem examples | head': the reader has gone; stop quietly like standard tools
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush at exit
+        except (OSError, ValueError):
+            pass
+        return BROKEN_PIPE_STATUS
     except (FluidemError, ValueError) as exc:
         if args.debug:
             raise

@@ -61,7 +61,7 @@ from .state_checks import StateCheck, StateError
 from .validate import integer
 
 __all__ = ["Simulation", "RunResult", "StepTimes", "run", "LinearPath", "RunStopped", "RunWarning", "StateError",
-           "scene_changes", "RESTART_MAY_CHANGE"]
+           "scene_changes", "RESTART_MAY_CHANGE", "verbose_line"]
 
 #: a snapshot of the state (to checkpoint if a later step fails) is taken once the steps since the
 #: last one took this many times the snapshot's own time: every step for fluid runs, every few
@@ -371,9 +371,46 @@ class Simulation:
         if len(ev_mesh.oscillating):
             writer.event(self.step_index, self.t, "oscillation", f"{len(ev_mesh.oscillating)} oscillating nodes")
 
+    # -- per-step report -------------------------------------------------------------------------
+    def _linear_solver(self):
+        """The linear solver of the last flow step (coupled fluid-body, fluid or Stokes), or None."""
+        f = self.flow
+        for owner in (getattr(f, "coupled", None), getattr(f, "stepper", None), f):
+            s = getattr(owner, "solver", None)
+            if s is not None:
+                return s
+        return None
+
+    def step_info(self) -> dict:
+        """What the last step's solvers recorded, for a verbose progress line.
+
+        Returns
+        -------
+        dict
+            ``step``, ``t`` (time); for a fluid scene also ``solver`` (method of the last
+            linear solve, :class:`fluidem.fluid.solvers.SolveInfo`), ``iterations`` (its Krylov
+            iterations; 0 for a direct solve), ``residual`` (its relative residual),
+            ``factorizations`` (LU factorisations so far, if the solver counts them) and ``cfl``
+            (Courant number max over elements of |u| Δt / h_e, h_e the longest edge, from the new
+            velocity; None for quasi-steady Stokes); for a DEM scene ``contacts`` (contacts at the
+            end of the step, body-body and body-wall).
+        """
+        out = {"step": self.step_index, "t": self.t}
+        if self.flow is not None:
+            s = self._linear_solver()
+            info = getattr(s, "last_info", None)
+            out.update(solver=getattr(info, "method", None), iterations=getattr(info, "iterations", None),
+                       residual=getattr(info, "relative_residual", None),
+                       factorizations=getattr(s, "factorizations", None))
+            st = getattr(self.flow, "stepper", None)
+            out["cfl"] = st._cfl(st.state.u) if st is not None and st.n_steps else None
+        if isinstance(self.bodies, DEMBodies):
+            out["contacts"] = len(self.bodies.dem.contacts.i)
+        return out
+
     # -- running ---------------------------------------------------------------------------------
     def run(self, out_dir="scene", restart=None, progress=None, n_steps: int | None = None,
-            overwrite: bool = False, allow_pickle: bool = False) -> RunResult:
+            overwrite: bool = False, allow_pickle: bool = False, verbose=False) -> RunResult:
         """Step to ``time.t_end`` (or ``n_steps`` steps in total), writing output to ``out_dir``.
 
         Parameters
@@ -393,6 +430,10 @@ class Simulation:
             Clear the run output already in ``out_dir`` (:data:`fluidem.io.OUTPUT_ENTRIES`) first.
         allow_pickle : bool
             Accept a pickle checkpoint of an earlier version as ``restart`` (only for your own files).
+        verbose : bool or file-like
+            One plain-text line per step (to stderr, or to the given stream): step, time, the
+            linear solver's method, Krylov iterations and relative residual, the CFL number and
+            the step's cost split (:func:`verbose_line` of :meth:`step_info`).
 
         Raises
         ------
@@ -405,6 +446,9 @@ class Simulation:
         from .io import OutputWriter, prepare_output_dir
 
         sc = self.scene
+        if verbose is not False and verbose is not None:
+            stream = sys.stderr if verbose is True else verbose
+            progress = _Verbose(self, stream, progress)
         if out_dir == "scene":
             out_dir = sc.output.dir
         restarting = restart is not None and restart is not False
@@ -571,6 +615,39 @@ class Simulation:
         raise err
 
 
+def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str:
+    """One line for a step: ``step k/N  t = ...  linear <method> it <n> res <r>  CFL <c>  <cost split>``.
+
+    ``info`` as from :meth:`Simulation.step_info`; fields it lacks are left out."""
+    parts = [f"step {info['step']}/{n_steps}  t = {info['t']:.6g}"]
+    if info.get("solver") is not None:
+        lin = f"linear {info['solver']} it {info['iterations']}"
+        if info.get("residual") is not None:
+            lin += f" res {info['residual']:.2e}"
+        if info.get("factorizations") is not None:
+            lin += f" LU {info['factorizations']}"
+        parts.append(lin)
+    if info.get("cfl") is not None:
+        parts.append(f"CFL {info['cfl']:.3g}")
+    if "contacts" in info:
+        parts.append(f"contacts {info['contacts']}")
+    if cost is not None:
+        parts.append(str(cost))
+    return "  ".join(parts)
+
+
+class _Verbose:
+    """A progress callback printing :func:`verbose_line` for every step (then calling ``inner``)."""
+
+    def __init__(self, sim: Simulation, stream, inner=None):
+        self.sim, self.stream, self.inner = sim, stream, inner
+
+    def __call__(self, k, n, t, cost):
+        print(verbose_line(self.sim.step_info(), n, cost), file=self.stream, flush=True)
+        if self.inner is not None:
+            self.inner(k, n, t, cost)
+
+
 class RunWarning(UserWarning):
     """Something a run did that its output should say: a damaged checkpoint skipped, a coarse mesh."""
 
@@ -705,6 +782,7 @@ def _ccw(mesh) -> np.ndarray:
     return orient_ccw(mesh.p.T, mesh.t.T)
 
 
-def run(scene, out_dir="scene", restart=None, progress=None, overwrite: bool = False) -> RunResult:
+def run(scene, out_dir="scene", restart=None, progress=None, overwrite: bool = False, verbose=False) -> RunResult:
     """Build a :class:`Simulation` for ``scene`` (a Scene or a TOML path) and run it (see :meth:`Simulation.run`)."""
-    return Simulation(scene).run(out_dir=out_dir, restart=restart, progress=progress, overwrite=overwrite)
+    return Simulation(scene).run(out_dir=out_dir, restart=restart, progress=progress, overwrite=overwrite,
+                                 verbose=verbose)
