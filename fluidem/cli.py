@@ -1,7 +1,8 @@
 """Command line: ``fluidem bench NAME``, ``fluidem cases``.  ``python -m fluidem`` is the same.
 
 Scenes: ``fluidem run SCENE``, ``fluidem plan SCENE``, ``fluidem examples [--show NAME]``,
-``fluidem new NAME DIR``, ``fluidem reference``, ``fluidem plot DIR``.
+``fluidem new NAME DIR``, ``fluidem reference``, ``fluidem plot DIR``; parameter sweeps:
+``fluidem sweep SCENE --vary KEY=V1,V2 [--vary ...]`` (:mod:`fluidem.sweep`).
 
 Every name an option takes (cases, element pairs, convection schemes, solvers, example
 scenes) comes from :mod:`fluidem.names`, the table scene files and the Python factories
@@ -137,6 +138,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("cases", help="list the built-in cases", description="List the built-in benchmark cases.")
     _add_scene_commands(sub)
+    _add_sweep_command(sub)
     for command in sub.choices.values():  # --debug after the command too; absent there, the top level's counts
         _add_debug(command, default=argparse.SUPPRESS)
     return p
@@ -194,6 +196,47 @@ def _add_scene_commands(sub) -> None:
     pt.add_argument("--units", **_named("units"), help="name the units in the labels (the scene must be in "
                     "that system; nothing is converted); default: the scene's units, else dimensions, e.g. "
                     "[length]")
+
+
+def _add_sweep_command(sub) -> None:
+    sw = sub.add_parser("sweep", help="run every combination of some scene values as tasks on dask.distributed",
+                        description="Run a parameter sweep: every combination of the --vary values, each variant "
+                                    "one task (one process, one BLAS thread) on a LocalCluster (one worker per core) "
+                                    "or an existing scheduler. Writes DIR/<variant>/ run directories, sweep.csv, "
+                                    "sweep.json and sweep.png; finished variants are not run again. Needs "
+                                    "dask.distributed: pip install \"fluidem[sweep]\".")
+    sw.add_argument("scene", nargs="?", help="scene TOML file")
+    sw.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file: "
+                    + ", ".join(names.choices("example")))
+    sw.add_argument("--vary", action="append", required=True, metavar="KEY=V1,V2,...",
+                    help="a dotted scene key and its values, e.g. mesh.h=0.04,0.02 or fluid.element=th,p3 "
+                         "(repeat for more keys; values are read as TOML, bare words as strings)")
+    sw.add_argument("--scheduler", metavar="ADDR", help="address of a running dask scheduler (default: a new "
+                    "LocalCluster)")
+    sw.add_argument("--workers", type=_positive_int, metavar="N", help="LocalCluster worker processes "
+                    "(default: one per core)")
+    sw.add_argument("--out", metavar="DIR", help="sweep directory (default: sweep-<scene name>)")
+    sw.add_argument("--steps", type=_positive_int, metavar="N", help="stop every variant after N steps")
+    sw.add_argument("--quantity", metavar="COLUMN", help="plotted column of the table, e.g. cylinder.fx "
+                    "(default: the first body's fx)")
+    sw.add_argument("--reference", type=float, metavar="VALUE",
+                    help="plot the relative error of --quantity against this value")
+    sw.add_argument("--no-plot", action="store_true", help="write no sweep.png")
+    sw.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def _sweep_main(args) -> int:
+    from .sweep import parse_vary, require_dask, sweep
+
+    require_dask("'fluidem sweep'")
+    scene = _scene_from_args(args)
+    vary = parse_vary(args.vary)
+    table = sweep(scene, vary, out_dir=args.out or f"sweep-{scene.name}", scheduler=args.scheduler,
+                  workers=args.workers, n_steps=args.steps, quantity=args.quantity, reference=args.reference,
+                  progress=not args.quiet, plot=not args.no_plot)
+    for path in table.files:
+        print(path)
+    return 0 if all(r["status"] == "complete" for r in table) else 3
 
 
 class _ProgressBar:
@@ -362,6 +405,8 @@ def _dispatch(args, parser) -> int:
         return _scene_main(args)
     if args.command == "bench":
         return _bench_main(args, parser)
+    if args.command == "sweep":
+        return _sweep_main(args)
     return 1
 
 

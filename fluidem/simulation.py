@@ -326,8 +326,39 @@ class Simulation:
             check.flow(x[nd[0]], x[nd[1]], self.flow.mesh.p, t_new, x=x)
         return st
 
+    def summary(self, wall_s: float | None = None) -> dict:
+        """The run's summary quantities, as ``run.json`` records them at the end of a run.
+
+        Returns
+        -------
+        dict
+            ``steps``, ``t`` (time), ``wall_s`` (wall seconds of the stepping loop of this run,
+            if given); fluid scenes: ``dofs``, ``triangles``, ``element``; ``bodies``: one entry
+            per body (by name, else ``body<k>``) with its final ``x``, ``y`` (length), ``angle``
+            (rad), ``vx``, ``vy`` (length/time), ``omega`` (rad/time) and the last recorded load
+            ``fx``, ``fy`` (force/depth) and ``torque`` (force*length/depth), the history.csv
+            convention.
+        """
+        out = {"steps": self.step_index, "t": self.t}
+        if wall_s is not None:
+            out["wall_s"] = wall_s
+        if self.flow is not None:
+            out.update(dofs=int(self.flow.dofs), triangles=int(self.flow.mesh.t.shape[1]),
+                       element=self.scene.fluid.element)
+        b = self.bodies
+        F, T = getattr(self, "last_loads", (np.zeros((len(self.scene.bodies), 2)), np.zeros(len(self.scene.bodies))))
+        pos, ang, vel, om = b.positions, b.angles, b.velocities, b.omegas
+        bodies = {}
+        for k, sb in enumerate(self.scene.bodies):
+            name = sb.name or f"body{k}"
+            bodies[name] = {"x": float(pos[k, 0]), "y": float(pos[k, 1]), "angle": float(ang[k]),
+                            "vx": float(vel[k, 0]), "vy": float(vel[k, 1]), "omega": float(om[k]),
+                            "fx": float(F[k, 0]), "fy": float(F[k, 1]), "torque": float(T[k])}
+        out["bodies"] = bodies
+        return out
+
     def _run_record(self, out_dir, status: str, n_steps: int, checkpoint=None, message: str = "",
-                    totals: CostSplit | None = None) -> None:
+                    totals: CostSplit | None = None, summary: dict | None = None) -> None:
         from . import __version__
         from .io import HISTORY_UNITS, write_run_record
 
@@ -341,7 +372,8 @@ class Simulation:
             "pressure": "VTU 'pressure' is dynamic (fluid density x kinematic pressure), 'kinematic_pressure' "
                         "beside it; history loads are dynamic too",
             **({} if totals is None else {"cost": {"seconds": dict(totals.parts), "counts": dict(totals.counts),
-                                                   "note": "wall seconds per part summed over this run's steps"}})})
+                                                   "note": "wall seconds per part summed over this run's steps"}}),
+            **({} if summary is None else {"summary": summary})})
 
     def _check_owner(self, out_dir) -> None:
         """Refuse to continue, in ``out_dir``, a run of another scene."""
@@ -570,7 +602,7 @@ class Simulation:
                 writer.event(self.step_index, self.t, "end", f"{self.counters['steps']} steps this run")
                 writer.close()
                 self._run_record(out_dir, "complete" if self.step_index >= self.plan.n_steps else "stopped", N,
-                                 last_ck, totals=totals)
+                                 last_ck, totals=totals, summary=self.summary(time.perf_counter() - wall0))
             else:
                 self._stop(writer, out_dir, N, stop, snap, keep)
         if isinstance(self.bodies, DEMBodies):
