@@ -418,8 +418,9 @@ def _write_json(path: Path, data: dict) -> Path:
 
 
 def plot_sweep(table: list, path, keys: list, quantity: str | None = None, reference: float | None = None) -> Path:
-    """``quantity`` against wall time, one line per combination of the varied keys other than the
-    first (the first varies along each line); a relative error on a log scale with ``reference``.
+    """``quantity`` against wall time, one line per combination of the varied keys but one, which
+    varies along each line (the first key with numeric values, else the first key); a relative
+    error on a log scale with ``reference``.
 
     Returns the PNG written.  Raises ``ImportError`` without matplotlib.
     """
@@ -434,12 +435,14 @@ def plot_sweep(table: list, path, keys: list, quantity: str | None = None, refer
     if ok and quantity not in ok[0]:
         raise fail("quantity", quantity, "a column of the sweep table: " + ", ".join(
             k for k in ok[0] if k not in ("variant", "status", "resumed", "worker")))
+    numeric = [k for k in keys if ok and all(isinstance(r[k], (int, float)) and not isinstance(r[k], bool) for r in ok)]
+    if numeric:  # the first numeric key varies along each line
+        keys = [numeric[0]] + [k for k in keys if k != numeric[0]]
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     groups: dict = {}
     for r in ok:
         groups.setdefault(tuple(r[k] for k in keys[1:]), []).append(r)
     for g, rs in groups.items():
-        rs = sorted(rs, key=lambda r: r["wall_s"])
         x = [r["wall_s"] for r in rs]
         y = [r[quantity] for r in rs]
         if reference is not None:
