@@ -327,8 +327,6 @@ def sweep(scene, vary: dict[str, list], out_dir="sweep", scheduler=None, workers
         The table (also in ``sweep.csv`` / ``sweep.json``).
     """
     require_dask()
-    from .io import prepare_output_dir  # noqa: F401  (same package: fail early if broken)
-
     todo = variants(scene, vary)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -339,6 +337,10 @@ def sweep(scene, vary: dict[str, list], out_dir="sweep", scheduler=None, workers
             print(f"sweep: {msg}", file=stream, flush=True)
 
     names = [_slug(v) for v, _ in todo]
+    if len(set(names)) < len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        raise fail("vary", vary, f"values that give distinct directory names ({dup!r} twice: values differing "
+                   "only in characters other than letters, digits and ._=,+-)")
     rows: dict[int, tuple[dict, bool]] = {}
     for i, (values, sc) in enumerate(todo):
         done = _finished(out / names[i], sc)
