@@ -17,7 +17,8 @@ worker process with one BLAS thread.  A single simulation never spans processes.
   records (:meth:`fluidem.Simulation.summary`: steps, DOFs, triangles, final pose, velocity and
   load of each body); ``DIR/sweep.png`` a plot of one quantity against wall time.
 * Resume: a variant whose directory holds a ``run.json`` with status ``complete`` for the same
-  scene is not run again (its row is read back); any other variant is run from scratch.
+  scene (or ``stopped`` at the sweep's ``n_steps``) is not run again (its row is read back); any
+  other variant is run from scratch.
 * Progress: one line per finished variant on stderr.
 
 Example (a sketch; runs on a LocalCluster of two workers)::
@@ -234,13 +235,16 @@ def _warm_up() -> None:
     from .coupling import fixed_flow, moving_flow  # noqa: F401
 
 
-def _finished(out_dir: Path, sc) -> dict | None:
-    """The stored row of a variant already complete in ``out_dir`` for scene ``sc``, else None."""
+def _finished(out_dir: Path, sc, n_steps: int | None = None) -> dict | None:
+    """The stored row of a variant already finished in ``out_dir`` for scene ``sc`` (status
+    ``complete``, or ``stopped`` at ``n_steps`` when the sweep stops there), else None."""
     from .io import read_run_record
     from .simulation import scene_key
 
     rec = read_run_record(out_dir)
-    if rec.get("status") != "complete" or rec.get("scene_key") != scene_key(sc.to_dict()):
+    done = rec.get("status") == "complete" or (n_steps is not None and rec.get("status") == "stopped"
+                                               and rec.get("step") == n_steps)
+    if not done or rec.get("scene_key") != scene_key(sc.to_dict()):
         return None
     try:
         stored = json.loads((out_dir / "variant.json").read_text())
@@ -343,7 +347,7 @@ def sweep(scene, vary: dict[str, list], out_dir="sweep", scheduler=None, workers
                    "only in characters other than letters, digits and ._=,+-)")
     rows: dict[int, tuple[dict, bool]] = {}
     for i, (values, sc) in enumerate(todo):
-        done = _finished(out / names[i], sc)
+        done = _finished(out / names[i], sc, n_steps)
         if done is not None:
             rows[i] = (done, True)
     pending = [i for i in range(len(todo)) if i not in rows]

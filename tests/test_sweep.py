@@ -13,7 +13,7 @@ from fluidem.io import read_history
 
 pytest.importorskip("distributed")
 
-from fluidem.sweep import parse_vary, require_dask, set_key, sweep, variants  # noqa: E402
+from fluidem.sweep import _finished, parse_vary, require_dask, set_key, sweep, variants  # noqa: E402
 
 TINY = """
 name = "tiny-channel"
@@ -128,3 +128,13 @@ def test_without_dask_the_error_names_the_extra(monkeypatch, capsys, tmp_path):
     assert main(["sweep", str(tmp_path / "s.toml"), "--vary", "mesh.h=0.1"]) == 2
     assert capsys.readouterr().err.strip() == ("fluidem: error: 'fluidem sweep' needs dask.distributed: "
                                                'pip install "fluidem[sweep]"')
+
+
+def test_a_variant_counts_as_finished_only_when_complete_for_the_same_scene(tmp_path):
+    (tmp_path / "s.toml").write_text(TINY)
+    (_, sc), (_, other) = variants(tmp_path / "s.toml", {"mesh.h": [0.1, 0.07]})
+    Simulation(sc).run(out_dir=tmp_path / "v", n_steps=1)  # stopped after 1 of 2 steps
+    assert _finished(tmp_path / "v", sc) is None  # a full sweep runs it again
+    row = _finished(tmp_path / "v", sc, n_steps=1)  # a sweep with --steps 1 keeps it
+    assert row["status"] == "complete" and row["summary"]["steps"] == 1
+    assert _finished(tmp_path / "v", other, n_steps=1) is None  # another scene's run
