@@ -101,6 +101,11 @@ def parse_vary(items: list[str]) -> dict[str, list]:
 
     Each value is read as a TOML value (numbers, booleans, arrays, quoted strings), a bare word
     as a string.  Raises :class:`fluidem.errors.InputError` for an item without ``=`` or values.
+
+    Examples
+    --------
+    >>> parse_vary(["mesh.h=0.04,0.02", "fluid.element=th,p3", "domain.box=[0, 1, 0, 1]"])
+    {'mesh.h': [0.04, 0.02], 'fluid.element': ['th', 'p3'], 'domain.box': [[0, 1, 0, 1]]}
     """
     vary: dict[str, list] = {}
     for item in items:
@@ -119,6 +124,12 @@ def set_key(data: dict, key: str, value) -> None:
 
     A missing table is created (the scene's validation then names a key it does not know); a
     body index out of range raises :class:`fluidem.errors.InputError`.
+
+    Examples
+    --------
+    >>> d = {"mesh": {"h": 0.1}, "bodies": [{"radius": 0.05}]}
+    >>> set_key(d, "mesh.h", 0.02); set_key(d, "bodies.0.radius", 0.1); d
+    {'mesh': {'h': 0.02}, 'bodies': [{'radius': 0.1}]}
     """
     parts = key.split(".")
     node = data
