@@ -28,8 +28,10 @@ entries listed above, nothing else) or to restart (continue) it.
 
 ParaView opens the PVD indexes (a time series); meshio reads each VTU file but not a PVD
 index: :func:`read_fields` gives the fields of one step as a ``meshio.Mesh`` and
-:func:`field_series` lists ``(step, t, path)`` of a series (the mesh may change between
-steps, so there is no single-mesh XDMF series).
+:func:`field_series` lists ``(step, t, path)`` of a series.  For a mesh that does not change
+(a fixed-mesh scene) :func:`write_xdmf` (or ``[output] xdmf = true``, at the end of the run)
+collects a series into one XDMF time series, ``fields_full.xdmf`` + ``fields_full.h5``, which
+ParaView opens and ``meshio.xdmf.TimeSeriesReader`` reads (needs h5py: the ``xdmf`` extra).
 ``fx, fy, torque`` are the hydrodynamic load in fluid scenes and the contact force and
 torque (without gravity) in dry scenes; ``contacts`` counts each body's contacts.
 
@@ -77,7 +79,7 @@ from .errors import InputError
 from .validate import fail
 
 __all__ = ["OutputWriter", "read_history", "read_pvd", "latest_checkpoint", "load_checkpoint", "load_latest_checkpoint",
-           "fluid_point_data", "full_order_fields", "read_fields", "field_series", "prepare_output_dir",
+           "fluid_point_data", "full_order_fields", "read_fields", "field_series", "write_xdmf", "prepare_output_dir",
            "read_run_record", "write_run_record", "HISTORY_COLUMNS", "HISTORY_UNITS", "OUTPUT_ENTRIES",
            "OutputDirError"]
 
@@ -93,7 +95,8 @@ HISTORY_UNITS = {"step": "1", "t": "time", "id": "1", "x": "length", "y": "lengt
 
 #: what a run writes into its output directory (and what overwriting it removes)
 OUTPUT_ENTRIES = ("history.csv", "events.log", "mesh_quality.csv", "fields.pvd", "fields_full.pvd", "bodies.pvd",
-                  "fields", "fields_full", "bodies", "checkpoints", "plots", "scene.toml", "run.json")
+                  "fields", "fields_full", "fields.xdmf", "fields.h5", "fields_full.xdmf", "fields_full.h5", "bodies",
+                  "checkpoints", "plots", "scene.toml", "run.json")
 
 
 class OutputDirError(InputError):
@@ -631,6 +634,79 @@ def read_fields(out_dir: PathLike, step: int | None = None, full: bool = True):
     m = meshio.read(path)
     m.field_data["t"] = np.array([t])
     return m
+
+
+def require_h5py(what: str = "XDMF output") -> None:
+    """Raise :class:`fluidem.errors.InputError` naming the ``xdmf`` extra if h5py is missing."""
+    try:
+        import h5py  # noqa: F401
+    except ImportError:
+        raise InputError(f'{what} needs h5py: pip install "fluidem[xdmf]"') from None
+
+
+def _TimeSeriesWriter(path: Path):
+    """``meshio.xdmf.TimeSeriesWriter`` with its HDF5 file beside the XDMF file (meshio 5.3
+    puts it in the working directory)."""
+    import h5py
+    import meshio
+
+    class Writer(meshio.xdmf.TimeSeriesWriter):
+        def __enter__(self):
+            self.h5_filename = str(self.filename.with_suffix(".h5"))
+            self.h5_file = h5py.File(self.h5_filename, "w")
+            return self
+
+    return Writer(path)
+
+
+def write_xdmf(out_dir: PathLike, full: bool = True) -> Path:
+    """Collect a run's field series into one XDMF time series (``<series>.xdmf`` + ``.h5``).
+
+    Parameters
+    ----------
+    out_dir : path
+        Output directory of a fluid run.
+    full : bool
+        The full-resolution series when the run wrote one (see :func:`field_series`).
+
+    Returns
+    -------
+    Path
+        The ``.xdmf`` file: the mesh once, then ``velocity``, ``speed``, ``pressure`` and
+        ``kinematic_pressure`` (point data, units as in the VTU files) at every output time;
+        read it with ``meshio.xdmf.TimeSeriesReader`` or open it in ParaView.
+
+    Raises
+    ------
+    InputError
+        Without h5py (naming the ``xdmf`` extra), for a directory without fields, or when the
+        mesh changes between steps (a moving mesh: read the VTU series with :func:`read_fields`).
+    """
+    import meshio
+
+    require_h5py()
+    series = field_series(out_dir, full)
+    if not series:
+        raise fail("output directory", str(out_dir), "the directory of a fluid run that wrote fields (fields.pvd)")
+    name = series[0][2].parent.name  # fields_full or fields
+    path = Path(out_dir) / f"{name}.xdmf"
+    first = meshio.read(series[0][2])
+    changed = None
+    with _TimeSeriesWriter(path) as w:
+        w.write_points_cells(first.points, first.cells)
+        for step, t, f in series:
+            m = first if f == series[0][2] else meshio.read(f)
+            if m.points.shape != first.points.shape or not np.array_equal(m.points, first.points) or \
+                    any(not np.array_equal(a.data, b.data) for a, b in zip(m.cells, first.cells)):
+                changed = step
+                break
+            w.write_data(t, point_data=m.point_data)
+    if changed is not None:  # no half series left behind
+        path.unlink(missing_ok=True)
+        path.with_suffix(".h5").unlink(missing_ok=True)
+        raise InputError(f"{name}: the mesh changes at step {changed} (a moving mesh); an XDMF time series holds "
+                         "one mesh: read the VTU series with fluidem.io.read_fields instead")
+    return path
 
 
 def _history_header() -> str:

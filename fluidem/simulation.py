@@ -500,6 +500,15 @@ class Simulation:
             if out_dir is not None and Path(out_dir).is_dir():
                 self._check_owner(out_dir)  # a checkpoint from elsewhere: the folder must be this scene's
         N = self.plan.n_steps if n_steps is None else n_steps
+        xdmf = out_dir is not None and self.flow is not None and sc.output.fields and sc.output.xdmf
+        if xdmf:  # before anything is written
+            from .io import require_h5py
+
+            require_h5py("output.xdmf = true")
+            if self.plan.mesh == "moving":
+                raise InputError("output.xdmf = true: an XDMF time series holds one mesh, and this scene's mesh "
+                                 "moves; set it to false (the VTU series fields_full.pvd has every step, "
+                                 "fluidem.io.read_fields reads it)")
         writer = None
         if out_dir is not None:
             prepare_output_dir(out_dir, "restart" if restarting else ("overwrite" if overwrite else "new"))
@@ -599,6 +608,15 @@ class Simulation:
                 ("error", None, exc, max(self.step_index, 1))  # recording the step failed
         if writer is not None:
             if stop is None:
+                if xdmf:
+                    from .io import write_xdmf
+
+                    try:
+                        writer.event(self.step_index, self.t, "xdmf", str(write_xdmf(out_dir).name))
+                    except Exception as exc:  # the run's results stand; the series can be written later
+                        writer.event(self.step_index, self.t, "xdmf-failed", _one_line(exc))
+                        warnings.warn(f"the XDMF time series was not written: {_one_line(exc)}", RunWarning,
+                                      stacklevel=2)
                 writer.event(self.step_index, self.t, "end", f"{self.counters['steps']} steps this run")
                 writer.close()
                 self._run_record(out_dir, "complete" if self.step_index >= self.plan.n_steps else "stopped", N,

@@ -1,5 +1,7 @@
 """Full-order field output: the VTU files carry the computed finite element solution, read back with meshio."""
 
+import sys
+
 import meshio
 import numpy as np
 import pytest
@@ -7,7 +9,9 @@ from skfem import MeshTri
 
 from fluidem import Scene, Simulation
 from fluidem.fluid.space import FlowSpace
-from fluidem.io import OutputWriter, field_series, fluid_point_data, full_order_fields, read_fields
+from fluidem.cases.scenes import example_scene
+from fluidem.errors import InputError
+from fluidem.io import OutputWriter, field_series, fluid_point_data, full_order_fields, read_fields, write_xdmf
 
 TINY = """
 name = "tiny-channel"
@@ -37,6 +41,7 @@ t_end = 0.2
 [output]
 every = 1
 full_order = {full}
+xdmf = {xdmf}
 """
 
 
@@ -139,7 +144,7 @@ def test_bubble_fields_agree_with_the_vertex_output_at_the_vertices(tmp_path, el
 
 def test_a_run_writes_the_full_order_series_and_read_fields_reads_it(tmp_path):
     out = tmp_path / "o"
-    (tmp_path / "s.toml").write_text(TINY.format(element="th", full="true"))
+    (tmp_path / "s.toml").write_text(TINY.format(element="th", full="true", xdmf="false"))
     Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=out)
     series = field_series(out)
     assert [s for s, _, _ in series] == [0, 1, 2] and all(p.parent.name == "fields_full" for _, _, p in series)
@@ -160,7 +165,53 @@ def test_a_run_writes_the_full_order_series_and_read_fields_reads_it(tmp_path):
 
 def test_full_order_false_writes_only_the_vertex_series(tmp_path):
     out = tmp_path / "o"
-    (tmp_path / "s.toml").write_text(TINY.format(element="p2b", full="false"))
+    (tmp_path / "s.toml").write_text(TINY.format(element="p2b", full="false", xdmf="false"))
     Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=out)
     assert not (out / "fields_full.pvd").exists() and (out / "fields.pvd").exists()
     assert field_series(out)[-1][2].parent.name == "fields"
+
+
+def test_xdmf_time_series_holds_every_output_step_of_a_fixed_mesh_run(tmp_path, monkeypatch):
+    pytest.importorskip("h5py")
+    out = tmp_path / "o"
+    (tmp_path / "s.toml").write_text(TINY.format(element="p3", full="true", xdmf="true"))
+    monkeypatch.chdir(tmp_path)  # the HDF5 file goes beside the XDMF file, not into the working directory
+    Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=out)
+    assert (out / "fields_full.xdmf").exists() and (out / "fields_full.h5").exists()
+    assert not (tmp_path / "fields_full.h5").exists()
+    series = field_series(out)
+    with meshio.xdmf.TimeSeriesReader(out / "fields_full.xdmf") as r:
+        points, cells = r.read_points_cells()
+        assert r.num_steps == len(series) == 3
+        for k, (_, t, path) in enumerate(series):
+            tk, pd, _ = r.read_data(k)
+            vtu = meshio.read(path)
+            assert tk == t and np.array_equal(points, vtu.points) and np.array_equal(cells[0].data, vtu.cells[0].data)
+            for name in ("velocity", "speed", "pressure", "kinematic_pressure"):
+                assert np.array_equal(pd[name], vtu.point_data[name])  # the same numbers, bit for bit
+
+
+def test_xdmf_is_refused_for_a_moving_mesh_and_without_h5py(tmp_path, monkeypatch):
+    d = example_scene("settling-disk").to_dict()
+    d["output"]["xdmf"] = True
+    with pytest.raises(InputError, match="output.xdmf = true: an XDMF time series holds one mesh, and this "
+                                         "scene's mesh moves"):
+        Simulation(Scene.from_dict(d)).run(out_dir=tmp_path / "moving")
+    assert not (tmp_path / "moving" / "history.csv").exists()  # refused before anything was written
+    monkeypatch.setitem(sys.modules, "h5py", None)
+    (tmp_path / "s.toml").write_text(TINY.format(element="th", full="true", xdmf="true"))
+    with pytest.raises(InputError, match=r'^output.xdmf = true needs h5py: pip install "fluidem\[xdmf\]"$'):
+        Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=tmp_path / "o")
+    assert not (tmp_path / "o").exists()
+
+
+def test_write_xdmf_refuses_a_series_whose_mesh_changes(tmp_path):
+    pytest.importorskip("h5py")
+    w = OutputWriter(tmp_path)
+    for step, n in enumerate((3, 4)):
+        space = FlowSpace(MeshTri.init_tensor(np.linspace(0, 1, n), np.linspace(0, 1, n)), "th")
+        w.fields_full(step, 0.1 * step, *full_order_fields(space, np.zeros(space.n_dofs)))
+    w.close()
+    with pytest.raises(InputError, match="fields_full: the mesh changes at step 1"):
+        write_xdmf(tmp_path)
+    assert not (tmp_path / "fields_full.xdmf").exists() and not (tmp_path / "fields_full.h5").exists()
