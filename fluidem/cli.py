@@ -1,7 +1,8 @@
 """Command line: ``fluidem bench NAME``, ``fluidem cases``.  ``python -m fluidem`` is the same.
 
 Scenes: ``fluidem run SCENE``, ``fluidem plan SCENE``, ``fluidem examples [--show NAME]``,
-``fluidem new NAME DIR``, ``fluidem reference``, ``fluidem plot DIR``.
+``fluidem new NAME DIR``, ``fluidem reference``, ``fluidem plot DIR``; parameter sweeps:
+``fluidem sweep SCENE --vary KEY=V1,V2 [--vary ...]`` (:mod:`fluidem.sweep`).
 
 Every name an option takes (cases, element pairs, convection schemes, solvers, example
 scenes) comes from :mod:`fluidem.names`, the table scene files and the Python factories
@@ -20,6 +21,7 @@ earlier run's output in the directory (a fresh run into it is refused otherwise)
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import warnings
@@ -136,6 +138,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("cases", help="list the built-in cases", description="List the built-in benchmark cases.")
     _add_scene_commands(sub)
+    _add_sweep_command(sub)
     for command in sub.choices.values():  # --debug after the command too; absent there, the top level's counts
         _add_debug(command, default=argparse.SUPPRESS)
     return p
@@ -160,6 +163,9 @@ def _add_scene_commands(sub) -> None:
     r.add_argument("--steps", type=_positive_int, metavar="N", help="stop after N steps in total (N >= 1)")
     r.add_argument("--plot", action="store_true", help="draw the PNG figures at the end")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("-v", "--verbose", action="store_true",
+                   help="one line per step instead of the bar: linear solver iterations and residual, CFL number "
+                        "and the step's cost split")
     pl = sub.add_parser("plan", help="print the effects a scene needs and why",
                         description="Validate a scene and print its plan: which effects are on, and why. "
                                     "Exits with status 2, one error line per reason, for a scene this version "
@@ -190,6 +196,47 @@ def _add_scene_commands(sub) -> None:
     pt.add_argument("--units", **_named("units"), help="name the units in the labels (the scene must be in "
                     "that system; nothing is converted); default: the scene's units, else dimensions, e.g. "
                     "[length]")
+
+
+def _add_sweep_command(sub) -> None:
+    sw = sub.add_parser("sweep", help="run every combination of some scene values as tasks on dask.distributed",
+                        description="Run a parameter sweep: every combination of the --vary values, each variant "
+                                    "one task (one process, one BLAS thread) on a LocalCluster (one worker per core) "
+                                    "or an existing scheduler. Writes DIR/<variant>/ run directories, sweep.csv, "
+                                    "sweep.json and sweep.png; finished variants are not run again. Needs "
+                                    "dask.distributed: pip install \"fluidem[sweep]\".")
+    sw.add_argument("scene", nargs="?", help="scene TOML file")
+    sw.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file: "
+                    + ", ".join(names.choices("example")))
+    sw.add_argument("--vary", action="append", required=True, metavar="KEY=V1,V2,...",
+                    help="a dotted scene key and its values, e.g. mesh.h=0.04,0.02 or fluid.element=th,p3 "
+                         "(repeat for more keys; values are read as TOML, bare words as strings)")
+    sw.add_argument("--scheduler", metavar="ADDR", help="address of a running dask scheduler (default: a new "
+                    "LocalCluster)")
+    sw.add_argument("--workers", type=_positive_int, metavar="N", help="LocalCluster worker processes "
+                    "(default: one per core)")
+    sw.add_argument("--out", metavar="DIR", help="sweep directory (default: sweep-<scene name>)")
+    sw.add_argument("--steps", type=_positive_int, metavar="N", help="stop every variant after N steps")
+    sw.add_argument("--quantity", metavar="COLUMN", help="plotted column of the table, e.g. cylinder.fx "
+                    "(default: the first body's fx)")
+    sw.add_argument("--reference", type=float, metavar="VALUE",
+                    help="plot the relative error of --quantity against this value")
+    sw.add_argument("--no-plot", action="store_true", help="write no sweep.png")
+    sw.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def _sweep_main(args) -> int:
+    from .sweep import parse_vary, require_dask, sweep
+
+    require_dask("'fluidem sweep'")
+    scene = _scene_from_args(args)
+    vary = parse_vary(args.vary)
+    table = sweep(scene, vary, out_dir=args.out or f"sweep-{scene.name}", scheduler=args.scheduler,
+                  workers=args.workers, n_steps=args.steps, quantity=args.quantity, reference=args.reference,
+                  progress=not args.quiet, plot=not args.no_plot)
+    for path in table.files:
+        print(path)
+    return 0 if all(r["status"] == "complete" for r in table) else 3
 
 
 class _ProgressBar:
@@ -299,7 +346,7 @@ def _scene_main(args) -> int:
     if not args.quiet:
         print(sim.plan, file=sys.stderr)
     result = sim.run(out_dir=out, restart=args.restart, n_steps=args.steps, overwrite=args.overwrite,
-                     progress=None if args.quiet else _ProgressBar())
+                     progress=None if args.quiet or args.verbose else _ProgressBar(), verbose=args.verbose)
     print(result)
     if args.plot:
         from .plotting import plot_run
@@ -308,6 +355,9 @@ def _scene_main(args) -> int:
             print(path)
     return 0
 
+
+#: exit status when standard output is a pipe closed by its reader (128 + SIGPIPE, as the shell reports it)
+BROKEN_PIPE_STATUS = 141
 
 #: exit status of ``fluidem plan`` and ``fluidem run`` for a scene this version cannot run
 CANNOT_RUN_STATUS = 2
@@ -355,6 +405,8 @@ def _dispatch(args, parser) -> int:
         return _scene_main(args)
     if args.command == "bench":
         return _bench_main(args, parser)
+    if args.command == "sweep":
+        return _sweep_main(args)
     return 1
 
 
@@ -366,7 +418,8 @@ def main(argv=None) -> int:
     ``fluidem: error: <message>`` on one line to stderr and return 2 (a run stopped by an
     interrupt or by a bad state returns its own status, see :mod:`fluidem.simulation`); any
     other exception prints one line too and returns 1; with ``--debug`` they propagate with
-    their traceback.  Usage errors exit through argparse (status 2).
+    their traceback.  Output into a pipe its reader closed (``fluidem examples | head``) stops
+    quietly with :data:`BROKEN_PIPE_STATUS`.  Usage errors exit through argparse (status 2).
     """
     parser = _build_parser()
     args = parser.parse_args(argv)
@@ -374,7 +427,15 @@ def main(argv=None) -> int:
         with warnings.catch_warnings():
             if not args.debug:
                 warnings.showwarning = _show_warning
-            return _dispatch(args, parser)
+            status = _dispatch(args, parser)
+            sys.stdout.flush()  # a closed pipe shows here, not at exit
+            return status
+    except BrokenPipeError:  # 'fluidem examples | head': the reader has gone; stop quietly like standard tools
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush at exit
+        except (OSError, ValueError):
+            pass
+        return BROKEN_PIPE_STATUS
     except (FluidemError, ValueError) as exc:
         if args.debug:
             raise

@@ -6,7 +6,12 @@ Layout of an output directory::
                            step, t, id, x, y, angle, vx, vy, omega, fx, fy, torque, contacts
     fields.pvd             ParaView index of fields/fields_<step>.vtu (fluid scenes)
     fields/                velocity (point data, (n, 3)), |u|, pressure (point data; element
-                           averages at vertices for a discontinuous pressure)
+                           averages at vertices for a discontinuous pressure), vertex values only
+    fields_full.pvd        ParaView index of fields_full/fields_full_<step>.vtu (``[output]
+                           full_order``, on by default): the same fields at full resolution
+    fields_full/           P2/P1: quadratic triangles (VTK "triangle6", exact); P3/P2, P2+bubble,
+                           MINI: each triangle split into 9 linear ones with the fields at their
+                           10 nodes (:func:`full_order_fields`); cell data ``element``
     bodies.pvd             ParaView index of bodies/bodies_<step>.vtu
     bodies/                one polygon cell per body with cell data id, velocity, omega
     mesh_quality.csv       step, t, min/max angle, share of angles > 135°, inverted, nodes, triangles
@@ -21,7 +26,12 @@ An output directory belongs to one run: :func:`prepare_output_dir` refuses a fre
 a directory that holds another run's output unless told to overwrite it (which removes the
 entries listed above, nothing else) or to restart (continue) it.
 
-XDMF would need h5py; VTU files with a PVD index are read by ParaView and meshio alike.
+ParaView opens the PVD indexes (a time series); meshio reads each VTU file but not a PVD
+index: :func:`read_fields` gives the fields of one step as a ``meshio.Mesh`` and
+:func:`field_series` lists ``(step, t, path)`` of a series.  For a mesh that does not change
+(a fixed-mesh scene) :func:`write_xdmf` (or ``[output] xdmf = true``, at the end of the run)
+collects a series into one XDMF time series, ``fields_full.xdmf`` + ``fields_full.h5``, which
+ParaView opens and ``meshio.xdmf.TimeSeriesReader`` reads (needs h5py: the ``xdmf`` extra).
 ``fx, fy, torque`` are the hydrodynamic load in fluid scenes and the contact force and
 torque (without gravity) in dry scenes; ``contacts`` counts each body's contacts.
 
@@ -69,8 +79,9 @@ from .errors import InputError
 from .validate import fail
 
 __all__ = ["OutputWriter", "read_history", "read_pvd", "latest_checkpoint", "load_checkpoint", "load_latest_checkpoint",
-           "fluid_point_data", "prepare_output_dir", "read_run_record", "write_run_record", "HISTORY_COLUMNS",
-           "HISTORY_UNITS", "OUTPUT_ENTRIES", "OutputDirError"]
+           "fluid_point_data", "full_order_fields", "read_fields", "field_series", "write_xdmf", "prepare_output_dir",
+           "read_run_record", "write_run_record", "HISTORY_COLUMNS", "HISTORY_UNITS", "OUTPUT_ENTRIES",
+           "OutputDirError"]
 
 PathLike = Union[str, os.PathLike]
 
@@ -83,7 +94,8 @@ HISTORY_UNITS = {"step": "1", "t": "time", "id": "1", "x": "length", "y": "lengt
                  "fy": "force/depth", "torque": "force*length/depth", "contacts": "1"}
 
 #: what a run writes into its output directory (and what overwriting it removes)
-OUTPUT_ENTRIES = ("history.csv", "events.log", "mesh_quality.csv", "fields.pvd", "bodies.pvd", "fields", "bodies",
+OUTPUT_ENTRIES = ("history.csv", "events.log", "mesh_quality.csv", "fields.pvd", "fields_full.pvd", "bodies.pvd",
+                  "fields", "fields_full", "fields.xdmf", "fields.h5", "fields_full.xdmf", "fields_full.h5", "bodies",
                   "checkpoints", "plots", "scene.toml", "run.json")
 
 
@@ -196,6 +208,143 @@ def fluid_point_data(space, x: np.ndarray, rho: float = 1.0) -> dict[str, np.nda
     return {"velocity": vel, "speed": np.hypot(vel[:, 0], vel[:, 1]), "pressure": rho * p, "kinematic_pressure": p}
 
 
+#: subdivision of each triangle for the full-order output: 2 (quadratic "triangle6" cells) for a
+#: P2 velocity with a P1 pressure, 3 (nine linear sub-triangles, nodes at the points i/3 of the
+#: barycentric lattice) for cubic velocity spaces (P3, P2 + cubic bubble, P1 + cubic bubble)
+FULL_ORDER_DIVISIONS = {"th": 2, "p3": 3, "p2b": 3, "mini": 3}
+
+
+def _lattice(r: int):
+    """Reference points (2, n_loc) of the barycentric lattice of order ``r`` on the triangle
+    (0,0), (1,0), (0,1), their ``(a, b)`` indices (x = a/r, y = b/r) and the linear
+    sub-triangles (r², 3) as local point indices, counter-clockwise."""
+    ab = [(a, b) for b in range(r + 1) for a in range(r + 1 - b)]
+    index = {q: k for k, q in enumerate(ab)}
+    sub = [(index[a, b], index[a + 1, b], index[a, b + 1]) for (a, b) in ab if a + b <= r - 1]
+    sub += [(index[a + 1, b], index[a + 1, b + 1], index[a, b + 1]) for (a, b) in ab if a + b <= r - 2]
+    ab = np.array(ab)
+    return ab.T / r, ab, np.array(sub)
+
+
+def _lattice_numbering(t: np.ndarray, nv: int, ab: np.ndarray, r: int) -> np.ndarray:
+    """Global indices (n_elements, n_loc) of the lattice points of every triangle ``t`` (3, m),
+    shared between neighbours: a vertex point is its vertex, an edge point is numbered by the
+    edge and its distance from the edge's lower-numbered vertex, interior points per element."""
+    m = t.shape[1]
+    a, b = ab[:, 0], ab[:, 1]
+    c = r - a - b
+    ids = np.empty((m, len(ab)), dtype=np.int64)
+    corner = {(0, 0): 0, (r, 0): 1, (0, r): 2}
+    for k, (ak, bk) in enumerate(ab):
+        if (ak, bk) in corner:
+            ids[:, k] = t[corner[ak, bk]]
+    # edges: local (0,1) where b = 0, (1,2) where c = 0, (2,0) where a = 0; position from the first vertex
+    local_edges = ((0, 1, (b == 0) & (a > 0) & (a < r), a), (1, 2, (c == 0) & (b > 0) & (b < r), b),
+                   (2, 0, (a == 0) & (c > 0) & (c < r), c))
+    pairs = np.concatenate([np.sort(t[[i, j]], axis=0) for i, j, _, _ in local_edges], axis=1)  # (2, 3m)
+    _, edge_id = np.unique(pairs, axis=1, return_inverse=True)
+    edge_id = edge_id.reshape(3, m)
+    for e, (i, j, on, pos) in enumerate(local_edges):
+        ks = np.flatnonzero(on)
+        s = np.where((t[i] < t[j])[:, None], pos[ks][None, :], r - pos[ks][None, :])  # (m, len(ks))
+        ids[:, ks] = nv + edge_id[e][:, None] * (r - 1) + (s - 1)
+    inner = np.flatnonzero((a > 0) & (b > 0) & (c > 0))
+    n_edges = int(edge_id.max()) + 1
+    ids[:, inner] = nv + n_edges * (r - 1) + np.arange(m)[:, None] * len(inner) + np.arange(len(inner))[None, :]
+    return ids
+
+
+def _values_at(basis, coeffs: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """A finite element function (coefficients ``coeffs`` of ``basis``) at the reference points
+    ``X`` (2, n_loc) of every element: (n_elements, n_loc) for a scalar field, (2, n_elements,
+    n_loc) for a vector one (scikit-fem's global basis, so edge orientations are respected)."""
+    C = coeffs[basis.element_dofs]  # (Nbfun, n_elements)
+    out = 0.0
+    for i in range(basis.Nbfun):  # a loop over the local basis functions (<= 20), not over elements
+        out = out + np.asarray(basis.elem.gbasis(basis.mapping, X, i)[0]) * C[i][:, None]
+    return np.asarray(out)
+
+
+def full_order_fields(space, x: np.ndarray, rho: float = 1.0):
+    """Velocity and pressure at full resolution, for VTU output.
+
+    Every triangle is split by the barycentric lattice of order ``r`` =
+    :data:`FULL_ORDER_DIVISIONS` of the element pair, and the fields are evaluated with the
+    element's own basis at the lattice points (mapped by the element map, curved
+    elements included).  P2/P1 (``r = 2``) gives one quadratic VTK ``triangle6`` cell per
+    triangle: velocity and pressure are represented *exactly* (a P1 pressure is linear on
+    it).  Cubic velocity spaces (``r = 3``) give nine linear triangles per triangle whose
+    nodes carry the exact point values (the field between them is linear).  Lattice points
+    shared by neighbouring triangles are written once; a discontinuous pressure (P2+bubble
+    pair) is averaged over the triangles around a shared point.
+
+    Parameters
+    ----------
+    space : fluidem.fluid.space.FlowSpace
+    x : (space.n_dofs,) float
+        Velocity (length/time) and kinematic pressure (length²/time²) DOFs.
+    rho : float
+        Fluid density: ``pressure`` is ρ times the kinematic one (see :func:`fluid_point_data`).
+
+    Returns
+    -------
+    points : (n, 3) float
+        Lattice points (length), z = 0.
+    cells : list of (str, (k, q) int)
+        ``[("triangle6", (m, 6))]`` or ``[("triangle", (9 m, 3))]``, counter-clockwise.
+    point_data : dict
+        ``velocity`` (n, 3), ``speed`` (n,), ``pressure`` (n,) dynamic and
+        ``kinematic_pressure`` (n,), as in :func:`fluid_point_data`.
+    cell_data : dict
+        ``element``: index of the mesh triangle each cell belongs to.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from skfem import MeshTri
+    >>> from fluidem.fluid.space import FlowSpace
+    >>> space = FlowSpace(MeshTri(), "th")  # two triangles on the unit square
+    >>> x = np.zeros(space.n_dofs)
+    >>> x[:space.n_u] = space.ub.project(lambda X: np.array([X[0] ** 2, X[0] * X[1]]))
+    >>> points, cells, pd, cd = full_order_fields(space, x)
+    >>> cells[0][0], cells[0][1].shape, points.shape
+    ('triangle6', (2, 6), (9, 3))
+    >>> bool(np.allclose(pd["velocity"][:, 0], points[:, 0] ** 2))  # exact at the midpoints too
+    True
+    """
+    mesh = space.mesh
+    r = FULL_ORDER_DIVISIONS[space.element]
+    X, ab, sub = _lattice(r)
+    t = mesh.t
+    nv = mesh.nvertices
+    ids = _lattice_numbering(t, nv, ab, r)
+    used, inv = np.unique(ids, return_inverse=True)
+    loc = inv.reshape(ids.shape)  # (m, n_loc) compact point indices
+    n = len(used)
+    xy = np.asarray(space.ub.mapping.F(X))  # (2, m, n_loc)
+    pts = np.zeros((n, 2))
+    pts[loc.ravel()] = xy.reshape(2, -1).T
+    U = _values_at(space.ub, x[: space.n_u], X)  # (2, m, n_loc)
+    vel = np.zeros((n, 3))
+    vel[loc.ravel(), 0], vel[loc.ravel(), 1] = U[0].ravel(), U[1].ravel()
+    P = _values_at(space.pb, x[space.n_u:], X)  # (m, n_loc)
+    p = np.bincount(loc.ravel(), P.ravel(), minlength=n) / np.maximum(np.bincount(loc.ravel(), minlength=n), 1)
+    pc = mesh.p[:, t]  # (2, 3, m) corners
+    cw = ((pc[0, 1] - pc[0, 0]) * (pc[1, 2] - pc[1, 0]) - (pc[1, 1] - pc[1, 0]) * (pc[0, 2] - pc[0, 0])) < 0
+    if r == 2:  # VTK triangle6: corners 0, 1, 2, then the midpoints of edges 01, 12, 20
+        k = {tuple(q): i for i, q in enumerate(ab)}
+        order = np.array([k[0, 0], k[2, 0], k[0, 2], k[1, 0], k[1, 1], k[0, 1]])
+        flip = np.array([k[0, 0], k[0, 2], k[2, 0], k[0, 1], k[1, 1], k[1, 0]])
+        conn = np.where(cw[:, None], loc[:, flip], loc[:, order])
+        cells, element = [("triangle6", conn)], np.arange(len(conn))
+    else:
+        tri = loc[:, sub]  # (m, r², 3)
+        tri = np.where(cw[:, None, None], tri[:, :, ::-1], tri)
+        cells, element = [("triangle", tri.reshape(-1, 3))], np.repeat(np.arange(t.shape[1]), len(sub))
+    pd = {"velocity": vel, "speed": np.hypot(vel[:, 0], vel[:, 1]), "pressure": rho * p, "kinematic_pressure": p}
+    return _points3(pts), cells, pd, {"element": [element.astype(float)]}
+
+
 def _points3(p2):
     p2 = np.asarray(p2, dtype=float)
     return np.column_stack([p2, np.zeros(len(p2))])
@@ -220,7 +369,7 @@ class OutputWriter:
     def __init__(self, out_dir: PathLike, restart_step: int | None = None):
         self.dir = Path(out_dir)
         self.dir.mkdir(parents=True, exist_ok=True)
-        self._series: dict[str, list[tuple[int, float, str]]] = {"fields": [], "bodies": []}
+        self._series: dict[str, list[tuple[int, float, str]]] = {"fields": [], "fields_full": [], "bodies": []}
         hist = self.dir / "history.csv"
         if restart_step is None:
             self._hist = open(hist, "w", newline="")
@@ -319,6 +468,16 @@ class OutputWriter:
 
         m = meshio.Mesh(_points3(points), [("triangle", np.asarray(triangles))], point_data=point_data)
         return self._add("fields", step, t, m)
+
+    def fields_full(self, step: int, t: float, points: ArrayLike, cells: list, point_data: dict[str, np.ndarray],
+                    cell_data: dict | None = None) -> Path:
+        """Write full-resolution fluid fields to ``fields_full/fields_full_<step>.vtu`` and index it
+        in ``fields_full.pvd``: ``points`` (n, 3), ``cells`` meshio cell blocks, ``point_data``
+        arrays of first dimension n (the outputs of :func:`full_order_fields`).  Returns the file."""
+        import meshio
+
+        m = meshio.Mesh(np.asarray(points, float), cells, point_data=point_data, cell_data=cell_data or {})
+        return self._add("fields_full", step, t, m)
 
     def bodies(self, step: int, t: float, outlines: list, velocity: ArrayLike, omega: ArrayLike) -> Path:
         """Write body outlines to ``bodies/bodies_<step>.vtu`` and index it.
@@ -423,6 +582,131 @@ def read_pvd(path: PathLike, with_steps: bool = False) -> list[tuple]:
         t, s, f = float(m.group(1)), int(m.group(2) or -1), m.group(3)
         out.append((s, t, f) if with_steps else (t, path.parent / f))
     return out
+
+
+def field_series(out_dir: PathLike, full: bool = True) -> list[tuple[int, float, Path]]:
+    """``(step, t, path)`` of each field file of a run directory, in time order.
+
+    ``full``: the full-resolution series (``fields_full.pvd``) when the run wrote one, else
+    the vertex series (``fields.pvd``); ``False``: the vertex series.  ``[]`` when the run
+    wrote no fields.
+    """
+    d = Path(out_dir)
+    for name in (("fields_full", "fields") if full else ("fields",)):
+        if (d / f"{name}.pvd").exists():
+            return [(s, t, d / f) for s, t, f in read_pvd(d / f"{name}.pvd", with_steps=True)]
+    return []
+
+
+def read_fields(out_dir: PathLike, step: int | None = None, full: bool = True):
+    """The fields of one output step of a run directory as a ``meshio.Mesh``.
+
+    Parameters
+    ----------
+    out_dir : path
+        Output directory of a fluid run.
+    step : int, optional
+        Step number (default: the last one written).
+    full : bool
+        Full resolution when the run wrote it (see :func:`field_series`).
+
+    Returns
+    -------
+    meshio.Mesh
+        ``points`` (n, 3) and ``point_data`` ``velocity`` (n, 3), ``speed``, ``pressure``
+        (dynamic), ``kinematic_pressure`` (units in the module docstring); its
+        ``field_data["t"]`` is the time of the step.
+    """
+    import meshio
+
+    series = field_series(out_dir, full)
+    if not series:
+        raise fail("output directory", str(out_dir), "the directory of a fluid run that wrote fields "
+                   "(fields.pvd)")
+    if step is None:
+        s, t, path = series[-1]
+    else:
+        hit = [e for e in series if e[0] == step]
+        if not hit:
+            raise fail("step", step, "one of the output steps " + ", ".join(str(e[0]) for e in series[:20])
+                       + (" ..." if len(series) > 20 else ""))
+        s, t, path = hit[0]
+    m = meshio.read(path)
+    m.field_data["t"] = np.array([t])
+    return m
+
+
+def require_h5py(what: str = "XDMF output") -> None:
+    """Raise :class:`fluidem.errors.InputError` naming the ``xdmf`` extra if h5py is missing."""
+    try:
+        import h5py  # noqa: F401
+    except ImportError:
+        raise InputError(f'{what} needs h5py: pip install "fluidem[xdmf]"') from None
+
+
+def _TimeSeriesWriter(path: Path):
+    """``meshio.xdmf.TimeSeriesWriter`` with its HDF5 file beside the XDMF file (meshio 5.3
+    puts it in the working directory)."""
+    import h5py
+    import meshio
+
+    class Writer(meshio.xdmf.TimeSeriesWriter):
+        def __enter__(self):
+            self.h5_filename = str(self.filename.with_suffix(".h5"))
+            self.h5_file = h5py.File(self.h5_filename, "w")
+            return self
+
+    return Writer(path)
+
+
+def write_xdmf(out_dir: PathLike, full: bool = True) -> Path:
+    """Collect a run's field series into one XDMF time series (``<series>.xdmf`` + ``.h5``).
+
+    Parameters
+    ----------
+    out_dir : path
+        Output directory of a fluid run.
+    full : bool
+        The full-resolution series when the run wrote one (see :func:`field_series`).
+
+    Returns
+    -------
+    Path
+        The ``.xdmf`` file: the mesh once, then ``velocity``, ``speed``, ``pressure`` and
+        ``kinematic_pressure`` (point data, units as in the VTU files) at every output time;
+        read it with ``meshio.xdmf.TimeSeriesReader`` or open it in ParaView.
+
+    Raises
+    ------
+    InputError
+        Without h5py (naming the ``xdmf`` extra), for a directory without fields, or when the
+        mesh changes between steps (a moving mesh: read the VTU series with :func:`read_fields`).
+    """
+    import meshio
+
+    require_h5py()
+    series = field_series(out_dir, full)
+    if not series:
+        raise fail("output directory", str(out_dir), "the directory of a fluid run that wrote fields (fields.pvd)")
+    name = series[0][2].parent.name  # fields_full or fields
+    path = Path(out_dir) / f"{name}.xdmf"
+    first = meshio.read(series[0][2])
+    changed = None
+    with _TimeSeriesWriter(path) as w:
+        w.write_points_cells(first.points, first.cells)
+        for step, t, f in series:
+            m = first if f == series[0][2] else meshio.read(f)
+            if m.points.shape != first.points.shape or not np.array_equal(m.points, first.points) or \
+                    any(not np.array_equal(a.data, b.data) for a, b in zip(m.cells, first.cells)):
+                changed = step
+                break
+            w.write_data(t, point_data=m.point_data)
+    if changed is not None:  # no half series left behind
+        path.unlink(missing_ok=True)
+        path.with_suffix(".h5").unlink(missing_ok=True)
+        raise InputError(f"{name}: the mesh changes at step {changed} (a moving mesh); an XDMF time series holds "
+                         "one mesh: read the VTU series with fluidem.io.read_fields instead")
+    return path
 
 
 def _history_header() -> str:

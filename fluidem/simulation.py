@@ -61,7 +61,7 @@ from .state_checks import StateCheck, StateError
 from .validate import integer
 
 __all__ = ["Simulation", "RunResult", "StepTimes", "run", "LinearPath", "RunStopped", "RunWarning", "StateError",
-           "scene_changes", "RESTART_MAY_CHANGE"]
+           "scene_changes", "RESTART_MAY_CHANGE", "verbose_line"]
 
 #: a snapshot of the state (to checkpoint if a later step fails) is taken once the steps since the
 #: last one took this many times the snapshot's own time: every step for fluid runs, every few
@@ -292,11 +292,14 @@ class Simulation:
             if outlines:
                 writer.bodies(self.step_index, self.t, outlines, b.velocities, b.omegas)
             if self.flow is not None and sc.output.fields:
-                from .io import fluid_point_data
+                from .io import fluid_point_data, full_order_fields
 
                 m = self.flow.mesh
                 writer.fields(self.step_index, self.t, m.p[:, :m.nvertices].T, _ccw(m),
                               fluid_point_data(self.flow.space, self.flow.x, sc.fluid.density))
+                if sc.output.full_order:
+                    writer.fields_full(self.step_index, self.t,
+                                       *full_order_fields(self.flow.space, self.flow.x, sc.fluid.density))
         return t_loads
 
     def _advance(self, dt: float, writer, check: StateCheck) -> CostSplit:
@@ -323,8 +326,39 @@ class Simulation:
             check.flow(x[nd[0]], x[nd[1]], self.flow.mesh.p, t_new, x=x)
         return st
 
+    def summary(self, wall_s: float | None = None) -> dict:
+        """The run's summary quantities, as ``run.json`` records them at the end of a run.
+
+        Returns
+        -------
+        dict
+            ``steps``, ``t`` (time), ``wall_s`` (wall seconds of the stepping loop of this run,
+            if given); fluid scenes: ``dofs``, ``triangles``, ``element``; ``bodies``: one entry
+            per body (by name, else ``body<k>``) with its final ``x``, ``y`` (length), ``angle``
+            (rad), ``vx``, ``vy`` (length/time), ``omega`` (rad/time) and the last recorded load
+            ``fx``, ``fy`` (force/depth) and ``torque`` (force*length/depth), the history.csv
+            convention.
+        """
+        out = {"steps": self.step_index, "t": self.t}
+        if wall_s is not None:
+            out["wall_s"] = wall_s
+        if self.flow is not None:
+            out.update(dofs=int(self.flow.dofs), triangles=int(self.flow.mesh.t.shape[1]),
+                       element=self.scene.fluid.element)
+        b = self.bodies
+        F, T = getattr(self, "last_loads", (np.zeros((len(self.scene.bodies), 2)), np.zeros(len(self.scene.bodies))))
+        pos, ang, vel, om = b.positions, b.angles, b.velocities, b.omegas
+        bodies = {}
+        for k, sb in enumerate(self.scene.bodies):
+            name = sb.name or f"body{k}"
+            bodies[name] = {"x": float(pos[k, 0]), "y": float(pos[k, 1]), "angle": float(ang[k]),
+                            "vx": float(vel[k, 0]), "vy": float(vel[k, 1]), "omega": float(om[k]),
+                            "fx": float(F[k, 0]), "fy": float(F[k, 1]), "torque": float(T[k])}
+        out["bodies"] = bodies
+        return out
+
     def _run_record(self, out_dir, status: str, n_steps: int, checkpoint=None, message: str = "",
-                    totals: CostSplit | None = None) -> None:
+                    totals: CostSplit | None = None, summary: dict | None = None) -> None:
         from . import __version__
         from .io import HISTORY_UNITS, write_run_record
 
@@ -338,7 +372,8 @@ class Simulation:
             "pressure": "VTU 'pressure' is dynamic (fluid density x kinematic pressure), 'kinematic_pressure' "
                         "beside it; history loads are dynamic too",
             **({} if totals is None else {"cost": {"seconds": dict(totals.parts), "counts": dict(totals.counts),
-                                                   "note": "wall seconds per part summed over this run's steps"}})})
+                                                   "note": "wall seconds per part summed over this run's steps"}}),
+            **({} if summary is None else {"summary": summary})})
 
     def _check_owner(self, out_dir) -> None:
         """Refuse to continue, in ``out_dir``, a run of another scene."""
@@ -368,9 +403,46 @@ class Simulation:
         if len(ev_mesh.oscillating):
             writer.event(self.step_index, self.t, "oscillation", f"{len(ev_mesh.oscillating)} oscillating nodes")
 
+    # -- per-step report -------------------------------------------------------------------------
+    def _linear_solver(self):
+        """The linear solver of the last flow step (coupled fluid-body, fluid or Stokes), or None."""
+        f = self.flow
+        for owner in (getattr(f, "coupled", None), getattr(f, "stepper", None), f):
+            s = getattr(owner, "solver", None)
+            if s is not None:
+                return s
+        return None
+
+    def step_info(self) -> dict:
+        """What the last step's solvers recorded, for a verbose progress line.
+
+        Returns
+        -------
+        dict
+            ``step``, ``t`` (time); for a fluid scene also ``solver`` (method of the last
+            linear solve, :class:`fluidem.fluid.solvers.SolveInfo`), ``iterations`` (its Krylov
+            iterations; 0 for a direct solve), ``residual`` (its relative residual),
+            ``factorizations`` (LU factorisations so far, if the solver counts them) and ``cfl``
+            (Courant number max over elements of |u| Δt / h_e, h_e the longest edge, from the new
+            velocity; None for quasi-steady Stokes); for a DEM scene ``contacts`` (contacts at the
+            end of the step, body-body and body-wall).
+        """
+        out = {"step": self.step_index, "t": self.t}
+        if self.flow is not None:
+            s = self._linear_solver()
+            info = getattr(s, "last_info", None)
+            out.update(solver=getattr(info, "method", None), iterations=getattr(info, "iterations", None),
+                       residual=getattr(info, "relative_residual", None),
+                       factorizations=getattr(s, "factorizations", None))
+            st = getattr(self.flow, "stepper", None)
+            out["cfl"] = st._cfl(st.state.u) if st is not None and st.n_steps else None
+        if isinstance(self.bodies, DEMBodies):
+            out["contacts"] = len(self.bodies.dem.contacts.i)
+        return out
+
     # -- running ---------------------------------------------------------------------------------
     def run(self, out_dir="scene", restart=None, progress=None, n_steps: int | None = None,
-            overwrite: bool = False, allow_pickle: bool = False) -> RunResult:
+            overwrite: bool = False, allow_pickle: bool = False, verbose=False) -> RunResult:
         """Step to ``time.t_end`` (or ``n_steps`` steps in total), writing output to ``out_dir``.
 
         Parameters
@@ -390,6 +462,10 @@ class Simulation:
             Clear the run output already in ``out_dir`` (:data:`fluidem.io.OUTPUT_ENTRIES`) first.
         allow_pickle : bool
             Accept a pickle checkpoint of an earlier version as ``restart`` (only for your own files).
+        verbose : bool or file-like
+            One plain-text line per step (to stderr, or to the given stream): step, time, the
+            linear solver's method, Krylov iterations and relative residual, the CFL number and
+            the step's cost split (:func:`verbose_line` of :meth:`step_info`).
 
         Raises
         ------
@@ -402,6 +478,9 @@ class Simulation:
         from .io import OutputWriter, prepare_output_dir
 
         sc = self.scene
+        if verbose is not False and verbose is not None:
+            stream = sys.stderr if verbose is True else verbose
+            progress = _Verbose(self, stream, progress)
         if out_dir == "scene":
             out_dir = sc.output.dir
         restarting = restart is not None and restart is not False
@@ -421,6 +500,15 @@ class Simulation:
             if out_dir is not None and Path(out_dir).is_dir():
                 self._check_owner(out_dir)  # a checkpoint from elsewhere: the folder must be this scene's
         N = self.plan.n_steps if n_steps is None else n_steps
+        xdmf = out_dir is not None and self.flow is not None and sc.output.fields and sc.output.xdmf
+        if xdmf:  # before anything is written
+            from .io import require_h5py
+
+            require_h5py("output.xdmf = true")
+            if self.plan.mesh == "moving":
+                raise InputError("output.xdmf = true: an XDMF time series holds one mesh, and this scene's mesh "
+                                 "moves; set it to false (the VTU series fields_full.pvd has every step, "
+                                 "fluidem.io.read_fields reads it)")
         writer = None
         if out_dir is not None:
             prepare_output_dir(out_dir, "restart" if restarting else ("overwrite" if overwrite else "new"))
@@ -520,10 +608,19 @@ class Simulation:
                 ("error", None, exc, max(self.step_index, 1))  # recording the step failed
         if writer is not None:
             if stop is None:
+                if xdmf:
+                    from .io import write_xdmf
+
+                    try:
+                        writer.event(self.step_index, self.t, "xdmf", str(write_xdmf(out_dir).name))
+                    except Exception as exc:  # the run's results stand; the series can be written later
+                        writer.event(self.step_index, self.t, "xdmf-failed", _one_line(exc))
+                        warnings.warn(f"the XDMF time series was not written: {_one_line(exc)}", RunWarning,
+                                      stacklevel=2)
                 writer.event(self.step_index, self.t, "end", f"{self.counters['steps']} steps this run")
                 writer.close()
                 self._run_record(out_dir, "complete" if self.step_index >= self.plan.n_steps else "stopped", N,
-                                 last_ck, totals=totals)
+                                 last_ck, totals=totals, summary=self.summary(time.perf_counter() - wall0))
             else:
                 self._stop(writer, out_dir, N, stop, snap, keep)
         if isinstance(self.bodies, DEMBodies):
@@ -566,6 +663,39 @@ class Simulation:
         if exc is not None:
             raise err from exc
         raise err
+
+
+def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str:
+    """One line for a step: ``step k/N  t = ...  linear <method> it <n> res <r>  CFL <c>  <cost split>``.
+
+    ``info`` as from :meth:`Simulation.step_info`; fields it lacks are left out."""
+    parts = [f"step {info['step']}/{n_steps}  t = {info['t']:.6g}"]
+    if info.get("solver") is not None:
+        lin = f"linear {info['solver']} it {info['iterations']}"
+        if info.get("residual") is not None:
+            lin += f" res {info['residual']:.2e}"
+        if info.get("factorizations") is not None:
+            lin += f" LU {info['factorizations']}"
+        parts.append(lin)
+    if info.get("cfl") is not None:
+        parts.append(f"CFL {info['cfl']:.3g}")
+    if "contacts" in info:
+        parts.append(f"contacts {info['contacts']}")
+    if cost is not None:
+        parts.append(str(cost))
+    return "  ".join(parts)
+
+
+class _Verbose:
+    """A progress callback printing :func:`verbose_line` for every step (then calling ``inner``)."""
+
+    def __init__(self, sim: Simulation, stream, inner=None):
+        self.sim, self.stream, self.inner = sim, stream, inner
+
+    def __call__(self, k, n, t, cost):
+        print(verbose_line(self.sim.step_info(), n, cost), file=self.stream, flush=True)
+        if self.inner is not None:
+            self.inner(k, n, t, cost)
 
 
 class RunWarning(UserWarning):
@@ -702,6 +832,7 @@ def _ccw(mesh) -> np.ndarray:
     return orient_ccw(mesh.p.T, mesh.t.T)
 
 
-def run(scene, out_dir="scene", restart=None, progress=None, overwrite: bool = False) -> RunResult:
+def run(scene, out_dir="scene", restart=None, progress=None, overwrite: bool = False, verbose=False) -> RunResult:
     """Build a :class:`Simulation` for ``scene`` (a Scene or a TOML path) and run it (see :meth:`Simulation.run`)."""
-    return Simulation(scene).run(out_dir=out_dir, restart=restart, progress=progress, overwrite=overwrite)
+    return Simulation(scene).run(out_dir=out_dir, restart=restart, progress=progress, overwrite=overwrite,
+                                 verbose=verbose)

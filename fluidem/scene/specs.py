@@ -449,7 +449,10 @@ class TimeSpec:
 @dataclass
 class OutputSpec:
     """Output: directory ``dir``; fields and body outlines every ``every`` steps; history every
-    ``history_every`` steps; ``fields = false`` writes no fluid fields.
+    ``history_every`` steps; ``fields = false`` writes no fluid fields; ``full_order = false``
+    writes the fields at the mesh vertices only (no ``fields_full`` series); ``xdmf = true``
+    also collects the field series into one XDMF time series at the end (a mesh built once;
+    needs h5py).
 
     Checkpoints: every ``checkpoint_every`` steps (0: only at the end; not given: about ten a
     run, the newest three kept) and in any case every ``checkpoint_seconds`` of wall-clock
@@ -461,8 +464,11 @@ class OutputSpec:
     checkpoint_every: int | None = None
     fields: bool = True
     checkpoint_seconds: float = 600.0
+    full_order: bool = True
+    xdmf: bool = False
 
-    KEYS = ("dir", "every", "history_every", "checkpoint_every", "fields", "checkpoint_seconds")
+    KEYS = ("dir", "every", "history_every", "checkpoint_every", "fields", "checkpoint_seconds", "full_order",
+            "xdmf")
 
     def validate(self, where="output"):
         if not isinstance(self.dir, str) or not self.dir:
@@ -474,6 +480,8 @@ class OutputSpec:
                                             error=SceneError)
         self.checkpoint_seconds = nonnegative(f"{where}.checkpoint_seconds", self.checkpoint_seconds, error=SceneError)
         self.fields = boolean(f"{where}.fields", self.fields, error=SceneError)
+        self.full_order = boolean(f"{where}.full_order", self.full_order, error=SceneError)
+        self.xdmf = boolean(f"{where}.xdmf", self.xdmf, error=SceneError)
 
 
 _TABLES = {"fluid": FluidSpec, "domain": DomainSpec, "contact": ContactSpec, "mesh": MeshSpec, "time": TimeSpec,
