@@ -52,9 +52,14 @@ REGISTRY: dict[str, Kind] = {
         "lagged": "an LU reused as a GMRES preconditioner while its iterations stay low",
     }, aliases={"lagged-lu": "lagged"}),
     "convection": Kind("convection scheme", {
-        "semi-implicit": "linear in u^{n+1}, extrapolated convecting velocity 2u^n - u^{n-1}",
+        "semi-implicit": "linear in u^{n+1}, extrapolated convecting velocity (2u^n - u^{n-1} with BDF2)",
         "newton": "fully implicit, Newton's method every step",
-        "explicit": "extrapolated convection term (BDF2/EXT2), CFL-bounded time step",
+        "explicit": "extrapolated convection term (BDF/EXT), CFL-bounded time step",
+    }),
+    "time scheme": Kind("time scheme", {
+        "auto": "bdf3 on a fixed mesh, bdf2 when the mesh moves",
+        "bdf2": "BDF2 (second order), BDF1 on the first step",
+        "bdf3": "BDF3 (third order), BDF1 and BDF2 on the first steps; fixed meshes only",
     }),
     "coupling": Kind("fluid-body coupling", {
         "implicit": "fluid and free bodies in one solve per step (added mass inside; stable at density ratio 1)",

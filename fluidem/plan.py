@@ -283,8 +283,8 @@ def make_plan(scene: Scene) -> Plan:
         if fl.model == "stokes":
             E.append(Effect("inertia", False, "model = 'stokes': quasi-steady, no convection and no time derivative"))
         else:
-            E.append(Effect("inertia", True, "model = 'navier-stokes': BDF2 in time, convection "
-                            f"{fl.convection}", "BDF2"))
+            E.append(Effect("inertia", True, "model = 'navier-stokes': time derivative and convection "
+                            f"{fl.convection}", "navier-stokes"))
     # moving bodies
     if not moving:
         E.append(Effect("moving-bodies", False, "all bodies fixed (or none)" if n else "no bodies"))
@@ -389,7 +389,12 @@ def make_plan(scene: Scene) -> Plan:
     elif fl.model == "stokes":
         E.append(Effect("solver", True, f"one Stokes saddle-point solve per step, solver {fl.solver}", "stokes"))
     else:
-        E.append(Effect("solver", True, f"BDF2, {fl.convection} convection, solver {fl.solver}", "bdf2"))
+        scheme = scene.time.bdf_scheme(moving_mesh=mesh == "moving")
+        auto = scene.time.scheme == "auto"
+        why = f" (time.scheme = 'auto': {scheme.upper()} on a {'moving' if mesh == 'moving' else 'fixed'} mesh)" \
+            if auto else ""
+        E.append(Effect("solver", True, f"{scheme.upper()}{why}, {fl.convection} convection, solver {fl.solver}",
+                        scheme))
 
     hit = prescribed_collisions(scene)
     if hit:
@@ -435,6 +440,9 @@ def make_plan(scene: Scene) -> Plan:
                                    "which is not available in this installation")
             else:
                 notes.append("prescribed translating bodies use fluidem.mesh.MovingMesh (ALE)")
+        if scene.time.scheme == "bdf3" and mesh == "moving" and fl.model == "navier-stokes":
+            unsupported.append("time.scheme = 'bdf3' needs a fixed mesh (the moving mesh keeps two time levels); "
+                               "expected 'bdf2' or 'auto' for a scene whose bodies move")
         if fl.model == "stokes" and n_steps == 1 and outline_moving:
             notes.append("quasi-steady Stokes at t = 0 only: forces are those of the initial geometry")
         if mesh == "moving" and scene.mesh.strategy == "fixed":

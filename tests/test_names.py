@@ -94,7 +94,13 @@ def _scene_units(v):
     return Scene.from_dict({"domain": {"box": _BOX}, "units": v}).units
 
 
-SCENE = {"units": _scene_units, "solver": _scene_solver, "convection": _scene_convection, "element": _scene_element,
+def _scene_time_scheme(v):
+    d = _fluid_scene()
+    d["time"] = {"dt": 0.1, "t_end": 0.1, "scheme": v}
+    return Scene.from_dict(d).time.scheme
+
+
+SCENE = {"units": _scene_units, "time scheme": _scene_time_scheme, "solver": _scene_solver, "convection": _scene_convection, "element": _scene_element,
          "fluid model": _scene_model, "strategy": _scene_strategy, "shape": _scene_shape, "motion": _scene_motion,
          "side type": _scene_side_type, "side": _scene_side, "profile": _scene_profile,
          "coupling": _scene_coupling}

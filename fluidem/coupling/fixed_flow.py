@@ -27,7 +27,7 @@ class FixedMeshFlow(FlowLoads):
     mesh : skfem.MeshTri or MeshTri2
     space : FlowSpace
     problem : FlowProblem
-    stepper : BDF2Stepper or None (Stokes)
+    stepper : BDFStepper or None (Stokes)
     rigid : RigidModes
         Loads operator of the body outlines about their (fixed) centres.
     last_cost : CostSplit
@@ -36,7 +36,7 @@ class FixedMeshFlow(FlowLoads):
 
     def __init__(self, scene, sim):
         from ..fluid.forces import RigidModes
-        from ..fluid.navier_stokes import BDF2Stepper, FlowProblem
+        from ..fluid.navier_stokes import BDFStepper, FlowProblem
         from ..fluid.solvers import make_solver
         from ..fluid.space import FlowSpace
         from ..mesh import triangulate as tri
@@ -81,7 +81,9 @@ class FixedMeshFlow(FlowLoads):
             self.x = self.problem.initial_vector(0.0)
         else:
             solver = make_solver(fl.solver, problem=self.problem, dt=scene.time.dt)
-            self.stepper = BDF2Stepper(self.problem, scene.time.dt, convection=fl.convection, solver=solver)
+            order = 3 if scene.time.bdf_scheme(moving_mesh=False) == "bdf3" else 2
+            self.stepper = BDFStepper(self.problem, scene.time.dt, convection=fl.convection, solver=solver,
+                                      order=order)
             self.x = self.stepper.state.x
         self.t = 0.0
         self.last_cost = CostSplit()

@@ -55,7 +55,7 @@ TABLES = {
 #: names a key takes from :mod:`fluidem.names` (key -> registry kind)
 NAME_KINDS = {
     ".units": "units", "fluid.model": "fluid model", "fluid.element": "element", "fluid.convection": "convection",
-    "fluid.solver": "solver", "fluid.coupling": "coupling", "domain.bottom": "side type",
+    "fluid.solver": "solver", "fluid.coupling": "coupling", "time.scheme": "time scheme", "domain.bottom": "side type",
     "domain.right": "side type", "domain.top": "side type", "domain.left": "side type",
     "domain.<side>.type": "side type", "domain.inflow_profile.type": "profile", "bodies.shape": "shape",
     "bodies.motion": "motion", "bodies_table.shape": "shape", "bodies_table.motion": "motion",
@@ -164,6 +164,8 @@ KEY_DOCS = {
     "mesh.grading.h_max": ("number ≥ h", "length", "largest cell size", "8 h"),
     "time.dt": ("number > 0", "time", "time step"),
     "time.t_end": ("number ≥ dt", "time", "end time: a whole number of steps (the run takes t_end/dt steps)"),
+    "time.scheme": ("name", "—", "BDF formula of the fluid: 'auto' is BDF3 on a fixed mesh (third order; DFG 2D-2: "
+                    "St and c_D,max 8x closer to the reference than BDF2 at the same dt), BDF2 when the mesh moves"),
     "output.dir": ("string", "—", "output directory (`fluidem run --out` overrides it)"),
     "output.every": ("integer ≥ 1", "steps", "fields and body outlines every this many steps (and the last)"),
     "output.history_every": ("integer ≥ 1", "steps", "history.csv rows every this many steps (and the last)"),
