@@ -34,8 +34,8 @@ __all__ = ["main"]
 #: the options each case accepts from the command line
 _CASE_OPTIONS = {
     "dfg-2d1": ("element", "level", "solver"),
-    "dfg-2d2": ("element", "level", "dt", "t_end", "convection", "solver"),
-    "dfg-2d3": ("element", "level", "dt", "convection", "solver"),
+    "dfg-2d2": ("element", "level", "dt", "t_end", "convection", "solver", "scheme"),
+    "dfg-2d3": ("element", "level", "dt", "convection", "solver", "scheme"),
     "square-cylinder": ("element", "level", "dt", "t_end", "convection", "solver"),
     "settling-disk": ("element", "dt", "t_end"),
     "dkt": ("element", "dt", "t_end"),
@@ -129,6 +129,8 @@ def _build_parser() -> argparse.ArgumentParser:
     b.add_argument("--convection", **_named("convection"),
                    help="convection in time stepping: linearised with an extrapolated convecting velocity "
                         "(one linear solve per step), Newton, or explicit (one LU per run, CFL-bounded)")
+    b.add_argument("--scheme", **_named("time scheme"),
+                   help="BDF formula of the unsteady cases: bdf2, bdf3 (auto: the case's default, BDF3)")
     b.add_argument("--solver", **_named("solver"),
                    help="linear solver: LU, block-preconditioned GMRES, an LU reused as GMRES "
                         "preconditioner across steps, or auto (by size); default: auto for steady, "
@@ -378,12 +380,16 @@ def _bench_main(args, parser) -> int:
 
     fn = get_case(args.name)
     kwargs = {}
-    for opt in ("element", "level", "dt", "t_end", "convection", "solver"):
+    for opt in ("element", "level", "dt", "t_end", "convection", "solver", "scheme"):
         val = getattr(args, opt)
         if val is None:
             continue
         if opt not in _CASE_OPTIONS[args.name]:
             parser.error(f"--{opt.replace('_', '-')} does not apply to {args.name}")
+        if opt == "scheme":
+            if val != "auto":
+                kwargs["order"] = int(val[-1])
+            continue
         kwargs[opt] = val
     if args.name != "dfg-2d1" and not args.quiet:
         kwargs["progress"] = _Progress()

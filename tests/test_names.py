@@ -100,7 +100,8 @@ def _scene_time_scheme(v):
     return Scene.from_dict(d).time.scheme
 
 
-SCENE = {"units": _scene_units, "time scheme": _scene_time_scheme, "solver": _scene_solver, "convection": _scene_convection, "element": _scene_element,
+SCENE = {"units": _scene_units, "time scheme": _scene_time_scheme,
+         "solver": _scene_solver, "convection": _scene_convection, "element": _scene_element,
          "fluid model": _scene_model, "strategy": _scene_strategy, "shape": _scene_shape, "motion": _scene_motion,
          "side type": _scene_side_type, "side": _scene_side, "profile": _scene_profile,
          "coupling": _scene_coupling}
@@ -143,8 +144,9 @@ def _cli_units(v):
 
 
 CLI = {"solver": _cli("--solver"), "convection": _cli("--convection"), "element": _cli("--element"),
-       "case": _cli_case, "example": _cli_example, "units": _cli_units}
-CLI_DEST = {"solver": "solver", "convection": "convection", "element": "element", "case": "name"}
+       "case": _cli_case, "example": _cli_example, "units": _cli_units, "time scheme": _cli("--scheme")}
+CLI_DEST = {"solver": "solver", "convection": "convection", "element": "element", "case": "name",
+            "time scheme": "scheme"}
 
 
 # ---------------------------------------------------------------------------------------

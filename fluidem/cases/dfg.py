@@ -237,23 +237,27 @@ def _kick(t_kick: float, omega: float):
 
 
 @register_case("dfg-2d2")
-def dfg_2d2(element: str = "p3", level: int = 2, dt: float = 0.0025, t_end: float = 6.0, window: float = 2.0,
+def dfg_2d2(element: str = "p3", level: int = 1, dt: float = 0.005, t_end: float = 6.0, window: float = 2.0,
             convection: str = "semi-implicit", curved: bool = True, progress: Progress | None = None,
-            solver: str = "lagged", grading: str = "fixed-slope", order: int = 2,
+            solver: str = "lagged", grading: str = "fixed-slope", order: int = 3,
             mesh_options: dict | None = None) -> CaseResult:
     """Periodic DFG 2D-2 (U = 1.5 m/s, Re = 100): St, c_D and c_L max/min on the last ``window`` seconds.
 
     The run starts from rest with a short cylinder rotation (t < 0.5) that triggers
     shedding (settled by t ≈ 4), and is measured on ``[t_end − window, t_end]``.  Defaults
-    chosen by measured convergence: P3/P2 level 2 is spatially converged to ~1e-4 in St, and
-    BDF2 at dt = 0.0025 leaves St +1.2e-3 and c_D,max +9.7e-4 (at dt = 0.005 St is +4.5e-3).
+    chosen by measured accuracy against cost (``benchmarks/bench_dfg_unsteady.py``): P3/P2
+    level 1 (16.8k DOFs) with BDF3 at dt = 0.005 (1 200 steps): St +5.4e-4, c_D,max +3.7e-4,
+    c_L,max −1.7e-3.  BDF2 at the same dt and mesh: St +4.3e-3, c_D,max +4.0e-3 (the time
+    error dominates: the former default, P3/P2 level 2 with BDF2 at dt = 0.0025, 41.7k DOFs and
+    2 400 steps, reached St +1.2e-3, c_D,max +9.7e-4 in ~10 minutes).  BDF3 at dt = 0.01: St
+    +7.3e-3, c_D,max +9.4e-4.
 
     Parameters
     ----------
     element, level, curved
         As for :func:`dfg_2d1`.
     dt, t_end, window : float
-        BDF2 time step, end time and length of the measuring window, s.
+        Time step, end time and length of the measuring window, s.
     convection : str
         Treatment of the convection term by :class:`~fluidem.fluid.navier_stokes.BDFStepper`.
     progress : callable, optional
@@ -295,25 +299,26 @@ def dfg_2d2(element: str = "p3", level: int = 2, dt: float = 0.0025, t_end: floa
 
 
 @register_case("dfg-2d3")
-def dfg_2d3(element: str = "p3", level: int = 2, dt: float = 0.0025, convection: str = "semi-implicit",
+def dfg_2d3(element: str = "p3", level: int = 1, dt: float = 0.005, convection: str = "semi-implicit",
             curved: bool = True, progress: Progress | None = None, solver: str = "lagged",
-            grading: str = "fixed-slope", order: int = 2, mesh_options: dict | None = None) -> CaseResult:
+            grading: str = "fixed-slope", order: int = 3, mesh_options: dict | None = None) -> CaseResult:
     """DFG 2D-3 (U(t) = 1.5 sin(π t / 8) m/s, t ∈ [0, 8] s): c_D,max, c_L,max and Δp(8).
 
-    The lift peak is sharp: with P3/P2 level 2 its error falls from +5.7 % (dt = 0.005) to
-    +1.5 % (dt = 0.0025) and +0.38 % (dt = 0.00125), second order in dt, while c_D,max is
-    within 2e-5 at all three (+5.4e-6 at dt = 0.00125).  **c_L,max within 1 % of John (2004):
-    ``dfg_2d3(dt=0.00125)``**: 6 400 steps, 0.22 CPU seconds each (~24 CPU minutes for the
-    run; 24 wall minutes to t = 6 s at a load average of 2.7–6 on 2 cores), so the default
-    stays dt = 0.0025 (half the steps).  ``convection="explicit"`` is no cheaper route: it
-    diverged at dt = 0.00125 (t = 2.05 s) and at dt = 0.000625 (t = 3.14 s).
+    The lift peak is sharp, and its error is set by the time step.  With BDF2 on P3/P2
+    level 2 it falls from +5.7 % (dt = 0.005) to +1.5 % (dt = 0.0025) and +0.38 %
+    (dt = 0.00125, 6 400 steps, ~24 CPU minutes).  The defaults, P3/P2 level 1 (16.8k DOFs)
+    with BDF3 at dt = 0.005 (1 600 steps), give c_L,max +5.0e-3, c_D,max +2.1e-4 and Δp(8)
+    −2.8e-4 against John (2004): **within 1 %** at a fraction of the cost.
+    ``convection="explicit"`` (BDF/EXT, one factorisation a run) is bounded by the convective
+    stability of the cells at the cylinder: BDF2/EXT2 diverged on level 2 at dt = 0.00125
+    (t = 2.05 s) and at dt = 0.000625 (t = 3.14 s).
 
     Parameters
     ----------
     element, level, curved
         As for :func:`dfg_2d1`.
     dt : float
-        BDF2 time step, s.
+        Time step, s.
     convection, progress, solver, grading, order, mesh_options
         As for :func:`dfg_2d2` (the same reason for the ``"fixed-slope"`` meshes).
 
