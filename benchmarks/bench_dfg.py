@@ -6,9 +6,9 @@ Run (one BLAS thread; wall-clock figures, so the median of several rounds)::
         --benchmark-columns=median,min,rounds -p no:cacheprovider
 
 Writes ``benchmarks/results/dfg_2d1.{md,json,png}`` (2D-1: relative errors of c_D, c_L, Δp
-against the wall time of mesh + assembly + solve) and ``dfg_2d2.{md,json}`` (2D-2: St and
-c_D,max errors).  The PNG is the accuracy-versus-cost front that tells which element and level
-to pick.  Select a subset with ``-k``, e.g. ``-k "2d1 and p3"``.
+against the wall time of mesh + assembly + solve).  The PNG is the accuracy-versus-cost front
+that tells which element and level to pick.  Select a subset with ``-k``, e.g. ``-k "p3"``.
+The unsteady cases (2D-2, 2D-3) are in ``bench_dfg_unsteady.py``.
 """
 
 from __future__ import annotations
@@ -22,10 +22,9 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 import pytest  # noqa: E402
 from results_io import RESULTS, machine_description, write_json  # noqa: E402
 
-from fluidem.cases.dfg import dfg_2d1, dfg_2d2  # noqa: E402
+from fluidem.cases.dfg import dfg_2d1  # noqa: E402
 
 MATRIX_2D1 = [(e, lv) for e in ("mini", "th", "p2b", "p3") for lv in (0, 1, 2, 3)]
-MATRIX_2D2 = [("th", 1, 0.01), ("th", 2, 0.005), ("th", 2, 0.0025)]
 
 
 class _Report:
@@ -58,14 +57,6 @@ def report_2d1():
     yield rep
     rep.write()
     _plot_front(rep.rows)
-
-
-@pytest.fixture(scope="session")
-def report_2d2():
-    rep = _Report("dfg_2d2", ["element", "level", "dt", "dofs", "wall_s", "s_per_step", "err_st", "err_cd_max",
-                              "err_cl_max"])
-    yield rep
-    rep.write()
 
 
 def _plot_front(rows):
@@ -101,14 +92,3 @@ def test_dfg_2d1(benchmark, report_2d1, element, level):
            "solve_s": res.timings["solve"], **{f"err_{k}": v for k, v in errs.items()}}
     benchmark.extra_info.update(row)
     report_2d1.add(row)
-
-
-@pytest.mark.parametrize("element, level, dt", MATRIX_2D2, ids=[f"2d2-{e}-L{lv}-dt{dt}" for e, lv, dt in MATRIX_2D2])
-def test_dfg_2d2(benchmark, report_2d2, element, level, dt):
-    res = benchmark.pedantic(dfg_2d2, kwargs={"element": element, "level": level, "dt": dt}, rounds=1,
-                             iterations=1)
-    errs = res.relative_errors()
-    row = {"element": element, "level": level, "dt": dt, "dofs": int(res.dofs), "wall_s": res.wall_s,
-           "s_per_step": res.wall_s / res.extra["steps"], **{f"err_{k}": v for k, v in errs.items()}}
-    benchmark.extra_info.update(row)
-    report_2d2.add(row)

@@ -1,0 +1,195 @@
+"""What accuracy costs over time: the unsteady DFG fronts (2D-2, 2D-3), with a peer beside them.
+
+Run (one BLAS thread; about 15 minutes for fluidem's points, plus the peer's)::
+
+    OPENBLAS_NUM_THREADS=1 python -m pytest benchmarks/bench_dfg_unsteady.py --benchmark-only \
+        -p no:cacheprovider
+
+Each configuration is one run of :func:`fluidem.cases.dfg.dfg_2d2` / :func:`~fluidem.cases.dfg.dfg_2d3`
+(element × mesh × dt × time scheme × convection), timed as a whole (mesh, assembly, solves,
+loads: the seconds a user waits for the answer).  Where the peer (NGSolve, installed from PyPI
+into its own environment by ``peer_ngsolve.py``) is available, its configurations run in the
+same session, one process and one thread as well; otherwise they are skipped with the reason.
+
+Writes ``benchmarks/results/dfg_2d2.{md,json,png}`` and ``dfg_2d3.{md,json,png}``: the error
+of each quantity against wall time, the cheapest configuration within 1 % and within 0.3 % (of
+the case's target quantities: St and c_D,max for 2D-2; c_D,max and c_L,max for 2D-3) marked.
+Select with ``-k``, e.g. ``-k "2d2 and not peer"``.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import time  # noqa: E402
+
+import pytest  # noqa: E402
+from results_io import RESULTS, machine_description, write_json  # noqa: E402
+
+from fluidem.cases.dfg import dfg_2d2, dfg_2d3  # noqa: E402
+
+#: the mesh with local refinement at the cylinder and a finer wake: dfg_mesh(0, h0=0.02, h_max=0.08)
+LOCAL = {"h0": 0.02, "h_max": 0.08}
+
+#: (label, element, level, mesh_options, dt, order, convection); level 0 with mesh_options is the local mesh
+MATRIX_2D2 = [
+    ("P3 L1 BDF2", "p3", 1, None, 0.005, 2, "semi-implicit"),
+    ("P3 L1 BDF2", "p3", 1, None, 0.0025, 2, "semi-implicit"),
+    ("P3 L1 BDF3", "p3", 1, None, 0.01, 3, "semi-implicit"),
+    ("P3 L1 BDF3", "p3", 1, None, 0.005, 3, "semi-implicit"),
+    ("P3 local BDF3", "p3", 0, LOCAL, 0.01, 3, "semi-implicit"),
+    ("P3 local BDF3", "p3", 0, LOCAL, 0.005, 3, "semi-implicit"),
+    ("P3 L0 BDF3", "p3", 0, None, 0.005, 3, "semi-implicit"),
+    ("P3 L0 BDF3/EXT3", "p3", 0, None, 1 / 1200, 3, "explicit"),
+]
+MATRIX_2D3 = [
+    ("P3 L1 BDF2", "p3", 1, None, 0.0025, 2, "semi-implicit"),
+    ("P3 L1 BDF3", "p3", 1, None, 0.005, 3, "semi-implicit"),
+    ("P3 local BDF3", "p3", 0, LOCAL, 0.01, 3, "semi-implicit"),
+    ("P3 local BDF3", "p3", 0, LOCAL, 0.005, 3, "semi-implicit"),
+]
+TARGETS = {"dfg_2d2": ("st", "cd_max"), "dfg_2d3": ("cd_max", "cl_max")}
+QUANTITIES = {"dfg_2d2": ("st", "cd_max", "cl_max"), "dfg_2d3": ("cd_max", "cl_max", "dp_end")}
+
+
+def _ids(matrix, case):
+    return [f"{case}-{lab.replace(' ', '-')}-dt{dt:.3g}" for lab, *_, dt, _o, _c in matrix]
+
+
+class _Front:
+    """Rows of one case; written as Markdown, JSON and a plot when the session ends."""
+
+    def __init__(self, name):
+        self.name, self.rows = name, []
+
+    def add(self, row):
+        self.rows.append(row)
+
+    def cheapest(self, tol):
+        ok = [r for r in self.rows if max(abs(r[f"err_{q}"]) for q in TARGETS[self.name]) <= tol]
+        return min(ok, key=lambda r: r["wall_s"]) if ok else None
+
+    def write(self):
+        if not self.rows:
+            return
+        machine = machine_description()
+        marks = {tol: self.cheapest(tol) for tol in (1e-2, 3e-3)}
+        write_json(self.name, machine, self.rows)
+        cols = ["code", "label", "dt", "dofs", "steps", "wall_s", "ms_per_step"] + [f"err_{q}" for q in
+                                                                                   QUANTITIES[self.name]]
+        lines = [f"| {' | '.join(cols)} |", "|" + "---|" * len(cols)]
+        for r in sorted(self.rows, key=lambda r: r["wall_s"]):
+            cells = []
+            for c in cols:
+                v = r.get(c)
+                cells.append(f"{v:+.2e}" if c.startswith("err") and v is not None else
+                             f"{v:.4g}" if isinstance(v, float) else "—" if v is None else str(v))
+            lines.append("| " + " | ".join(cells) + " |")
+        names = " and ".join(TARGETS[self.name])
+        notes = [f"Cheapest within {tol:.1%} on {names}: " +
+                 (f"{m['code']} {m['label']} dt {m['dt']:.4g} ({m['wall_s']:.1f} s)" if m else "none")
+                 for tol, m in marks.items()]
+        (RESULTS / f"{self.name}.md").write_text(
+            f"Machine: {machine}; one BLAS thread; wall seconds of the whole run (mesh, assembly, "
+            "solves, loads), one round each.\n\n" + "\n".join(lines) + "\n\n" + "\n".join(f"- {n}" for n in notes)
+            + "\n")
+        _plot(self.name, self.rows, marks)
+
+
+def _plot(name, rows, marks):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    qs = QUANTITIES[name]
+    fig, axes = plt.subplots(1, len(qs), figsize=(4.6 * len(qs), 4.2), sharex=True)
+    for ax, q in zip(axes, qs):
+        for (code, label) in sorted({(r["code"], r["label"]) for r in rows}):
+            rs = sorted((r for r in rows if (r["code"], r["label"]) == (code, label)), key=lambda r: r["wall_s"])
+            ax.loglog([r["wall_s"] for r in rs], [max(abs(r[f"err_{q}"]), 1e-7) for r in rs],
+                      "s--" if code != "fluidem" else "o-", label=f"{code}: {label}")
+        for tol, m in marks.items():
+            ax.axhline(tol, color="0.6", lw=0.8, ls=":")
+            if m:
+                ax.plot([m["wall_s"]], [max(abs(m[f"err_{q}"]), 1e-7)], "k*", ms=11)
+        ax.set_title(f"{name.replace('_', ' ').upper()}: |relative error| of {q}")
+        ax.set_xlabel("wall time of the run, s")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=7, title="★: cheapest within 1 % / 0.3 %", title_fontsize=7)
+    fig.tight_layout()
+    fig.savefig(RESULTS / f"{name}.png", dpi=110)
+    plt.close(fig)
+
+
+@pytest.fixture(scope="session")
+def front_2d2():
+    f = _Front("dfg_2d2")
+    yield f
+    f.write()
+
+
+@pytest.fixture(scope="session")
+def front_2d3():
+    f = _Front("dfg_2d3")
+    yield f
+    f.write()
+
+
+def _run(benchmark, front, fn, label, element, level, mesh_options, dt, order, convection):
+    def once():
+        t0 = time.perf_counter()
+        res = fn(element=element, level=level, dt=dt, order=order, convection=convection,
+                 mesh_options=mesh_options)
+        return res, time.perf_counter() - t0
+
+    res, wall = benchmark.pedantic(once, rounds=1, iterations=1)
+    errs = {k: (res.quantities[k] - v) / abs(v) for k, v in res.reference.items() if k in res.quantities}
+    steps = res.extra["steps"]
+    row = {"code": "fluidem", "label": label, "element": element, "level": level, "mesh_options": mesh_options,
+           "dt": dt, "order": order, "convection": convection, "dofs": int(res.dofs), "steps": steps,
+           "wall_s": wall, "ms_per_step": 1e3 * wall / steps, "load_end": os.getloadavg()[0],
+           **{f"err_{k}": v for k, v in errs.items()},
+           **{k: res.extra.get(k) for k in ("linear_solves", "factorizations", "krylov_iterations", "max_cfl")}}
+    benchmark.extra_info.update(row)
+    front.add(row)
+
+
+@pytest.mark.parametrize("label, element, level, mesh_options, dt, order, convection", MATRIX_2D2,
+                         ids=_ids(MATRIX_2D2, "2d2"))
+def test_dfg_2d2(benchmark, front_2d2, label, element, level, mesh_options, dt, order, convection):
+    _run(benchmark, front_2d2, dfg_2d2, label, element, level, mesh_options, dt, order, convection)
+
+
+@pytest.mark.parametrize("label, element, level, mesh_options, dt, order, convection", MATRIX_2D3,
+                         ids=_ids(MATRIX_2D3, "2d3"))
+def test_dfg_2d3(benchmark, front_2d3, label, element, level, mesh_options, dt, order, convection):
+    _run(benchmark, front_2d3, dfg_2d3, label, element, level, mesh_options, dt, order, convection)
+
+
+# -- the peer, side by side ------------------------------------------------------------------
+def _peer_configs(case):
+    try:
+        import peer_ngsolve
+    except ImportError as err:  # the module is part of benchmarks/; a failure here is a real error
+        raise RuntimeError(f"benchmarks/peer_ngsolve.py failed to import: {err}") from err
+    return [c for c in peer_ngsolve.PEER_CONFIGS if c["case"] == case]
+
+
+def _peer(benchmark, front, cfg):
+    import peer_ngsolve
+
+    python = peer_ngsolve.ensure_ngsolve()
+    if isinstance(python, tuple) or python is None:
+        pytest.skip(f"NGSolve not available: {python[1] if isinstance(python, tuple) else 'see peer_ngsolve.py'}")
+    out = benchmark.pedantic(lambda: peer_ngsolve.run_ngsolve(**cfg), rounds=1, iterations=1)
+    row = {"code": "NGSolve", **out}
+    row.setdefault("label", f"P{out.get('order', out.get('element', ''))}")
+    row["wall_s"] = out["wall_s"]
+    row["ms_per_step"] = 1e3 * out["wall_s"] / out["steps"] if out.get("steps") else None
+    benchmark.extra_info.update({k: v for k, v in row.items() if isinstance(v, (int, float, str))})
+    front.add(row)
