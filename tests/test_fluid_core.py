@@ -244,11 +244,13 @@ def test_probe_outside_domain_is_an_error():
 
 
 def test_dfg_2d2_coarse_sheds_at_the_right_frequency():
-    """Coarse 2D-2 (Taylor–Hood level 1, dt = 0.01, window [2, 4]): shedding starts after the
-    kick and St is within 1e-2 (measured 4.1e-3 on this window); the fine check is a slow test."""
+    """Coarse 2D-2 (Taylor–Hood level 1, BDF2 dt = 0.01, window [2, 4]): shedding starts after the
+    kick and St is within 1e-2 (measured 4.5e-3 on this window, where BDF2's time error offsets
+    part of the mesh's: BDF3 at the same dt gives +1.09 %, and St −1.8 % on [4, 6] at dt 0.005);
+    the fine check is a slow test."""
     from fluidem.cases.dfg import dfg_2d2
 
-    res = dfg_2d2(element="th", level=1, dt=0.01, t_end=4.0, window=2.0)
+    res = dfg_2d2(element="th", level=1, dt=0.01, t_end=4.0, window=2.0, order=2)
     assert res.extra["periods_measured"] >= 5
     assert res.relative_errors()["st"] < 1e-2
 
