@@ -32,6 +32,7 @@ from ..errors import InputError
 from ..fluid.forces import body_loads, periodic_stats
 from ..fluid.navier_stokes import BDFStepper, FlowProblem, solve_steady, solve_stokes
 from ..fluid.solvers import make_solver
+from ..fluid.solvers.lagged import FIXED_MESH_STEPPING
 from ..fluid.space import FlowSpace, RigidMotion, VelocityBC
 from ..geometry import regular_polygon
 from ..mesh.background import GradedSize
@@ -213,7 +214,8 @@ def _run_unsteady(pr: FlowProblem, dt: float, t_end: float, convection: str, rec
     impulsive start, zero inside and the inflow on the boundary, blows it up); the others from rest.
     """
     start = solve_stokes(pr) if convection == "explicit" else None
-    stepper = BDFStepper(pr, dt, convection=convection, solver=make_solver(solver, problem=pr, dt=dt),
+    options = FIXED_MESH_STEPPING if solver == "lagged" else {}
+    stepper = BDFStepper(pr, dt, convection=convection, solver=make_solver(solver, problem=pr, dt=dt, **options),
                          start=start, order=order)
     n = int(round(t_end / dt))
     ts, cds, cls_, dps = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
