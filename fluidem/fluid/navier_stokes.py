@@ -23,10 +23,13 @@ EXT2: 2u^n − u^{n−1}, EXT3: 3u^n − 3u^{n−1} + u^{n−2}.  Convection eit
 * ``"explicit"``: the whole convection term extrapolated, (b·∇)b with b = EXT(u)
   (BDF/EXT, "SBDF": Karniadakis, Israeli & Orszag 1991; Ascher, Ruuth & Wetton 1995): the
   matrix never changes, so one factorisation serves the whole run, but the time step is
-  bounded by the convection's stability (``last_cfl``).  SBDF2 amplifies every undamped
-  convective mode (|ζ| = 1 + O((λΔt)⁴) on the imaginary axis: it leans on the viscosity),
-  while SBDF3 damps imaginary λΔt up to |λΔt| ≈ 0.6 (Ascher, Ruuth & Wetton 1995, Fig. 3):
-  with P3/P2 on DFG 2D-2 SBDF2 blew up at Δt = 1/1600 on a mesh where SBDF3 ran at 1/1200.
+  bounded by the convection's stability (``last_cfl``).  On the imaginary axis SBDF2 amplifies
+  every undamped mode (|ζ| = 1 + O((λΔt)⁴): it leans on the viscosity), while SBDF3 damps
+  |λΔt| up to ≈ 0.6 (roots of the characteristic polynomials; Ascher, Ruuth & Wetton 1995).
+  Measured with P3/P2 on DFG 2D-2 the bound is the same for both, set by the fast cells next
+  to the cylinder: both ran on ``dfg_mesh(0)`` at Δt = 1/1200 (largest CFL 0.095, longest
+  edges), both diverged on ``dfg_mesh(1)`` (SBDF2 at Δt = 1/1600, SBDF3 at 1/1200); SBDF3
+  ran on ``dfg_mesh(0, h0=0.02, h_max=0.08)`` at 1/1800 (CFL 0.074).
 
 Steady Navier–Stokes: Newton's method from a Stokes start (Girault & Raviart 1986, Ch. IV),
 with a stop on the residual norm (the lift coefficient of DFG 2D-1 needs ≲ 1e-11).
