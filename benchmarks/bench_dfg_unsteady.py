@@ -27,7 +27,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import time  # noqa: E402
 
-import peer_ngsolve  # noqa: E402
 import pytest  # noqa: E402
 from results_io import RESULTS, machine_description, write_json  # noqa: E402
 
@@ -183,11 +182,21 @@ def test_dfg_2d3(benchmark, front_2d3, label, element, level, mesh_options, dt, 
 
 
 # -- the peer, side by side ------------------------------------------------------------------
+try:
+    import peer_ngsolve
+except ImportError as err:  # benchmarks/peer_ngsolve.py missing or broken: the peer rows are skipped
+    peer_ngsolve, _PEER_MISSING = None, f"benchmarks/peer_ngsolve.py did not import: {err}"
+
+
 def _peer_configs(case):
+    if peer_ngsolve is None:
+        return [pytest.param({}, marks=pytest.mark.skip(reason=_PEER_MISSING))]
     return [c for c in peer_ngsolve.PEER_CONFIGS if c["case"] == case]
 
 
 def _peer_id(c):
+    if not c:
+        return "peer"
     return f"peer-{c['case'][4:]}-{c['element']}-h{c['maxh']:g}-hc{c.get('maxh_cyl') or c['maxh']:g}-dt{c['dt']:.3g}"
 
 
