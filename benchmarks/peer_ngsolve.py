@@ -20,7 +20,7 @@ Run by hand (one JSON line per configuration)::
     python benchmarks/peer_ngsolve.py --case dfg-2d2 --quick
     python benchmarks/peer_ngsolve.py --case dfg-2d2 --case dfg-2d1 --write   # the front, to results/
 
-``--write`` stores the rows in ``benchmarks/results/peer_ngsolve.json`` with the date, the machine,
+``--write`` stores the rows in ``benchmarks/results/peer_ngsolve.{json,md}`` with the date, the machine,
 the NGSolve version and the load average at the start and end of every run.
 """
 
@@ -191,7 +191,8 @@ def run_ngsolve(case: str, element: str = "p3", maxh: float = 0.04, maxh_cyl: fl
     -------
     dict
         ``case``, ``element``, ``maxh``, ``maxh_cyl``, ``dofs``, ``dt``, ``steps``, ``wall_s`` (inside the
-        script: mesh + assembly + solve, perf_counter), ``subprocess_s`` (the whole subprocess, with
+        script: mesh + assembly + solve, perf_counter), ``cpu_s`` (the same by process_time: what a loaded
+        machine does not inflate), ``subprocess_s`` (the whole subprocess, with
         the NGSolve import), ``timings`` (the parts), ``ms_per_step``, ``quantities``, ``errors``
         (relative, against :data:`fluidem.cases.dfg.REFERENCE`), ``load_start``/``load_end`` (1-minute
         load average) and ``ngsolve_version``; ``diverged_at`` (s) when the run blew up (no quantities then).
@@ -225,7 +226,8 @@ def run_ngsolve(case: str, element: str = "p3", maxh: float = 0.04, maxh_cyl: fl
         out = json.loads(out_file.read_text())
     row = {"case": case, "element": element, "maxh": maxh, "maxh_cyl": maxh_cyl or maxh, "dofs": out["dofs"],
            "dt": dt if case != "dfg-2d1" else None, "steps": out.get("steps"),
-           "wall_s": out["wall_seconds"], "subprocess_s": subprocess_s, "timings": out["timings"],
+           "wall_s": out["wall_seconds"], "cpu_s": out.get("cpu_seconds"), "subprocess_s": subprocess_s,
+           "timings": out["timings"],
            "ms_per_step": out.get("ms_per_step"), "load_start": load_start, "load_end": load_end,
            "ngsolve_version": out["ngsolve_version"], "diverged_at": out.get("diverged_at")}
     if case == "dfg-2d1":
@@ -249,6 +251,39 @@ def write_results(rows: list, path: pathlib.Path = RESULTS / "peer_ngsolve.json"
            "note": note or old.get("note", ""), "rows": kept + rows}
     path.parent.mkdir(exist_ok=True)
     path.write_text(json.dumps(doc, indent=1) + "\n")
+    path.with_suffix(".md").write_text(markdown_table(doc))
+
+
+def markdown_table(doc: dict) -> str:
+    """The rows of a results document as one Markdown table per case."""
+    parts = [f"NGSolve {doc['ngsolve_version']} ({doc['date']}; {doc['machine']}). wall_s: mesh + assembly + "
+             "solve inside the run (perf_counter); cpu_s: the same as process time; subprocess_s: the whole "
+             "subprocess with the NGSolve import; "
+             "load: 1-minute load average at the start and end of the run.", ""]
+    if doc.get("note"):
+        parts += [doc["note"], ""]
+    for case in CASES:
+        rows = [r for r in doc["rows"] if r["case"] == case]
+        if not rows:
+            continue
+        names = list(REFERENCE[case])
+        names = [k for k in names if any(k in r.get("errors", {}) for r in rows)]
+        head = ["element", "maxh", "maxh_cyl", "dofs", "dt", "steps", "wall_s", "cpu_s", "subprocess_s", "ms/step",
+                "load"]
+        parts += [f"### {case}", "", "| " + " | ".join(head + [f"err_{k}" for k in names]) + " |",
+                  "|" + "---|" * (len(head) + len(names))]
+        for r in sorted(rows, key=lambda r: r["wall_s"]):
+            dt = f"1/{1 / r['dt']:.0f}" if r["dt"] else "—"
+            ms = f"{r['ms_per_step']:.2f}" if r.get("ms_per_step") else "—"
+            errs = ([f"{r['errors'][k]:+.2e}" for k in names] if "errors" in r
+                    else [f"diverged at t = {r['diverged_at']:.2f}"] + [""] * (len(names) - 1))
+            cells = [r["element"], f"{r['maxh']:g}", f"{r['maxh_cyl']:g}", str(r["dofs"]), dt, str(r["steps"] or "—"),
+                     f"{r['wall_s']:.2f}", f"{r['cpu_s']:.2f}" if r.get("cpu_s") else "—",
+                     f"{r['subprocess_s']:.2f}", ms,
+                     f"{r['load_start']:.1f}–{r['load_end']:.1f}"] + errs
+            parts.append("| " + " | ".join(cells) + " |")
+        parts.append("")
+    return "\n".join(parts)
 
 
 def main(argv=None) -> int:
