@@ -66,9 +66,11 @@ PEER_CONFIGS = [
     {"case": "dfg-2d2", "element": "p3", "maxh": 0.07, "maxh_cyl": 0.01, "dt": 1 / 1600},
     {"case": "dfg-2d2", "element": "p3", "maxh": 0.05, "maxh_cyl": 0.01, "dt": 1 / 1600},
     {"case": "dfg-2d2", "element": "p3", "maxh": 0.035, "maxh_cyl": 0.02, "dt": 1 / 1200},
+    {"case": "dfg-2d2", "element": "p3", "maxh": 0.045, "maxh_cyl": 0.015, "dt": 1 / 1400},
     {"case": "dfg-2d2", "element": "p3", "maxh": 0.035, "maxh_cyl": 0.01, "dt": 1 / 1600},
     {"case": "dfg-2d3", "element": "p3", "maxh": 0.07, "maxh_cyl": 0.02, "dt": 1 / 1200},
     {"case": "dfg-2d3", "element": "p3", "maxh": 0.05, "maxh_cyl": 0.01, "dt": 1 / 1600},
+    {"case": "dfg-2d3", "element": "p3", "maxh": 0.045, "maxh_cyl": 0.015, "dt": 1 / 1400},
     {"case": "dfg-2d3", "element": "p3", "maxh": 0.035, "maxh_cyl": 0.01, "dt": 1 / 1600},
 ]
 # One or two cheap points per case (seconds each) for a smoke run.
