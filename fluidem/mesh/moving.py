@@ -74,8 +74,8 @@ Contact policy ("closed union outline"): bodies closer than ``min_gap`` (default
 meshing.  The fluid region is the box minus the morphological closing (mitre buffer by
 ``min_gap/2`` out and back in, then simplified at ``min_gap``) of the union of the cluster,
 so gaps narrower than ``min_gap`` are filled and no element thinner than ``min_gap`` is
-produced.  Outline nodes of the cluster bodies that lie on the closed outline are kept
-(two closer than ``0.1 h`` are merged); vertices of the closed outline farther than
+produced.  Outline nodes of the cluster bodies that lie on the closed outline and outside
+the other bodies of the cluster are kept (two closer than ``0.1 h`` are merged); vertices of the closed outline farther than
 ``0.3 h`` from every kept outline node (deep contact points, bridge corners) become
 *contact nodes*, owned by and moving with the nearest body.  Where no contact node is
 added, the outline cuts straight across the contact notch, which lies in the fluid: no

@@ -129,6 +129,7 @@ def test_case4_collapsing_step():
     print(f"  nodes in the initial block region: {int(((mm.points[:, 0] < 6.5) & (mm.points[:, 1] > 6)).sum())}")
 
 
+@pytest.mark.slow(seconds=18)
 @pytest.mark.parametrize("kind", ["rotation", "breathing", "shear"])
 def test_case6_collective_motion_drag(kind):
     """120 convex polygons (area fraction 0.3, gaps 0.06-0.18) in a 10 x 10 box moved as a whole,
@@ -149,6 +150,7 @@ def test_case6_collective_motion_drag(kind):
     assert max(n_narrow) <= 40  # measured 0, 13, 4: the gaps stay wider than h/2 almost everywhere
 
 
+@pytest.mark.slow(seconds=30)
 def test_case6_turn_and_breathe_into_contact():
     """The same packing built with gaps 0.01-0.03, turned by 0.25 sin(2πk/300) rad and scaled by
     1 + 0.05 sin(2πk/300): at the strongest contraction bodies come into contact (and overlap
