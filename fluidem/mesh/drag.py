@@ -266,8 +266,11 @@ def dragged_positions(points, triangles, kind, outline_row, outline_local, outli
         # junction nodes keep their barycentric place between their three outline nodes
         dragged[junction_nodes] = junction_at
     # 3. a dragged free node must not invert an element that rigid motion alone keeps valid
+    bad = signed_areas(dragged, triangles) <= 0
+    if not bad.any():  # the common case: no rigid areas needed
+        return dragged
     a_rigid = signed_areas(rigid, triangles)
-    bad = (signed_areas(dragged, triangles) <= 0) & (a_rigid > 0)
+    bad &= a_rigid > 0
     for _ in range(max_halvings):
         if not bad.any():
             break

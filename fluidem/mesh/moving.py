@@ -75,9 +75,9 @@ meshing.  The fluid region is the box minus the morphological closing (mitre buf
 ``min_gap/2`` out and back in, then simplified at ``min_gap``) of the union of the cluster,
 so gaps narrower than ``min_gap`` are filled and no element thinner than ``min_gap`` is
 produced.  Outline nodes of the cluster bodies that lie on the closed outline and outside
-the other bodies of the cluster are kept (two closer than ``0.1 h`` are merged); vertices of the closed outline farther than
-``0.3 h`` from every kept outline node (deep contact points, bridge corners) become
-*contact nodes*, owned by and moving with the nearest body.  Where no contact node is
+the other bodies of the cluster are kept (two closer than ``0.1 h`` are merged); vertices
+of the closed outline farther than ``0.3 h`` from every kept outline node (deep contact
+points, bridge corners) become *contact nodes*, owned by and moving with the nearest body.  Where no contact node is
 added, the outline cuts straight across the contact notch, which lies in the fluid: no
 element overlaps a body, at the price of a fluid sliver below ``0.3 h`` at each contact.
 Fluid enclosed by a ring of touching bodies (a hole of the closed union) is a *pore*: it is
