@@ -851,10 +851,19 @@ class MovingMesh:
             return
         from skfem import MeshTri
 
-        from .transfer import locate
+        from .transfer import locate_near
 
         old = MeshTri(np.asarray(ev.old_points, float).T.copy(), np.asarray(ev.old_triangles).T.copy())
-        cells, bary = locate(old, self.points.T)
+        # a node that survived the re-triangulation moved little (relaxation): it is searched
+        # first in the old elements around its old position
+        hint = np.full(len(self.points), -1, dtype=np.int64)
+        prev_uid = self._prev_uid
+        if prev_uid is not None and len(prev_uid) == len(ev.old_points):
+            order = np.argsort(prev_uid)
+            pos = np.minimum(np.searchsorted(prev_uid[order], self.uid), len(order) - 1)
+            match = prev_uid[order][pos] == self.uid
+            hint[match] = order[pos[match]]
+        cells, bary = locate_near(old, self.points.T, hint)
         tri = old.t[:, cells].T  # (n, 3), in the vertex order of the located cells
 
         def pull(x):
