@@ -8,7 +8,9 @@ The hard cases that the moving mesh (:class:`fluidem.mesh.MovingMesh`) must keep
 2. :func:`sliding_pair`: two bars sliding past each other with a gap of ``h/10``;
 3. :func:`crossing_body`: a hexagon crossing from the fine into the coarse region of a
    graded mesh and back;
-4. :func:`collapsing_step`: a block of 200 squares shearing and settling (paper Fig. 6).
+4. :func:`collapsing_step`: a block of 200 squares shearing and settling (paper Fig. 6);
+6. :func:`collective_motion`: a packing in the middle of a box moved as a whole (rigid
+   rotation, uniform expansion and contraction, simple shear).
 
 Case 5 is case 1 with the ``"regenerate"`` strategy.
 
@@ -34,7 +36,7 @@ from ..errors import InputError
 from ..geometry import rectangle, regular_polygon
 
 __all__ = ["random_convex", "world_polygons", "packing", "RandomMotion", "sliding_pair", "crossing_body",
-           "collapsing_step", "pore_ring"]
+           "collapsing_step", "pore_ring", "COLLECTIVE_MOTIONS", "CollectiveMotion", "collective_motion"]
 
 
 def random_convex(size: float, n_vertices: int, rng) -> np.ndarray:
@@ -287,3 +289,143 @@ def pore_ring(n: int = 6, radius: float = 0.5, center=(1.25, 1.25)):
     a = 2 * np.pi * np.arange(n) / n
     poses = np.column_stack([center[0] + radius * np.cos(a), center[1] + radius * np.sin(a), a + np.pi / 2])
     return [rectangle(0.52, 0.2) for _ in range(n)], poses
+
+
+# ---------------------------------------------------------------- case 6: collective motion
+#: the motions of :func:`collective_motion` (the first three keep every gap open)
+COLLECTIVE_MOTIONS = ("rotation", "breathing", "shear", "turn-and-breathe")
+
+
+class CollectiveMotion:
+    """Case 6: a packing moved as a whole about the centre ``c`` of its box, one period of a sine.
+
+    With ``s(k) = sin(2π k / n_steps)`` the body centres ``x0`` and angles ``θ0`` become, after
+    step ``k``,
+
+    * ``"rotation"``: a rigid rotation by ``α(k) = amplitude · s(k)`` rad about ``c``:
+      ``x = c + R(α)(x0 − c)``, ``θ = θ0 + α``;
+    * ``"breathing"``: uniform expansion and contraction of the centre positions (shapes are
+      rigid), ``x = c + (1 + amplitude · s(k))(x0 − c)``, ``θ = θ0``; the gaps between bodies
+      shrink at the strongest contraction, so the packing is built with gaps large enough
+      that none closes (:attr:`min_gap_seen`);
+    * ``"shear"``: simple shear of the centre positions, ``x = x0 + γ(k)(y0 − c_y)``,
+      ``γ(k) = amplitude · s(k)``, each body turning with the mean rotation of the flow,
+      ``θ = θ0 − γ(k)/2``;
+    * ``"turn-and-breathe"``: both the rotation and the scaling, ``amplitude = (α0, s0)``
+      (rad, relative): ``x = c + (1 + s0 s(k)) R(α0 s(k))(x0 − c)``, ``θ = θ0 + α0 s(k)``; with
+      the narrow gaps of a dense packing the contraction brings bodies into contact.
+
+    Attributes
+    ----------
+    bodies, poses0, box, center, kind, amplitude, n_steps
+        The set-up (``poses0 (n, 3)``: x, y, angle at ``k = 0``).
+    rim_step : float
+        Largest displacement of a body vertex in one step over the period, length units.
+    min_gap_seen : float
+        Smallest gap between two bodies or a body and the box over the period (sampled at
+        every step), length units.
+    """
+
+    def __init__(self, bodies, poses0, box, kind, amplitude, n_steps):
+        if kind not in COLLECTIVE_MOTIONS:
+            raise InputError(f"motion kind = {kind!r}: expected one of {COLLECTIVE_MOTIONS}")
+        self.bodies, self.poses0, self.box = bodies, np.asarray(poses0, dtype=float), box
+        self.center = np.array([0.5 * (box[0] + box[1]), 0.5 * (box[2] + box[3])])
+        amplitude = tuple(float(a) for a in amplitude) if kind == "turn-and-breathe" else float(amplitude)
+        self.kind, self.amplitude, self.n_steps = kind, amplitude, int(n_steps)
+        self._nv = np.array([len(b) for b in bodies])
+        self._vc = np.vstack(bodies)
+        self._vb = np.repeat(np.arange(len(bodies)), self._nv)
+        seq = [self.poses_at(k) for k in range(self.n_steps + 1)]
+        verts = np.array([self._world(p) for p in seq])
+        self.rim_step = float(np.linalg.norm(np.diff(verts, axis=0), axis=2).max())
+        self.min_gap_seen = min(self._min_gap(p) for p in seq)
+
+    def poses_at(self, k) -> np.ndarray:
+        """Poses ``(n, 3)`` after step ``k`` (``k = 0``: the initial packing)."""
+        s = np.sin(2 * np.pi * k / self.n_steps)
+        r = self.poses0[:, :2] - self.center
+        p = self.poses0.copy()
+        if self.kind in ("rotation", "turn-and-breathe"):
+            a0, s0 = self.amplitude if self.kind == "turn-and-breathe" else (self.amplitude, 0.0)
+            a = a0 * s
+            c, sn = np.cos(a), np.sin(a)
+            p[:, :2] = self.center + (1.0 + s0 * s) * (r @ np.array([[c, -sn], [sn, c]]).T)
+            p[:, 2] += a
+        elif self.kind == "breathing":
+            p[:, :2] = self.center + (1.0 + self.amplitude * s) * r
+        else:
+            g = self.amplitude * s
+            p[:, 0] += g * r[:, 1]
+            p[:, 2] -= 0.5 * g
+        return p
+
+    def sequence(self) -> list:
+        """Poses after steps ``1 … n_steps``, a list of ``(n, 3)`` arrays."""
+        return [self.poses_at(k) for k in range(1, self.n_steps + 1)]
+
+    def _world(self, poses):
+        c, s = np.cos(poses[self._vb, 2]), np.sin(poses[self._vb, 2])
+        x = c * self._vc[:, 0] - s * self._vc[:, 1] + poses[self._vb, 0]
+        y = s * self._vc[:, 0] + c * self._vc[:, 1] + poses[self._vb, 1]
+        return np.column_stack([x, y])
+
+    def _min_gap(self, poses) -> float:
+        w = self._world(poses)
+        polys = shapely.polygons(shapely.linearrings(w, indices=self._vb))
+        a, b = shapely.STRtree(polys).query(polys, predicate="dwithin", distance=1.0)
+        sel = a < b
+        gap = shapely.distance(polys[a[sel]], polys[b[sel]]).min() if sel.any() else np.inf
+        xmin, xmax, ymin, ymax = self.box
+        wall = min(w[:, 0].min() - xmin, xmax - w[:, 0].max(), w[:, 1].min() - ymin, ymax - w[:, 1].max())
+        return float(min(gap, wall))
+
+
+def collective_motion(kind: str, h: float = 0.08, n: int = 120, phi: float = 0.3, sizes=(0.3, 0.6),
+                      min_gap: float = 0.06, box_size: float = 10.0, n_steps: int = 300, amplitude=None,
+                      seed: int = 0) -> CollectiveMotion:
+    """Case 6: a :func:`packing` of ``n`` bodies placed in the middle of a ``box_size`` square,
+    moved as a whole (:class:`CollectiveMotion`).
+
+    Parameters
+    ----------
+    kind : {"rotation", "breathing", "shear", "turn-and-breathe"}
+    h : float
+        Mesh size the motion is scaled to: by default the rim bodies move at most ``h/8`` per
+        step (rotation), the centre positions scale by ±5 % (breathing, rim step ≈ h/16)
+        and the shear amplitude is 0.1 (rim step ≈ h/11); ``"turn-and-breathe"``: 0.25 rad
+        and 5 % (rim step ≈ h/4).
+    n, phi, sizes, min_gap, seed
+        The packing (:func:`packing`; its own box, side ``sqrt(area/phi)``, is centred in
+        the big one).  ``min_gap = 0.06`` keeps every gap ≥ 0.02 (``h/4``) at the
+        strongest contraction and shear.
+    box_size : float
+        Side of the box, length units.
+    n_steps : int
+        Steps of one period.
+    amplitude : float, (float, float) or None
+        Rotation angle (rad), relative scaling or shear, (angle, scaling) for
+        ``"turn-and-breathe"``; ``None``: the defaults above.
+
+    Raises
+    ------
+    InputError
+        ``kind`` unknown, or the packing does not fit in the box.
+    """
+    if kind not in COLLECTIVE_MOTIONS:
+        raise InputError(f"motion kind = {kind!r}: expected one of {COLLECTIVE_MOTIONS}")
+    bodies, poses, inner = packing(n=n, phi=phi, sizes=sizes, min_gap=min_gap, seed=seed)
+    if inner[1] >= box_size:
+        raise InputError(f"box_size = {box_size!r}: expected more than the packing's side {inner[1]:.3g}")
+    poses = poses.copy()
+    poses[:, :2] += 0.5 * (box_size - inner[1])
+    box = (0.0, float(box_size), 0.0, float(box_size))
+    if amplitude is None:
+        if kind == "rotation":
+            c = np.array([0.5 * box_size] * 2)
+            r_max = max(float(np.linalg.norm(p[:2] - c) + np.linalg.norm(b, axis=1).max())
+                        for b, p in zip(bodies, poses))  # set-up helper over bodies
+            amplitude = (h / 8) * n_steps / (2 * np.pi * r_max)
+        else:
+            amplitude = {"breathing": 0.05, "shear": 0.1, "turn-and-breathe": (0.25, 0.05)}[kind]
+    return CollectiveMotion(bodies, poses, box, kind, amplitude, n_steps)

@@ -7,8 +7,9 @@ loses the morphological closing of the union of the cluster: a mitre buffer by
 ``min_gap/2`` out and back in, simplified at ``min_gap``.  So gaps narrower than ``min_gap``
 are filled and no element thinner than ``min_gap`` is produced.  On the closed outline
 
-* outline nodes of the cluster bodies within ``on_outline_factor · min_gap`` of it are kept,
-  two closer than ``contact_merge · h`` along it are merged;
+* outline nodes of the cluster bodies within ``on_outline_factor · min_gap`` of it are kept
+  unless they lie inside another body of the cluster (an overlap shallower than that
+  tolerance), two closer than ``contact_merge · h`` along it are merged;
 * its vertices farther than ``contact_node_spacing · h`` from every kept outline node (deep
   contact points, bridge corners) become *contact nodes*, owned by and moving with the
   nearest body;
@@ -320,6 +321,13 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
             member_points = shapely.points(outline_world[member_rows])
             dist_to_rings = np.column_stack([shapely.distance(rd[4], member_points) for rd in ring_data])
             on = dist_to_rings.min(axis=1) < max(tol, params.on_outline_factor * min_gap)
+            # an outline node inside another member body (an overlap shallower than the
+            # tolerance above) is no node of the closed outline: kept, it would be a mesh node
+            # inside that body (the ring cuts across the notch, or a contact node takes its place)
+            member_body = outlines.body[member_rows]
+            for m in members:  # one per body of the cluster (few)
+                inside = (member_body != m) & shapely.contains_xy(polys[m], outline_world[member_rows])
+                on &= ~inside
             keep_outline[member_rows[~on]] = False
             which = np.argmin(dist_to_rings, axis=1)
             for ri, (ring, ring_vertices, forced, wall_side, _) in enumerate(ring_data):

@@ -74,10 +74,10 @@ Contact policy ("closed union outline"): bodies closer than ``min_gap`` (default
 meshing.  The fluid region is the box minus the morphological closing (mitre buffer by
 ``min_gap/2`` out and back in, then simplified at ``min_gap``) of the union of the cluster,
 so gaps narrower than ``min_gap`` are filled and no element thinner than ``min_gap`` is
-produced.  Outline nodes of the cluster bodies that lie on the closed outline are kept
-(two closer than ``0.1 h`` are merged); vertices of the closed outline farther than
-``0.3 h`` from every kept outline node (deep contact points, bridge corners) become
-*contact nodes*, owned by and moving with the nearest body.  Where no contact node is
+produced.  Outline nodes of the cluster bodies that lie on the closed outline and outside
+the other bodies of the cluster are kept (two closer than ``0.1 h`` are merged); vertices
+of the closed outline farther than ``0.3 h`` from every kept outline node (deep contact
+points, bridge corners) become *contact nodes*, owned by and moving with the nearest body.  Where no contact node is
 added, the outline cuts straight across the contact notch, which lies in the fluid: no
 element overlaps a body, at the price of a fluid sliver below ``0.3 h`` at each contact.
 Fluid enclosed by a ring of touching bodies (a hole of the closed union) is a *pore*: it is
@@ -851,10 +851,19 @@ class MovingMesh:
             return
         from skfem import MeshTri
 
-        from .transfer import locate
+        from .transfer import locate_near
 
         old = MeshTri(np.asarray(ev.old_points, float).T.copy(), np.asarray(ev.old_triangles).T.copy())
-        cells, bary = locate(old, self.points.T)
+        # a node that survived the re-triangulation moved little (relaxation): it is searched
+        # first in the old elements around its old position
+        hint = np.full(len(self.points), -1, dtype=np.int64)
+        prev_uid = self._prev_uid
+        if prev_uid is not None and len(prev_uid) == len(ev.old_points):
+            order = np.argsort(prev_uid)
+            pos = np.minimum(np.searchsorted(prev_uid[order], self.uid), len(order) - 1)
+            match = prev_uid[order][pos] == self.uid
+            hint[match] = order[pos[match]]
+        cells, bary = locate_near(old, self.points.T, hint)
         tri = old.t[:, cells].T  # (n, 3), in the vertex order of the located cells
 
         def pull(x):

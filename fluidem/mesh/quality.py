@@ -141,10 +141,14 @@ class OscillationDetector:
             self._prev = d.copy()
             self._count = np.zeros(len(d), dtype=np.int64)
             return np.zeros(0, dtype=np.int64)
-        dn = np.sqrt((d**2).sum(axis=1))
-        dp = np.sqrt((self._prev**2).sum(axis=1))
-        dot = (d * self._prev).sum(axis=1)
-        back = np.sqrt(((d + self._prev) ** 2).sum(axis=1))
+        # by columns (the same sums of two terms as along axis 1, without (n, 2) temporaries)
+        dx, dy = d[:, 0], d[:, 1]
+        px, py = self._prev[:, 0], self._prev[:, 1]
+        dn = np.sqrt(dx * dx + dy * dy)
+        dp = np.sqrt(px * px + py * py)
+        dot = dx * px + dy * py
+        bx, by = dx + px, dy + py
+        back = np.sqrt(bx * bx + by * by)
         flip = (dot < -0.5 * dn * dp) & (back < 0.5 * dn) & (dn > self.tol * h_node)
         self._count = np.where(flip, self._count + 1, 0)
         self._prev = d.copy()

@@ -32,7 +32,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
-__all__ = ["locate", "locate_all", "probe_matrix", "basis_values_matrix", "interpolate", "supermesh",
+__all__ = ["locate", "locate_near", "locate_all", "probe_matrix", "basis_values_matrix", "interpolate", "supermesh",
            "project_l2"]
 
 
@@ -92,6 +92,57 @@ def locate(mesh, x, k: int = 12) -> tuple[np.ndarray, np.ndarray]:
             cells[miss], bary[miss], _ = _best_candidate(mesh, x[:, miss], k)
     bary = np.clip(bary, 0.0, None)
     bary /= bary.sum(axis=1, keepdims=True)
+    return cells, bary
+
+
+def locate_near(mesh, x, hint, k: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`locate`, trying first the cells around a vertex near each point.
+
+    ``hint (n,)`` int: a vertex of ``mesh`` close to each point (after a re-triangulation,
+    the old position of a node that survived it), ``-1`` for none.  A point inside (or on)
+    one of the cells around its hint vertex gets that cell, chosen and computed as
+    :func:`locate` would; the others (no hint, or moved out of the star) go to
+    :func:`locate`.  Returns ``cells (n,)`` and ``bary (n, 3)`` as :func:`locate`.
+    """
+    x = np.asarray(x, dtype=float)
+    hint = np.asarray(hint, dtype=np.int64)
+    p, t = mesh.p, mesh.t
+    n, m = x.shape[1], t.shape[1]
+    cells = np.zeros(n, dtype=np.int64)
+    bary = np.zeros((n, 3))
+    done = np.zeros(n, dtype=bool)
+    pts = np.flatnonzero(hint >= 0)
+    if len(pts) and m:
+        # the cells around every vertex, padded to the largest star: (len(pts), w)
+        tv = t[:3].ravel()
+        order = np.argsort(tv, kind="stable")
+        vert_sorted, cell_of = tv[order], order % m
+        lo = np.searchsorted(vert_sorted, hint[pts], side="left")
+        cnt = np.searchsorted(vert_sorted, hint[pts], side="right") - lo
+        w = int(cnt.max())
+        col = np.arange(w)
+        valid = col[None, :] < cnt[:, None]
+        cand = cell_of[np.minimum(lo[:, None] + col[None, :], len(cell_of) - 1)]
+        # the reference coordinates as in _candidates (same operations, same values)
+        a, b, d = p[:, t[0, cand]], p[:, t[1, cand]], p[:, t[2, cand]]  # (2, len(pts), w)
+        e1, e2 = b - a, d - a
+        r = x[:, pts, None] - a
+        det = e1[0] * e2[1] - e1[1] * e2[0]
+        l1 = (r[0] * e2[1] - r[1] * e2[0]) / det
+        l2 = (e1[0] * r[1] - e1[1] * r[0]) / det
+        l0 = 1 - l1 - l2
+        score = np.where(valid, np.minimum(np.minimum(l0, l1), l2), -np.inf)
+        j = np.argmax(score, axis=1)  # largest smallest coordinate, the first of equals
+        i = np.arange(len(pts))
+        ok = score[i, j] >= -1e-12
+        sel, i, j = pts[ok], i[ok], j[ok]
+        cells[sel] = cand[i, j]
+        bb = np.clip(np.stack([l0[i, j], l1[i, j], l2[i, j]], axis=-1), 0.0, None)
+        bary[sel] = bb / bb.sum(axis=1, keepdims=True)
+        done[sel] = True
+    rest = np.flatnonzero(~done)
+    if len(rest):
+        cells[rest], bary[rest] = locate(mesh, x[:, rest], k=k)
     return cells, bary
 
 

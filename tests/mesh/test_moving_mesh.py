@@ -161,6 +161,25 @@ def test_touching_and_overlapping_bodies_mesh_cleanly(gap):
     assert len(ev.contacts) >= 2
 
 
+@pytest.mark.parametrize("angle", [0.0, 0.05])
+def test_an_overlap_shallower_than_min_gap_leaves_no_outline_node_inside_the_other_body(angle):
+    """Outline nodes of one body inside another one by less than ``on_outline_factor · min_gap``
+    lie within the tolerance of the closed outline; they are no nodes of it all the same."""
+    sq = rectangle(0.4, 0.4)
+    h = 0.05
+    depth = 0.5e-3 * h  # half of min_gap = 1e-3 h: within the on-outline tolerance
+    poses = np.array([[1.0, 1.0, 0.0], [1.4 - depth, 1.02, angle]])
+    mm = MovingMesh((0, 2.5, 0, 2.5), [sq, sq], poses, h=h)
+    assert {tuple(c) for c in mm.contacts} == {(0, 1)}
+    # without the rule: 2 outline nodes of body 0 inside body 1 at angle 0 (by 2.5e-5)
+    assert len(mm.nodes_inside_bodies()) == 0
+    check_invariants(mm)
+    for k in range(5):  # and every re-triangulation on the way into a deeper overlap
+        poses[1, 0] -= 0.2 * depth
+        mm.update(poses)
+        check_invariants(mm)
+
+
 def test_enclosed_pore_is_detected_and_meshed():
     bodies, poses = pore_ring()
     mm = MovingMesh((0, 2.5, 0, 2.5), bodies, poses, h=0.05)

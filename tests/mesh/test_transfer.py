@@ -109,3 +109,25 @@ def test_transfer_across_a_moving_mesh_retriangulation():
     assert l2_error(new, elem, u_prj, f_vector) <= (e_old + e_best) * (1 + 1e-9)
     # interpolation has no such bound; it stays within a small multiple of it
     assert l2_error(new, elem, u_int, f_vector) < 3 * (e_old + e_best)
+
+
+def test_locate_near_finds_what_locate_finds():
+    """Points near a vertex (hint) get the cell and coordinates :func:`locate` gives them; points
+    without a hint or outside the hint's star fall back to it."""
+    from fluidem.mesh.transfer import locate, locate_near
+
+    old, _ = two_meshes(0.1)
+    rng = np.random.default_rng(3)
+    n_v = old.p.shape[1]
+    hint = rng.integers(0, n_v, 300)
+    x = np.clip(old.p[:, hint] + rng.normal(0, 0.02, (2, 300)), 0, 1)  # mostly inside the star
+    x[:, :20] = rng.random((2, 20))  # far from their hint
+    hint[20:40] = -1
+    c0, b0 = locate(old, x)
+    c1, b1 = locate_near(old, x, hint)
+    pos0 = np.einsum("nk,knd->nd", b0, old.p.T[old.t[:, c0]])
+    pos1 = np.einsum("nk,knd->nd", b1, old.p.T[old.t[:, c1]])
+    assert np.abs(pos1 - x.T).max() < 1e-14 and np.abs(pos0 - x.T).max() < 1e-14  # measured 1.1e-16
+    # the same cells (but where a point lies on an edge shared by two) with the same coordinates
+    same = c0 == c1
+    assert same.mean() >= 0.99 and np.array_equal(b0[same], b1[same])  # measured: all 300 the same
