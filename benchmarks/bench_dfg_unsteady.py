@@ -47,7 +47,6 @@ MATRIX_2D2 = [
     ("P3 L0 BDF3/EXT3", "p3", 0, None, 1 / 1200, 3, "explicit"),
 ]
 MATRIX_2D3 = [
-    ("P3 L1 BDF2", "p3", 1, None, 0.0025, 2, "semi-implicit"),
     ("P3 L1 BDF3", "p3", 1, None, 0.005, 3, "semi-implicit"),
     ("P3 local BDF3", "p3", 0, LOCAL, 0.01, 3, "semi-implicit"),
     ("P3 local BDF3", "p3", 0, LOCAL, 0.005, 3, "semi-implicit"),
