@@ -127,7 +127,7 @@ def _plot(name, rows, marks, peer_marks):
     import matplotlib.pyplot as plt
 
     qs = QUANTITIES[name]
-    fig, axes = plt.subplots(1, len(qs), figsize=(4.6 * len(qs), 4.2), sharex=True)
+    fig, axes = plt.subplots(1, len(qs), figsize=(4.6 * len(qs), 5.4), sharex=True)
     for ax, q in zip(axes, qs):
         for series in sorted({_series(r) for r in rows}):
             rs = sorted((r for r in rows if _series(r) == series), key=lambda r: r["wall_s"])
@@ -143,9 +143,11 @@ def _plot(name, rows, marks, peer_marks):
         ax.set_title(f"{TITLES[name]}: |relative error| of {q}")
         ax.set_xlabel("wall time of the run, s")
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=7, title="cheapest within 1 % / 0.3 % (dotted) on the targets:\n"
-                   "red star fluidem, black cross NGSolve", title_fontsize=7)
-    fig.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8,
+               title="cheapest within 1 % / 0.3 % (dotted lines) on the targets: red star fluidem, black cross "
+                     "NGSolve", title_fontsize=8)
+    fig.tight_layout(rect=(0, 0.2, 1, 1))
     fig.savefig(RESULTS / f"{name}.png", dpi=110)
     plt.close(fig)
 
