@@ -11,38 +11,14 @@ from fluidem import Scene, Simulation
 from fluidem.fluid.space import FlowSpace
 from fluidem.cases.scenes import example_scene
 from fluidem.errors import InputError
+from tiny_scene import tiny_channel
 from fluidem.io import OutputWriter, field_series, fluid_point_data, full_order_fields, read_fields, write_xdmf
 
-TINY = """
-name = "tiny-channel"
-[fluid]
-density = 2.0
-viscosity = 1e-2
-model = "navier-stokes"
-element = "{element}"
-[domain]
-box = [0.0, 1.0, 0.0, 0.4]
-left = "inflow"
-right = "outflow"
-bottom = "wall"
-top = "wall"
-inflow_profile = {{ type = "parabolic", umax = 0.3 }}
-[[bodies]]
-name = "cylinder"
-shape = "disk"
-radius = 0.05
-position = [0.3, 0.2]
-motion = "fixed"
-[mesh]
-h = 0.05
-[time]
-dt = 0.1
-t_end = 0.2
-[output]
-every = 1
-full_order = {full}
-xdmf = {xdmf}
-"""
+
+
+def _tiny(element, full, xdmf):
+    return tiny_channel(h=0.05, element=element, density=2.0, output=f"every = 1\nfull_order = {full}\nxdmf = {xdmf}")
+
 
 
 def _mesh():
@@ -144,7 +120,7 @@ def test_bubble_fields_agree_with_the_vertex_output_at_the_vertices(tmp_path, el
 
 def test_a_run_writes_the_full_order_series_and_read_fields_reads_it(tmp_path):
     out = tmp_path / "o"
-    (tmp_path / "s.toml").write_text(TINY.format(element="th", full="true", xdmf="false"))
+    (tmp_path / "s.toml").write_text(_tiny("th", "true", "false"))
     Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=out)
     series = field_series(out)
     assert [s for s, _, _ in series] == [0, 1, 2] and all(p.parent.name == "fields_full" for _, _, p in series)
@@ -165,7 +141,7 @@ def test_a_run_writes_the_full_order_series_and_read_fields_reads_it(tmp_path):
 
 def test_full_order_false_writes_only_the_vertex_series(tmp_path):
     out = tmp_path / "o"
-    (tmp_path / "s.toml").write_text(TINY.format(element="p2b", full="false", xdmf="false"))
+    (tmp_path / "s.toml").write_text(_tiny("p2b", "false", "false"))
     Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=out)
     assert not (out / "fields_full.pvd").exists() and (out / "fields.pvd").exists()
     assert field_series(out)[-1][2].parent.name == "fields"
@@ -174,7 +150,7 @@ def test_full_order_false_writes_only_the_vertex_series(tmp_path):
 def test_xdmf_time_series_holds_every_output_step_of_a_fixed_mesh_run(tmp_path, monkeypatch):
     pytest.importorskip("h5py")
     out = tmp_path / "o"
-    (tmp_path / "s.toml").write_text(TINY.format(element="p3", full="true", xdmf="true"))
+    (tmp_path / "s.toml").write_text(_tiny("p3", "true", "true"))
     monkeypatch.chdir(tmp_path)  # the HDF5 file goes beside the XDMF file, not into the working directory
     Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=out)
     assert (out / "fields_full.xdmf").exists() and (out / "fields_full.h5").exists()
@@ -199,7 +175,7 @@ def test_xdmf_is_refused_for_a_moving_mesh_and_without_h5py(tmp_path, monkeypatc
         Simulation(Scene.from_dict(d)).run(out_dir=tmp_path / "moving")
     assert not (tmp_path / "moving" / "history.csv").exists()  # refused before anything was written
     monkeypatch.setitem(sys.modules, "h5py", None)
-    (tmp_path / "s.toml").write_text(TINY.format(element="th", full="true", xdmf="true"))
+    (tmp_path / "s.toml").write_text(_tiny("th", "true", "true"))
     with pytest.raises(InputError, match=r'^output.xdmf = true needs h5py: pip install "fluidem\[xdmf\]"$'):
         Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=tmp_path / "o")
     assert not (tmp_path / "o").exists()

@@ -14,32 +14,9 @@ from fluidem.io import read_history
 pytest.importorskip("distributed")
 
 from fluidem.sweep import _finished, parse_vary, require_dask, set_key, sweep, variants  # noqa: E402
+from tiny_scene import tiny_channel  # noqa: E402
 
-TINY = """
-name = "tiny-channel"
-[fluid]
-viscosity = 1e-2
-model = "navier-stokes"
-element = "th"
-[domain]
-box = [0.0, 1.0, 0.0, 0.4]
-left = "inflow"
-right = "outflow"
-bottom = "wall"
-top = "wall"
-inflow_profile = { type = "parabolic", umax = 0.3 }
-[[bodies]]
-name = "cylinder"
-shape = "disk"
-radius = 0.05
-position = [0.3, 0.2]
-motion = "fixed"
-[mesh]
-h = 0.1
-[time]
-dt = 0.1
-t_end = 0.2
-"""
+TINY = tiny_channel()
 
 VARY = {"mesh.h": [0.1, 0.07], "fluid.element": ["th", "p2b"]}
 

@@ -7,31 +7,9 @@ import numpy as np
 
 from fluidem import Scene, Simulation
 from fluidem.cli import main
+from tiny_scene import tiny_channel
 
-TINY = """
-name = "tiny-channel"
-[fluid]
-viscosity = 1e-2
-model = "navier-stokes"
-element = "th"
-[domain]
-box = [0.0, 1.0, 0.0, 0.4]
-left = "inflow"
-right = "outflow"
-bottom = "wall"
-top = "wall"
-inflow_profile = { type = "parabolic", umax = 0.3 }
-[[bodies]]
-shape = "disk"
-radius = 0.05
-position = [0.3, 0.2]
-motion = "fixed"
-[mesh]
-h = 0.05
-[time]
-dt = 0.1
-t_end = 0.4
-"""
+TINY = tiny_channel(h=0.05, t_end=0.4)
 
 LINE = re.compile(r"^step (\d+)/4  t = (\S+)  linear (\S+) it (\d+) res (\S+) LU (\d+)  CFL (\S+)  .* = \S+ ms$")
 
