@@ -40,6 +40,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..cost import CostSplit
 from .problem import FlowProblem, FlowState
@@ -268,13 +269,6 @@ class BDFStepper:
             out = out + w * u
         return out
 
-    def _history_term(self, a1, a2):
-        un = self.state.u
-        h = a1 * un
-        if a2:
-            h = h + a2 * self._u_prev
-        return self.problem.M @ h / self.dt
-
     def _history(self, a) -> np.ndarray:
         """M (a1 u^n + a2 u^{n−1} + ...) / dt for BDF coefficients ``a``, (n_u,)."""
         return self.problem.M @ self._extrapolate(a[1:]) / self.dt
@@ -288,8 +282,6 @@ class BDFStepper:
 
     def _full_matrix(self, uu_data: np.ndarray):
         """[[K_uu, Bᵀ], [B, 0]] on all DOFs (no conditions applied) for velocity-block data ``uu_data``."""
-        import scipy.sparse as sp
-
         pr = self.problem
         return sp.bmat([[pr.assembler.matrix(uu_data), pr.B.T], [pr.B, None]], format="csr")
 
@@ -377,7 +369,7 @@ class BDFStepper:
 
     def history_term(self, a1: float, a2: float) -> np.ndarray:
         """M (a1 u^n + a2 u^{n−1}) / dt, (n_u,), with M of the current geometry."""
-        return self._history_term(a1, a2)
+        return self._history((None, a1, a2) if a2 else (None, a1))
 
     def convecting_velocity(self) -> np.ndarray:
         """The semi-implicit step's convecting velocity EXT(u) − w (2u^n − u^{n−1} − w at order 2), (n_u,)."""
