@@ -232,10 +232,12 @@ class VectorAssembler:
                     local[:, ca::2, cb::2] += Mab
         return self._scatter_local(local)
 
-    def convection_vector(self, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
-        """Load vector ((b·∇)a)·v, shape (n_u,) (b = a if omitted)."""
+    def convection_vector(self, a: np.ndarray, b: np.ndarray | None = None,
+                          b_values: np.ndarray | None = None) -> np.ndarray:
+        """Load vector ((b·∇)a)·v, shape (n_u,) (b = a if omitted); ``b_values`` (2, nel, nq), if
+        given, is :meth:`values` of b, already evaluated (e.g. for a CFL number)."""
         G = self.gradients(a)
-        bq = self.values(a if b is None else b)
+        bq = self.values(a if b is None else b) if b_values is None else b_values
         conv = np.einsum("abeq,beq->aeq", G, bq)  # ((b·∇)a)_a at quadrature points
         out = np.zeros(self.n)
         for c in range(2):

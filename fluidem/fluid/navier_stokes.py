@@ -324,9 +324,10 @@ class BDFStepper:
         elif self.convection == "explicit":
             ua = self._extrapolate(ext)  # EXT(u); convected with b = EXT(u) − w
             b = ua if self.mesh_velocity is None else ua - self.mesh_velocity
-            self.last_cfl = self._cfl(b)
+            bq = pr.assembler.values(b)  # b at the quadrature points, once for the CFL and the convection
+            self.last_cfl = self._cfl(b, bq)
             self.max_cfl = max(self.max_cfl or 0.0, self.last_cfl)
-            self._explicit_conv = pr.convection_vector(ua, b)
+            self._explicit_conv = pr.convection_vector(ua, b, b_values=bq)
             if self._explicit_a0 != a0:  # the matrix changes only with the order (BDF1, BDF2, BDF3)
                 self._explicit_lu = pr.direct_solver().factorize(pr.condensed_matrix(base))
                 self._explicit_full = self._full_matrix(base)
@@ -441,9 +442,10 @@ class BDFStepper:
                 f"the flow solution became non-finite in step {self.n_steps + 1} (t = {t_new:g}); "
                 f"reduce dt = {self.dt:g}" + (f" (CFL was {self.last_cfl:.2f})" if self.last_cfl else ""))
 
-    def _cfl(self, b: np.ndarray) -> float:
-        """Courant number max_e |b|_e Δt / h_e with h_e the element diameter (longest edge)."""
-        bq = self.problem.assembler.values(b)
+    def _cfl(self, b: np.ndarray, b_values: np.ndarray | None = None) -> float:
+        """Courant number max_e |b|_e Δt / h_e with h_e the element diameter (longest edge);
+        ``b_values``: b at the quadrature points, if already evaluated."""
+        bq = self.problem.assembler.values(b) if b_values is None else b_values
         speed = np.sqrt(bq[0] ** 2 + bq[1] ** 2).max(axis=1)
         return float((speed * self.dt / self._h_elements()).max())
 

@@ -359,9 +359,11 @@ class FlowProblem:
         """Matrix of ((b · ∇) u) · v for the convecting velocity coefficients ``b`` (n_u,)."""
         return self.assembler.matrix(self.convection_data(b))
 
-    def convection_vector(self, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
-        """Vector ((b · ∇) a) · v (b = a when omitted)."""
-        return self.assembler.convection_vector(a, b)
+    def convection_vector(self, a: np.ndarray, b: np.ndarray | None = None,
+                          b_values: np.ndarray | None = None) -> np.ndarray:
+        """Vector ((b · ∇) a) · v (b = a when omitted; ``b_values``: b at the quadrature points,
+        if already evaluated)."""
+        return self.assembler.convection_vector(a, b, b_values)
 
     def steady_residual(self, x: np.ndarray, convection: bool = True) -> np.ndarray:
         """Residual of the (Navier–)Stokes equations at ``x`` on all DOFs, no conditions applied."""
