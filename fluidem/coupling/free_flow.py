@@ -113,7 +113,7 @@ class FreeBodyFlow(MovingMeshFlow):
         iterative threshold, ``"iterative"``) the lagged LU: the block preconditioner has no body
         block yet."""
         from ..fluid.solvers import AutoSolver, DirectSolver, LaggedLUSolver
-        from .moving_flow import LAGGED_REFACTOR_ITERATIONS
+        from ..fluid.solvers.lagged import MOVING_MESH_STEPPING
 
         s = self.stepper.solver
         if isinstance(s, (DirectSolver, LaggedLUSolver)):
@@ -121,8 +121,7 @@ class FreeBodyFlow(MovingMeshFlow):
         if isinstance(s, AutoSolver):  # "auto" without the iterative path: lagged for a run of steps
             return AutoSolver(direct_options=s.direct_options, iterative_options={"dt": self.scene.time.dt},
                               lagged_options=s.lagged_options)
-        return LaggedLUSolver(direct=self.problem.direct_solver(),
-                              max_iterations_before_refactor=LAGGED_REFACTOR_ITERATIONS)
+        return LaggedLUSolver(direct=self.problem.direct_solver(), **MOVING_MESH_STEPPING)
 
     # -- poses --------------------------------------------------------------------------------
     def _poses(self, t):

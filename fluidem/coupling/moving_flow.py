@@ -27,6 +27,7 @@ import time
 import numpy as np
 
 from ..cost import CostSplit
+from ..fluid.solvers.lagged import MOVING_MESH_STEPPING
 from ..geometry import barycentric
 from .bodies import LinearPath
 from .boundary import periodic_axes_of, velocity_bcs, viscous_form_of
@@ -35,7 +36,7 @@ from .loads import FlowLoads
 __all__ = ["LAGGED_REFACTOR_ITERATIONS", "MovingMeshFlow", "Outline", "p1_at_dofs", "transfer_change"]
 
 #: GMRES iterations of a solve above which the lagged LU is recomputed on the moving mesh.
-LAGGED_REFACTOR_ITERATIONS = 25
+LAGGED_REFACTOR_ITERATIONS = MOVING_MESH_STEPPING["max_iterations_before_refactor"]
 
 
 def p1_at_dofs(space, w_nodes: np.ndarray) -> np.ndarray:
@@ -172,13 +173,18 @@ class MovingMeshFlow(FlowLoads):
         return np.array([[*p(t)[0], p(t)[1]] for p in self.path]).reshape(-1, 3)
 
     def _make_solver(self):
-        """The scene's linear solver for the current problem (lagged LU options of the moving mesh)."""
-        from ..fluid.solvers import make_solver
+        """The scene's linear solver for the current problem: for ``"auto"`` and ``"lagged"`` the
+        lagged LU with :data:`~fluidem.fluid.solvers.lagged.MOVING_MESH_STEPPING` (the block-Krylov
+        path of ``"auto"`` keeps its own tolerance)."""
+        from ..fluid.solvers import AutoSolver, make_solver
 
         fl = self.scene.fluid
-        lagged = {"max_iterations_before_refactor": LAGGED_REFACTOR_ITERATIONS}
-        return make_solver(fl.solver, problem=self.problem, dt=self.scene.time.dt,
-                           **(lagged if fl.solver in ("auto", "lagged") else {}))
+        if fl.solver == "lagged":
+            return make_solver("lagged", problem=self.problem, **MOVING_MESH_STEPPING)
+        s = make_solver(fl.solver, problem=self.problem, dt=self.scene.time.dt)
+        if isinstance(s, AutoSolver):
+            s.lagged_options.update(MOVING_MESH_STEPPING)
+        return s
 
     def _retarget_solver(self):
         """After a re-triangulation: the solver's problem data (velocity DOFs, pressure and velocity
