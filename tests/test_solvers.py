@@ -412,13 +412,13 @@ def test_choose_solver_rule_by_kind_and_size():
 
     choose_solver = solvers.choose_solver
     for backend in ("superlu", "pardiso"):
-        for kind, table, small in (("steady", solvers.DIRECT_MAX_DOFS_CONVECTIVE, "direct"),
-                                   ("stokes", solvers.DIRECT_MAX_DOFS, "direct"),
-                                   ("unsteady", solvers.LAGGED_MAX_DOFS, "lagged")):
+        for kind, table, small, large in (("steady", solvers.DIRECT_MAX_DOFS_CONVECTIVE, "direct", "lagged"),
+                                          ("stokes", solvers.DIRECT_MAX_DOFS, "direct", "iterative"),
+                                          ("unsteady", solvers.LAGGED_MAX_DOFS, "lagged", "iterative")):
             limit = table[backend]
             assert choose_solver(limit - 1, kind, backend=backend)[0] == small
             name, reason = choose_solver(limit, kind, backend=backend)
-            assert name == "iterative" and str(limit) in reason and backend in reason
+            assert name == large and str(limit) in reason and backend in reason
     # the measured choices: steady Newton direct, Stokes iterative from 20k, time stepping lagged
     assert choose_solver(50_000, "steady")[0] == "direct"
     assert choose_solver(50_000, "stokes")[0] == "iterative"
@@ -429,7 +429,8 @@ def test_choose_solver_rule_by_kind_and_size():
 
 def test_auto_solver_follows_the_rule(monkeypatch):
     """The rule of "auto": lagged LU for time steps (iterative above LAGGED_MAX_DOFS), direct for steady
-    convective and small Stokes systems, with the kind read from dt and the velocity block."""
+    convective (lagged above DIRECT_MAX_DOFS_CONVECTIVE) and small Stokes systems, with the kind read from
+    dt and the velocity block."""
     P = problem(8, nu=1e-3, dt=1e-2, peclet=0.2)
     x_direct = DirectSolver().factorize(P.K).solve(P.b)
     s = make_solver("auto", n_u=P.n_u, pressure_mass=P.Mp, velocity_mass=P.Mu, nu=1e-3, dt=1e-2,
@@ -445,6 +446,12 @@ def test_auto_solver_follows_the_rule(monkeypatch):
     oseen = problem(6, peclet=10.0)
     a = make_solver("auto", n_u=oseen.n_u, pressure_mass=oseen.Mp).factorize(oseen.K)
     assert a.chosen == "direct" and a.reason.startswith("steady convective")
+    x_oseen = a.solve(oseen.b)
+    # above the convective limit: the LU kept over a run of Newton/Oseen systems, not block GMRES
+    monkeypatch.setitem(solvers.DIRECT_MAX_DOFS_CONVECTIVE, solvers.default_direct_backend(), 100)
+    a = make_solver("auto", n_u=oseen.n_u, pressure_mass=oseen.Mp, rtol=1e-10).factorize(oseen.K)
+    assert a.chosen == "lagged" and a.reason.startswith("steady convective")
+    assert reldiff(a.solve(oseen.b), x_oseen) < 1e-9
     st = problem(6)
     a = make_solver("auto", n_u=st.n_u, pressure_mass=st.Mp).factorize(st.K)
     assert a.chosen == "direct" and a.reason.startswith("Stokes")

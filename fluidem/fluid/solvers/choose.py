@@ -5,7 +5,8 @@ the limits measured by ``benchmarks/bench_solvers.py`` (P2-bubble/P1-discontinuo
 of 10k, 50k and 200k DOFs, one thread; the table is in that file's docstring):
 
 * ``"steady"`` (Oseen, Newton): ``"direct"`` below ``DIRECT_MAX_DOFS_CONVECTIVE``
-  (SuperLU 300k, PARDISO 2M DOFs), ``"iterative"`` above;
+  (SuperLU 300k, PARDISO 2M DOFs), ``"lagged"`` above (one LU kept over the Newton
+  iterations while GMRES converges fast with it);
 * ``"stokes"``: ``"direct"`` below ``DIRECT_MAX_DOFS`` (SuperLU 20k, PARDISO 2M),
   ``"iterative"`` above;
 * ``"unsteady"`` (a run of time steps): ``"lagged"`` below ``LAGGED_MAX_DOFS``
@@ -13,9 +14,12 @@ of 10k, 50k and 200k DOFs, one thread; the table is in that file's docstring):
 
 Why:
 
-* Steady Newton/Oseen systems stay direct: the block preconditioners need iteration counts
+* Steady Newton/Oseen systems stay on an LU: the block preconditioners need iteration counts
   that grow with refinement and Reynolds number (Newton: 385 iterations at 10k DOFs, 898 at
-  50k, no convergence in 1000 at 200k), so LU up to its memory limit.
+  50k, no convergence in 1000 at 200k).  Above the limit the LU of the first Newton matrix
+  preconditions GMRES for the next ones (refactorised when it needs many iterations): DFG
+  2D-1 with P2-bubble/P1dc at 361k DOFs in 101 s (5 Newton iterations, 4.8 GB peak), where
+  block GMRES had not converged after 44 minutes.
 * Stokes: block-preconditioned GMRES (pressure-mass Schur approximation) was 2x faster than
   SuperLU at 10k DOFs and 5-10x at 50k-200k; with PARDISO the LU was faster at every size
   measured, up to memory (1.5 GB at 500k DOFs, ~7 GB extrapolated at 2M).
@@ -162,6 +166,8 @@ def choose_solver(n_dofs: int, kind: str = "steady", backend: str | None = None)
     --------
     >>> choose_solver(12_000, "unsteady")
     ('lagged', 'unsteady: 12000 DOFs < 300000 (lagged superlu LU up to its memory limit)')
+    >>> choose_solver(400_000, "steady", backend="superlu")[0]
+    'lagged'
     >>> choose_solver(12_000, "newton")
     Traceback (most recent call last):
     ...
@@ -169,6 +175,10 @@ def choose_solver(n_dofs: int, kind: str = "steady", backend: str | None = None)
     """
     kind = validate.choice("kind", kind, PROBLEM_KINDS)
     backend = backend or default_direct_backend()
+    if kind == "steady" and n_dofs >= DIRECT_MAX_DOFS_CONVECTIVE[backend]:
+        limit = DIRECT_MAX_DOFS_CONVECTIVE[backend]
+        return "lagged", (f"steady convective: {n_dofs} DOFs >= {limit}: one {backend} LU kept over the "
+                          "Newton iterations (block GMRES does not converge for Newton systems this large)")
     if kind == "unsteady":
         limit = LAGGED_MAX_DOFS[backend]
         where = f"(lagged {backend} LU up to its memory limit)"
