@@ -4,8 +4,9 @@ Run (one BLAS thread; about 5 minutes)::
 
     OPENBLAS_NUM_THREADS=1 python -m pytest benchmarks/bench_dfg_peer_2d1.py --benchmark-only -p no:cacheprovider
 
-fluidem: Taylor–Hood and P3/P2 on the default ``dfg_mesh`` levels 0–2 (Newton, median of 3 rounds,
-mesh + assembly + solve, as in ``bench_dfg.py``); NGSolve: the 2D-1 configurations of
+fluidem: Taylor–Hood and P3/P2 on the default ``dfg_mesh`` levels 0–2 and on coarser meshes graded
+faster away from the cylinder (:data:`COARSE`; Newton, median of 3 rounds, mesh + assembly + solve, as
+in ``bench_dfg.py``); NGSolve: the 2D-1 configurations of
 ``peer_ngsolve.PEER_CONFIGS`` (Newton, its own timing of mesh + assembly + solve).  Writes
 ``benchmarks/results/dfg_2d1_peer.{md,json}`` with, for c_D within 1e-4, 1e-5 and 1e-6, the
 cheapest configuration of each code and the fluidem/NGSolve ratio of their seconds.
@@ -27,7 +28,13 @@ from results_io import RESULTS, machine_description, write_json  # noqa: E402
 
 from fluidem.cases.dfg import dfg_2d1  # noqa: E402
 
-FLUIDEM = [(e, lv) for e in ("th", "p3") for lv in (0, 1, 2)]
+# (element, level, dfg_mesh options): the default levels 0-2, and below level 1 meshes graded
+# faster away from the cylinder (growth 1.25 instead of 1.15, h0 and h_max as given), which trace the
+# front between levels 0 and 1 where the cheapest c_D within 1e-4 lies.
+COARSE = [("p3", {"h0": 0.02, "growth": 1.25}), ("p3", {"h0": 0.02, "growth": 1.25, "h_max": 0.1}),
+          ("p3", {"h0": 0.015, "growth": 1.25}), ("p3", {"h0": 0.0125, "growth": 1.25}),
+          ("th", {"h0": 0.01, "growth": 1.15, "h_max": 0.1}), ("th", {"h0": 0.0075, "growth": 1.25})]
+FLUIDEM = [(e, lv, None) for e in ("th", "p3") for lv in (0, 1, 2)] + [(e, 0, o) for e, o in COARSE]
 TOLERANCES = (1e-4, 1e-5, 1e-6)
 
 
@@ -63,19 +70,26 @@ def rows():
         + "\n".join(f"- {n}" for n in notes) + "\n")
 
 
-@pytest.mark.parametrize("element, level", FLUIDEM, ids=[f"2d1-{e}-L{lv}" for e, lv in FLUIDEM])
-def test_fluidem_2d1(benchmark, rows, element, level):
+def _label(element, level, options):
+    if not options:
+        return f"{element} level {level}"
+    return f"{element} " + " ".join(f"{k} {v:g}" for k, v in options.items())
+
+
+@pytest.mark.parametrize("element, level, options", FLUIDEM,
+                         ids=[_label(*c).replace(" ", "-") for c in FLUIDEM])
+def test_fluidem_2d1(benchmark, rows, element, level, options):
     cpu = []
 
     def once():
         c0 = time.process_time()
-        res = dfg_2d1(element, level)
+        res = dfg_2d1(element, level, mesh_options=options)
         cpu.append(time.process_time() - c0)
         return res
 
     res = benchmark.pedantic(once, rounds=3, iterations=1)
     errs = res.relative_errors()
-    rows.append({"code": "fluidem", "label": f"{element} level {level}", "dofs": int(res.dofs),
+    rows.append({"code": "fluidem", "label": _label(element, level, options), "dofs": int(res.dofs),
                  "wall_s": benchmark.stats.stats.median, "cpu_s": sorted(cpu)[1], "load_end": os.getloadavg()[0],
                  **{f"err_{k}": v for k, v in errs.items()}})
 

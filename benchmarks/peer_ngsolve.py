@@ -52,7 +52,8 @@ CASES = ("dfg-2d1", "dfg-2d2", "dfg-2d3")
 THREADS_ONE = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 # Configurations that trace each case's accuracy–time front (maxh, maxh_cyl in m, dt in s).
-# 2D-1: uniform meshes (maxh 0.04/0.02/0.01) and meshes refined at the cylinder.
+# 2D-1: uniform meshes (maxh 0.04/0.02/0.01) and meshes refined at the cylinder, down to coarse
+# far fields (maxh 0.05-0.08) where the cheapest c_D within 1e-4 lies.
 # 2D-2/2D-3: P3/P2 refined at the cylinder; dt near the explicit convection's stability limit
 # (diverged: maxh_cyl 0.02 at dt 1/800, maxh_cyl 0.012 at 1/1200, P2 maxh_cyl 0.006 at 1/1200).
 PEER_CONFIGS = [
@@ -62,6 +63,13 @@ PEER_CONFIGS = [
     {"case": "dfg-2d1", "element": "p3", "maxh": 0.04},
     {"case": "dfg-2d1", "element": "p3", "maxh": 0.04, "maxh_cyl": 0.01},
     {"case": "dfg-2d1", "element": "p3", "maxh": 0.02, "maxh_cyl": 0.004},
+    {"case": "dfg-2d1", "element": "p2", "maxh": 0.06, "maxh_cyl": 0.005},
+    {"case": "dfg-2d1", "element": "p2", "maxh": 0.05, "maxh_cyl": 0.0075},
+    {"case": "dfg-2d1", "element": "p2", "maxh": 0.05, "maxh_cyl": 0.005},
+    {"case": "dfg-2d1", "element": "p3", "maxh": 0.08, "maxh_cyl": 0.02},
+    {"case": "dfg-2d1", "element": "p3", "maxh": 0.08, "maxh_cyl": 0.01},
+    {"case": "dfg-2d1", "element": "p3", "maxh": 0.06, "maxh_cyl": 0.015},
+    {"case": "dfg-2d1", "element": "p3", "maxh": 0.06, "maxh_cyl": 0.01},
     {"case": "dfg-2d2", "element": "p3", "maxh": 0.07, "maxh_cyl": 0.02, "dt": 1 / 1200},
     {"case": "dfg-2d2", "element": "p3", "maxh": 0.07, "maxh_cyl": 0.01, "dt": 1 / 1600},
     {"case": "dfg-2d2", "element": "p3", "maxh": 0.05, "maxh_cyl": 0.01, "dt": 1 / 1600},

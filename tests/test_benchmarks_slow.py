@@ -30,22 +30,25 @@ def test_dfg_2d1_p3_level_2():
 #   th  level 3 (181k DOFs):  5.11e-7, 1.77e-4, 2.59e-4   fixed-slope level 3: 5.29e-6, 8.38e-4, 4.78e-4
 #   p2b level 1 (21.8k DOFs): 2.43e-4, 4.82e-2, 3.31e-3   fixed-slope level 1: 2.87e-5, 7.40e-2, 6.04e-3
 #   p2b level 2 (87.2k DOFs): 1.93e-5, 3.43e-4, 1.28e-3   fixed-slope level 2: 8.46e-6, 4.93e-3, 1.92e-3
+#   p2b level 3 (361k DOFs):  1.40e-6, 2.32e-4, 3.19e-4   (the LU kept over the Newton iterations, 101 s)
 # Error ratios per level: th 2 -> 3: 4.8, 5.5, 13.6 (fixed-slope 2.6, 1.5, 3.3); p2b 1 -> 2: 12.6,
-# 140, 2.6 (fixed-slope 3.4, 15, 3.1).  P2 velocities converge at least at second order (ratio 4)
-# in these functionals; the Δp of P2+bubble (discontinuous P1 pressure) is held by its bound only.
+# 140, 2.6 (fixed-slope 3.4, 15, 3.1); p2b 2 -> 3: 13.8, 1.5, 4.0.  The signed errors of p2b change sign
+# for c_L (+4.8e-2, −3.4e-4, +2.3e-4) and Δp (−3.3e-3, −1.3e-3, +3.2e-4): their level-2 values lie near a
+# crossing, so only c_D is rated from level 2 to 3 (and c_L over two levels: 208, i.e. 14 per level);
+# all three are held by their bounds.  P2 velocities converge at least at second order (ratio 4).
 _P2_LEVELS = {
     "th": ((2, 3), {"cd": 1.3e-6, "cl": 4.5e-4, "dp": 6.5e-4}, ("cd", "cl", "dp")),
-    "p2b": ((1, 2), {"cd": 5e-5, "cl": 8.5e-4, "dp": 3.2e-3}, ("cd", "cl")),
+    "p2b": ((2, 3), {"cd": 3.5e-6, "cl": 5.8e-4, "dp": 8e-4}, ("cd",)),
 }
 
 
 @pytest.mark.parametrize("element", [pytest.param("th", marks=pytest.mark.slow(seconds=58)),
-                                     pytest.param("p2b", marks=pytest.mark.slow(seconds=18))])
+                                     pytest.param("p2b", marks=pytest.mark.slow(seconds=115))])
 def test_dfg_2d1_p2_elements_converge_at_second_order(element):
-    """P2/P1 from level 2 to 3 and P2+bubble/P1dc from level 1 to 2 on DFG 2D-1: every error
-    falls at least 4x per level (second order), and the finer level is within 2.5x of the
-    measured errors above; both fail on the fixed-slope meshes (c_D ratios 2.6 and 3.4).
-    (Seconds measured at a load average of ~2 on 2 cores; at ~8: 122 s and 69 s.)"""
+    """P2/P1 and P2+bubble/P1dc from level 2 to 3 on DFG 2D-1: the rated errors fall at least 4x
+    per level (second order), and the finer level is within 2.5x of the measured errors above;
+    both fail on the fixed-slope meshes (c_D ratios 2.6 and 3.4).  (Seconds measured at a load
+    average of ~2 on 2 cores; P2+bubble level 3 needs 4.8 GB.)"""
     (coarse, fine), bound, rated = _P2_LEVELS[element]
     e0 = dfg_2d1(element, coarse).relative_errors()
     e1 = dfg_2d1(element, fine).relative_errors()

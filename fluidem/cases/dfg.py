@@ -155,7 +155,7 @@ def _coefficients(space, residual, Ubar):
 
 @register_case("dfg-2d1")
 def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="auto",
-            verbose: bool = False, grading: str = "halving") -> CaseResult:
+            verbose: bool = False, grading: str = "halving", mesh_options: dict | None = None) -> CaseResult:
     """Steady DFG 2D-1 (U = 0.3 m/s, Re = 20): c_D, c_L, Δp by Newton's method.
 
     Parameters
@@ -172,6 +172,8 @@ def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="au
         Print the Newton residuals.
     grading : str
         Mesh family of :func:`dfg_mesh`.
+    mesh_options : dict, optional
+        Further keywords of :func:`dfg_mesh` (``growth``, ``h0``, ``h_max``).
 
     Returns
     -------
@@ -188,7 +190,7 @@ def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="au
     True
     """
     t0 = time.perf_counter()
-    mesh = dfg_mesh(level, curved, grading=grading)
+    mesh = dfg_mesh(level, curved, grading=grading, **(mesh_options or {}))
     t_mesh = time.perf_counter() - t0
     pr = dfg_problem(mesh, element, lambda t: 0.3)
     if isinstance(solver, str):
