@@ -29,9 +29,18 @@ from ..geometry import regular_polygon
 from ..scene import Scene
 from .base import CaseResult, register_case
 
-__all__ = ["dkt_scene", "dkt_events", "dkt"]
+__all__ = ["dkt_scene", "dkt_events", "dkt", "uhlmann_dkt_scene", "UHLMANN"]
 
 D = 0.2  # disk diameter, cm
+
+#: The accuracy variant of Uhlmann (2005, J. Comput. Phys. 209, Sec. 5.2; also Koblitz et al. 2017,
+#: J. Comput. Phys. 343, Fig. 10), CGS: disks d = 0.25 cm, ρ_s/ρ_f = 1.5, ν = 0.01 cm²/s,
+#: g = 981 cm/s², a closed channel 8d wide and 24d high, centres 4d (trailing) and 6d (leading) below
+#: the top wall with lateral offsets +d/250 and −d/250.  u_ref = √(π d (ρ_s/ρ_f − 1) g / 2)
+#: = 13.88 cm/s, t_ref = d/u_ref = 0.01801 s, Re_ref = u_ref d/ν = 347.
+UHLMANN = {"d": 0.25, "density": 1.5, "viscosity": 0.01, "g": 981.0, "width": 8 * 0.25, "height": 24 * 0.25}
+UHLMANN["u_ref"] = float(np.sqrt(np.pi * UHLMANN["d"] * (UHLMANN["density"] - 1.0) * UHLMANN["g"] / 2.0))
+UHLMANN["t_ref"] = UHLMANN["d"] / UHLMANN["u_ref"]
 
 
 def dkt_scene(h: float = 0.02, dt: float = 0.005, t_end: float = 6.0, density: float = 1.01, segments: int = 64,
@@ -51,6 +60,33 @@ def dkt_scene(h: float = 0.02, dt: float = 0.005, t_end: float = 6.0, density: f
                     "density": density}],
         "contact": {"E": 1e5, "mu": 0.0, "gamma": 0.3},
         "mesh": {"h": h, "grading": {"growth": 1.2, "h_max": 8 * h}},
+        "time": {"dt": dt, "t_end": t_end}})
+
+
+def uhlmann_dkt_scene(h: float = 0.01, dt: float = 5e-4, t_end: float = 0.3, segments: int = 96,
+                      element: str = "p2b", growth: float = 1.2, coarse: float = 8.0) -> Scene:
+    """The DKT of Uhlmann (2005), :data:`UHLMANN`: ``h`` the mesh size at the disks (cm), graded by
+    ``growth`` to ``coarse`` × h, the repulsion range ``mesh.h``; disks as regular ``segments``-gons.
+    Bodies ``leading`` (first) and ``trailing``; the channel is x ∈ [0, 8d], y ∈ [0, 24d], gravity −y.
+
+    >>> s = uhlmann_dkt_scene()
+    >>> [b.name for b in s.bodies], s.domain.box
+    (['leading', 'trailing'], (0.0, 2.0, 0.0, 6.0))
+    """
+    u = UHLMANN
+    d, W, H = u["d"], u["width"], u["height"]
+    disk = regular_polygon(d / 2, segments).tolist()
+    return Scene.from_dict({
+        "name": "dkt-uhlmann",
+        "gravity": [0.0, -u["g"]],
+        "fluid": {"density": 1.0, "viscosity": u["viscosity"], "model": "navier-stokes", "element": element},
+        "domain": {"box": [0.0, W, 0.0, H]},
+        "bodies": [{"name": "leading", "shape": "polygon", "vertices": disk,
+                    "position": [W / 2 - d / 250, H - 6 * d], "density": u["density"]},
+                   {"name": "trailing", "shape": "polygon", "vertices": disk,
+                    "position": [W / 2 + d / 250, H - 4 * d], "density": u["density"]}],
+        "contact": {"E": 1e5, "mu": 0.0, "gamma": 0.3},
+        "mesh": {"h": h, "grading": {"growth": growth, "h_max": coarse * h}},
         "time": {"dt": dt, "t_end": t_end}})
 
 
