@@ -62,6 +62,19 @@ def test_direct_converges_to_manufactured_solution():
 BACKENDS = ["superlu"] + (["pardiso"] if solvers._pardiso_available() else [])
 
 
+def test_threshold_pivoting_keeps_the_solution_and_less_fill():
+    """P2-bubble/P1dc Oseen system (4.5k DOFs): SuperLU with pivot threshold 0.01 (the default of
+    FlowProblem.direct_solver for p2b) solves as partial pivoting does (measured 5.7e-13 apart)
+    with fewer LU entries (measured 1.138M against 1.150M here; half at 35k DOFs)."""
+    P = problem(16, peclet=10.0)
+    full, thresh = DirectSolver().factorize(P.K), DirectSolver(pivot_threshold=0.01).factorize(P.K)
+    assert reldiff(thresh.solve(P.b), full.solve(P.b)) < 1e-10
+    assert thresh._lu.L.nnz + thresh._lu.U.nnz < full._lu.L.nnz + full._lu.U.nnz
+    for bad in (0.0, 1.5):
+        with pytest.raises(ValueError, match=f"pivot_threshold = {bad}: expected a number in \\(0, 1\\]"):
+            DirectSolver(pivot_threshold=bad)
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_direct_info_and_refactorize(stokes_p2b, backend):
     P = stokes_p2b
