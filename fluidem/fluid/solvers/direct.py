@@ -106,9 +106,7 @@ class DirectSolver:
         self.symmetric_mode = bool(symmetric_mode)
         self.permc_spec = "MMD_AT_PLUS_A" if self.symmetric_mode else permc_spec
         self.check_rtol = check_rtol
-        if not 0.0 < pivot_threshold <= 1.0:
-            raise ValueError(f"pivot_threshold = {pivot_threshold!r}: expected a number in (0, 1]")
-        self.pivot_threshold = float(pivot_threshold)
+        self.pivot_threshold = validate.fraction("pivot_threshold", pivot_threshold, lo_open=True)
         self.K: sp.csr_matrix | None = None
         self.factorizations = 0
         self.last_info: SolveInfo | None = None
