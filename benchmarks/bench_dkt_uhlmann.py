@@ -126,7 +126,8 @@ def compare(rec: dict) -> dict:
     (na, a), (nb, b) = refs.items()
     grid = np.linspace(0.0, 0.3, 601)
     s_b = {(d, q): np.interp(grid, *b[d][q].T) for d in b for q in ("fall", "lateral")}
-    out["references"] = {"pair": f"{nb} at the times of {na}", "before_kiss": deviations(grid, s_b, a, reference_kiss(a)),
+    out["references"] = {"pair": f"{nb} at the times of {na}",
+                         "before_kiss": deviations(grid, s_b, a, reference_kiss(a)),
                          "whole": deviations(grid, s_b, a, 0.3)}
     return out
 
