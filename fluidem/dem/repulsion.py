@@ -39,7 +39,7 @@ import numpy as np
 
 from .. import validate
 
-__all__ = ["Repulsion", "pair_gaps", "repulsion_forces"]
+__all__ = ["Repulsion", "approach_geometry", "pair_gaps", "repulsion_forces", "wall_approaches"]
 
 
 @dataclass(frozen=True)
@@ -160,7 +160,7 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray |
 
 def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.ndarray, j: np.ndarray,
                      overlapping: np.ndarray, walls=None, movable: np.ndarray | None = None,
-                     radii: np.ndarray | None = None):
+                     radii: np.ndarray | None = None, gaps=None):
     """Repulsive forces and torques on every body (module docstring).
 
     Parameters
@@ -181,6 +181,8 @@ def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.nda
     radii : (N,) float or None
         Bounding radii about ``pos``: only vertices that can be within the range of the other
         body are measured (same result, less work for many-sided outlines).
+    gaps : tuple or None
+        ``pair_gaps(W, i, j, ...)`` already computed with a reach ≥ ``model.range``.
 
     Returns
     -------
@@ -199,48 +201,88 @@ def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.nda
         return F, T, 0
     rho = model.range
     if len(i):
-        p, q, d = pair_gaps(W, i, j, pos if radii is not None else None, radii, rho)
+        p, q, d = gaps if gaps is not None else pair_gaps(W, i, j, pos if radii is not None else None, radii, rho)
         gap = d.min(axis=1)
         near = gap < rho
         if near.any():
-            p, q, d, gap = p[near], q[near], d[near], gap[near]
             ii, jj, ov = i[near], j[near], overlapping[near]
-            w = np.clip((rho - d) / rho, 0.0, 1.0) ** 2
-            u = p - q
-            du = np.linalg.norm(u, axis=-1)
-            u = np.where(du[..., None] > 0, u / np.where(du > 0, du, 1.0)[..., None], 0.0)
-            direction = (w[..., None] * u).sum(axis=1)
-            point = (w[..., None] * 0.5 * (p + q)).sum(axis=1) / w.sum(axis=1)[:, None]
-            c = pos[ii] - pos[jj]  # overlap or degenerate direction: the centre line
-            c = c / np.linalg.norm(c, axis=1)[:, None]
-            dn = np.linalg.norm(direction, axis=1)
-            bad = ov | (dn < 1e-12)
-            direction = np.where(bad[:, None], c, direction / np.where(dn > 0, dn, 1.0)[:, None])
-            mag = model.magnitude(np.where(ov, 0.0, gap))
-            f = mag[:, None] * direction
+            point, direction = approach_geometry(p[near], q[near], d[near], rho, pos[ii] - pos[jj], ov)
+            f = model.magnitude(np.where(ov, 0.0, gap[near]))[:, None] * direction
             _accumulate(F, T, pos, ii, f, point)
             _accumulate(F, T, pos, jj, -f, point)
             n_active += int(len(ii))
     if walls is not None:
-        mv = np.arange(n) if movable is None else np.flatnonzero(movable)
-        Wm = W[mv]
-        x0, x1, y0, y1 = walls
-        for axis, wall, sign in ((0, x0, 1.0), (0, x1, -1.0), (1, y0, 1.0), (1, y1, -1.0)):
-            if not np.isfinite(wall):
-                continue
-            d = sign * (Wm[:, :, axis] - wall)  # distance of every vertex from the wall (negative: beyond)
-            gap = d.min(axis=1)
-            near = gap < rho
-            if not near.any():
-                continue
-            d, gap, Wn = d[near], gap[near], Wm[near]
-            w = np.clip((rho - d) / rho, 0.0, 1.0) ** 2
-            point = (w[..., None] * Wn).sum(axis=1) / w.sum(axis=1)[:, None]
-            f = np.zeros((len(gap), 2))
-            f[:, axis] = sign * model.magnitude(gap)
-            _accumulate(F, T, pos, mv[near], f, point)
-            n_active += int(near.sum())
+        for k, gap, point, normal in wall_approaches(W, walls, rho, movable):
+            _accumulate(F, T, pos, k, model.magnitude(gap)[:, None] * normal, point)
+            n_active += int(len(k))
     return F, T, n_active
+
+
+def approach_geometry(p, q, d, reach, centre_line, overlapping):
+    """Point of action and direction of pairs of outlines closer than ``reach``.
+
+    The closest points ``p`` (on body i) and ``q`` (on body j) of every vertex–edge pair within
+    ``reach`` are weighted by ``((reach − d)/reach)²``: a single closest vertex gives its own point
+    and direction, a face parallel to a face the mean over the face (module docstring).
+
+    Parameters
+    ----------
+    p, q : (P, M, 2) float
+        Closest points on body i and on body j (:func:`pair_gaps`), length.
+    d : (P, M) float
+        Their distances, length.
+    reach : float
+        Length.
+    centre_line : (P, 2) float
+        ``x_i − x_j``: the direction taken for overlapping or degenerate pairs.
+    overlapping : (P,) bool
+
+    Returns
+    -------
+    point : (P, 2) float
+        Where the pair's force acts, length.
+    direction : (P, 2) float
+        Unit vector from body j towards body i.
+    """
+    w = np.clip((reach - d) / reach, 0.0, 1.0) ** 2
+    u = p - q
+    du = np.linalg.norm(u, axis=-1)
+    u = np.where(du[..., None] > 0, u / np.where(du > 0, du, 1.0)[..., None], 0.0)
+    direction = (w[..., None] * u).sum(axis=1)
+    point = (w[..., None] * 0.5 * (p + q)).sum(axis=1) / w.sum(axis=1)[:, None]
+    c = centre_line / np.linalg.norm(centre_line, axis=1)[:, None]
+    dn = np.linalg.norm(direction, axis=1)
+    bad = overlapping | (dn < 1e-12)
+    direction = np.where(bad[:, None], c, direction / np.where(dn > 0, dn, 1.0)[:, None])
+    return point, direction
+
+
+def wall_approaches(W, walls, reach, movable=None):
+    """Bodies closer than ``reach`` to each wall: ``(bodies, gap, point, normal)`` per wall.
+
+    ``W`` (N, K, 2) padded world outlines; ``walls`` (xmin, xmax, ymin, ymax), ``±inf`` for none;
+    ``movable`` (N,) bool, the bodies that may approach a wall (default all).  ``gap`` (M,) is the
+    smallest vertex distance from the wall (negative beyond it), ``point`` (M, 2) the mean of the
+    vertices within reach weighted by ``((reach − d)/reach)²``, ``normal`` (M, 2) the wall's unit
+    normal into the box.
+    """
+    mv = np.arange(len(W)) if movable is None else np.flatnonzero(movable)
+    Wm = W[mv]
+    x0, x1, y0, y1 = walls
+    for axis, wall, sign in ((0, x0, 1.0), (0, x1, -1.0), (1, y0, 1.0), (1, y1, -1.0)):
+        if not np.isfinite(wall):
+            continue
+        d = sign * (Wm[:, :, axis] - wall)  # distance of every vertex from the wall (negative: beyond)
+        gap = d.min(axis=1)
+        near = gap < reach
+        if not near.any():
+            continue
+        d, gap, Wn = d[near], gap[near], Wm[near]
+        w = np.clip((reach - d) / reach, 0.0, 1.0) ** 2
+        point = (w[..., None] * Wn).sum(axis=1) / w.sum(axis=1)[:, None]
+        normal = np.zeros((len(gap), 2))
+        normal[:, axis] = sign
+        yield mv[near], gap, point, normal
 
 
 def _accumulate(F, T, pos, k, f, point):

@@ -28,7 +28,8 @@ from .bodies import Body, _box, _pair
 from .contact import (Contacts, ContactModel, contact_forces, grid_pairs, polygon_overlaps,
                       wall_overlaps)
 from .integrate import GEAR_ORDERS, Gear
-from .repulsion import Repulsion, repulsion_forces
+from .lubrication import Lubrication, equal_area_radius, lubrication_forces
+from .repulsion import Repulsion, pair_gaps, repulsion_forces
 
 __all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS"]
 
@@ -82,6 +83,10 @@ class DEM:
     repulsion : Repulsion or None
         A short-range repulsion between outlines closer than its range (bodies in a fluid,
         :mod:`fluidem.dem.repulsion`); its stiffness enters :attr:`dt_max`.
+    lubrication : Lubrication or None
+        The lubrication correction between outlines closer than its range (bodies in a fluid,
+        :mod:`fluidem.dem.lubrication`): a normal damping, capped so it never shortens
+        :attr:`dt_max`.
 
     Attributes
     ----------
@@ -133,7 +138,7 @@ class DEM:
 
     def __init__(self, bodies, walls=None, gravity=(0.0, -9.81), contact: ContactModel | None = None,
                  order: int = 2, skin: float | None = None, overlap_tolerance: float = 0.01,
-                 t0: float = 0.0, repulsion: Repulsion | None = None):
+                 t0: float = 0.0, repulsion: Repulsion | None = None, lubrication: Lubrication | None = None):
         bodies = _check_bodies("DEM(bodies=...)", bodies)
         if not bodies:
             raise validate.fail("DEM(bodies=...)", bodies, "at least one fluidem.dem.Body")
@@ -150,6 +155,11 @@ class DEM:
             raise validate.fail("DEM(repulsion=...)", _Shown(repulsion), "None or a fluidem.dem.repulsion.Repulsion")
         self.repulsion = repulsion
         self.repulsion_pairs = 0  # pairs and body-wall pairs within the repulsion range in the last step
+        if lubrication is not None and not isinstance(lubrication, Lubrication):
+            raise validate.fail("DEM(lubrication=...)", _Shown(lubrication),
+                                "None or a fluidem.dem.lubrication.Lubrication")
+        self.lubrication = lubrication
+        self.lubrication_pairs = 0  # likewise within the lubrication range
         self.cost = _new_cost()
         self.bodies: list[Body] = []
         self._setup(bodies)
@@ -188,8 +198,9 @@ class DEM:
         fr = self.radii[self.movable]
         rmax = float(fr.max()) if len(fr) else float(self.radii.max())
         self.skin = 0.2 * rmax if self._skin_arg is None else float(self._skin_arg)
-        if self.repulsion is not None:  # the Verlet list must hold the pairs within the range
-            self.skin = max(self.skin, 4.0 * self.repulsion.range)
+        self.lubrication_radius = equal_area_radius(self.area)
+        if self.near_range > 0:  # the Verlet list must hold the pairs within the ranges
+            self.skin = max(self.skin, 4.0 * self.near_range)
         self._cell = 2.0 * rmax + self.skin
         self._nbr = None
         self._nbr_ref = None
@@ -222,6 +233,11 @@ class DEM:
     @walls.setter
     def walls(self, walls):
         self._walls = None if walls is None else _box("DEM(walls=...)", walls)
+
+    @property
+    def near_range(self) -> float:
+        """The largest range of the short-range models (repulsion, lubrication), 0 for none; length."""
+        return max([m.range for m in (self.repulsion, self.lubrication) if m is not None], default=0.0)
 
     @property
     def dt_max(self) -> float:
@@ -356,17 +372,25 @@ class DEM:
         tq = np.bincount(idx, np.concatenate([T, Tj]), minlength=n)
         forces = np.column_stack([fx, fy]) + self.mass[:, None] * self.gravity + self.external_force
         torques = tq + self.external_torque
-        if self.repulsion is not None:
-            ri, rj = self._neighbours(pos, self.repulsion.range)
+        if self.near_range > 0:  # repulsion and lubrication below their ranges
+            ri, rj = self._neighbours(pos, self.near_range)
             touching = np.zeros(len(ri), bool)
-            if len(ri) and len(C):  # overlapping pairs are pushed along their centre line
+            if len(ri) and len(C):  # overlapping pairs act along their centre line
                 n = self.n
                 body = C.j >= 0
                 touching = np.isin(ri * n + rj, np.minimum(C.i, C.j)[body] * n + np.maximum(C.i, C.j)[body])
-            Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, W, pos, ri, rj,
-                                                            touching, self.walls, self.movable, self.radii)
-            forces = forces + Fr
-            torques = torques + Tr
+            gaps = pair_gaps(W, ri, rj, pos, self.radii, self.near_range) if len(ri) else None
+            if self.repulsion is not None:
+                Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, W, pos, ri, rj, touching, self.walls,
+                                                                self.movable, self.radii, gaps=gaps)
+                forces = forces + Fr
+                torques = torques + Tr
+            if self.lubrication is not None:
+                Fl, Tl, self.lubrication_pairs = lubrication_forces(
+                    self.lubrication, W, pos, v, ri, rj, touching, self.lubrication_radius, self.mass, self.free,
+                    dt, self.walls, self.movable, gaps=gaps)
+                forces = forces + Fl
+                torques = torques + Tl
         order = np.argsort(C.key, kind="stable")
         self._hist = {"key": C.key[order], "xi": C.xi[order], "area": C.area[order],
                       "g": (self.model.E * C.area / (C.length * C.chord))[order],

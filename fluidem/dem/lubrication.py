@@ -1,0 +1,227 @@
+"""Lubrication correction between bodies closer than the mesh resolves (bodies in a fluid).
+
+Two no-slip bodies approaching each other squeeze the fluid out of the gap between them; in 2D
+the film's resistance grows as ``g^(-3/2)`` with the gap ``g``, so it decelerates the bodies
+long before they touch (Hillairet 2007: never, in finite time).  A mesh of size h resolves that
+film only in part once the gap is a fraction of h, and how much of it depends on the element
+pair: ``benchmarks/bench_narrow_gap.py`` measures the resolved force on a disk approaching a wall
+against the exact bipolar solution (results ``benchmarks/results/narrow_gap.md``).  This module
+adds the part the mesh misses.
+
+Law.  A cylinder of radius a approaching a plane wall at speed V through fluid of dynamic
+viscosity μ, gap δ ≪ a (Reynolds' lubrication equation for the gap δ + x²/2a; the δ → 0 limit
+of the bipolar solution, Jeffrey & Onishi 1981; REFERENCES.md "Free bodies in Stokes flow")::
+
+    F⊥ = 3√2 π μ V (a/δ)^(3/2) = μ V L(δ),   L(δ) = 3√2 π (a/δ)^(3/2)     (Jeffrey & Onishi 1981)
+
+Two cylinders of radii aᵢ, aⱼ have the gap δ + x²/2a* with the reduced radius
+``a* = aᵢ aⱼ / (aᵢ + aⱼ)``, so the same law holds with a*.
+
+Resolved part.  The measured resolved force of an element pair that under-resolves the film
+follows the same law at a wider gap, ``L(√(δ² + δ_r²))``, with a *resolved-film length*
+``δ_r`` of a few hundredths of h (Taylor–Hood: the corrected force is within a few per cent of
+the exact one from δ = h down to δ = h/50 where the resolved one alone falls to half of it).  The
+correction is the difference, continued to zero at the cut-off ``g_c``::
+
+    F = −c(g) Vₙ n,   c(g) = μ [D(g_e) − D(g_c)]₊,   D(g) = L(g) − L(√(g² + δ_r²)),   g_e = max(g, g_min)
+
+with ``Vₙ`` the normal relative velocity of the two outlines at the point of closest approach
+(negative while approaching) and ``n`` the unit vector from the other body (or the wall) towards
+this one.  It is equal and opposite on a pair, so it keeps momentum, and it only dissipates
+(``−c Vₙ² ≤ 0``).  ``D`` falls as ``δ_r² g^(−7/2)`` for g ≫ δ_r, so the cut-off (default h) only
+spares work.  ``δ_r = 0`` (an element pair whose resolved film is at least the exact one, such as
+P2+bubble/P1dc on the meshes measured) means no correction.  Below ``g_min`` the coefficient
+stays at its value there (default the repulsion's range: below it the short-range repulsion of
+:mod:`fluidem.dem.repulsion` holds bodies apart that a steady load drains towards each other).
+
+Polygons.  Each body's radius is that of the disk of equal area, ``a = √(A/π)``: exact for the
+regular many-sided polygons that stand for disks (to O(1/n²) for an n-gon); for angular bodies
+an approximation (a face approaching a parallel face resists more, ∝ g⁻³).  The tangential
+lubrication force (∝ (a/δ)^(1/2), Jeffrey & Onishi 1981) is weak and not modelled.
+
+Sub-steps.  The DEM integrates the correction explicitly in its sub-steps (velocity Verlet,
+:mod:`fluidem.dem.integrate`).  A damper ``c`` on the reduced mass m* is stable there while
+``k = c Δt / m* < 2`` (amplification ``1 − k + k²/2`` per step); the coefficient is capped at
+``m*/Δt`` (k ≤ 1), a damper that would stop the relative normal motion within one sub-step
+anyway, so the correction never shortens :attr:`fluidem.dem.DEM.dt_max`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import validate
+from .repulsion import _accumulate, approach_geometry, pair_gaps, wall_approaches
+
+__all__ = ["Lubrication", "lubrication_forces", "equal_area_radius"]
+
+#: 3√2 π: the prefactor of the 2D squeeze-film force, F/(μV) = 3√2 π (a/δ)^(3/2).
+SQUEEZE_FILM = 3.0 * np.sqrt(2.0) * np.pi
+
+
+@dataclass(frozen=True)
+class Lubrication:
+    """Parameters of the lubrication correction (module docstring).
+
+    Parameters
+    ----------
+    viscosity : float
+        Dynamic viscosity μ = ρ_f ν of the fluid (per unit depth: mass/time), > 0.
+    range : float
+        Cut-off gap g_c, length, > 0: no correction at or above it.
+    min_gap : float
+        Regularisation gap g_min, length, 0 < g_min < g_c: the coefficient stays at its value
+        there for smaller gaps and overlaps.
+    resolved_gap : float or None
+        Resolved-film length δ_r of the mesh, length, ≥ 0 (0: no correction); ``None`` the full
+        law, ``D = L``, for a film the mesh does not resolve at all (as in the analytic tests).
+
+    Examples
+    --------
+    With ``resolved_gap=None`` the correction at a gap of 0.001 from a wall (disk radius 0.1,
+    cut-off 0.02) is the squeeze-film law 3√2π μ (a/g)^(3/2) less its value at the cut-off; a
+    resolved-film length of 0.0005 leaves about a sixth of it:
+
+    >>> full = Lubrication(viscosity=0.01, range=0.02, min_gap=1e-4)
+    >>> c = float(full.coefficient(np.array([1e-3]), np.array([0.1]))[0])
+    >>> round(c, 4), round(float(SQUEEZE_FILM * 0.01 * ((0.1 / 1e-3) ** 1.5 - (0.1 / 0.02) ** 1.5)), 4)
+    (131.7963, 131.7963)
+    >>> part = Lubrication(viscosity=0.01, range=0.02, min_gap=1e-4, resolved_gap=5e-4)
+    >>> round(float(part.coefficient(np.array([1e-3]), np.array([0.1]))[0]) / c, 3)
+    0.156
+    >>> float(full.coefficient(np.array([0.02, 0.05]), np.array([0.1, 0.1])).max())
+    0.0
+    """
+
+    viscosity: float
+    range: float
+    min_gap: float
+    resolved_gap: float | None = None
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        set_(self, "viscosity", validate.positive("Lubrication(viscosity=...)", self.viscosity))
+        set_(self, "range", validate.positive("Lubrication(range=...)", self.range))
+        set_(self, "min_gap", validate.positive("Lubrication(min_gap=...)", self.min_gap))
+        if self.min_gap >= self.range:
+            raise validate.fail("Lubrication(min_gap=...)", self.min_gap,
+                                f"a gap below the cut-off range = {self.range:g}")
+        if self.resolved_gap is not None:
+            set_(self, "resolved_gap", validate.nonnegative("Lubrication(resolved_gap=...)", self.resolved_gap))
+
+    @property
+    def active(self) -> bool:
+        """Whether the correction can be non-zero (``resolved_gap`` is not 0)."""
+        return self.resolved_gap is None or self.resolved_gap > 0
+
+    def _deficit(self, g):
+        """D(g)/a*^(3/2): the part of the law the mesh misses, per unit viscosity."""
+        law = g ** -1.5
+        if self.resolved_gap is None:
+            return law
+        return law - (g * g + self.resolved_gap**2) ** -0.75
+
+    def coefficient(self, gap: np.ndarray, radius: np.ndarray) -> np.ndarray:
+        """Damping coefficient c(g) (force per normal speed; per unit depth: mass/time).
+
+        Parameters
+        ----------
+        gap : (P,) float
+            Gaps between the outlines (negative: overlap), length.
+        radius : (P,) float
+            Reduced radii a* of the pairs (a body's own radius against a wall), length.
+        """
+        gap = np.asarray(gap, float)
+        g = np.maximum(gap, self.min_gap)
+        d = np.maximum(self._deficit(g) - self._deficit(self.range), 0.0)
+        c = SQUEEZE_FILM * self.viscosity * np.asarray(radius, float) ** 1.5 * d
+        return np.where(gap < self.range, c, 0.0)
+
+
+def equal_area_radius(area: np.ndarray) -> np.ndarray:
+    """Radius √(A/π) of the disk with each body's area (length); ``area`` (N,) length²."""
+    return np.sqrt(np.asarray(area, float) / np.pi)
+
+
+def _point_velocity(vel, pos, k, point):
+    """Rigid-body velocity of bodies ``k`` at ``point``: v + ω × (point − x), (M, 2)."""
+    r = point - pos[k]
+    w = vel[k, 2]
+    return vel[k, :2] + np.column_stack([-w * r[:, 1], w * r[:, 0]])
+
+
+def lubrication_forces(model: Lubrication, W: np.ndarray, pos: np.ndarray, vel: np.ndarray, i: np.ndarray,
+                       j: np.ndarray, overlapping: np.ndarray, radius: np.ndarray, mass: np.ndarray,
+                       free: np.ndarray, dt: float, walls=None, movable: np.ndarray | None = None,
+                       gaps=None):
+    """Lubrication forces and torques on every body (module docstring).
+
+    Parameters
+    ----------
+    model : Lubrication
+    W : (N, K, 2) float
+        Padded world outlines, length.
+    pos : (N, 2) float
+        Centres of mass, length.
+    vel : (N, 3) float
+        Velocities (v_x, v_y, ω), length/time and 1/time.
+    i, j : (P,) int
+        Candidate pairs.
+    overlapping : (P,) bool
+        Pairs that overlap (the coefficient at ``min_gap``, along the centre line).
+    radius : (N,) float
+        Each body's lubrication radius (:func:`equal_area_radius`), length.
+    mass : (N,) float
+        Masses (per unit depth); bodies that are not ``free`` count as infinitely heavy.
+    free : (N,) bool
+    dt : float
+        The sub-step (time): the coefficient is capped at m*/dt (0: no cap).
+    walls, movable
+        As in :func:`fluidem.dem.repulsion.repulsion_forces`.
+    gaps : tuple or None
+        ``pair_gaps(W, i, j, ...)`` already computed with a reach ≥ ``model.range``.
+
+    Returns
+    -------
+    F : (N, 2) float
+        Forces, force.
+    T : (N,) float
+        Torques about the centres of mass, force·length.
+    n_active : int
+        Pairs and body–wall pairs within the range.
+    """
+    n = len(pos)
+    F = np.zeros((n, 2))
+    T = np.zeros(n)
+    n_active = 0
+    rho = model.range
+    m = np.where(free, mass, np.inf)
+
+    def cap(c, m_star):
+        return np.minimum(c, m_star / dt) if dt > 0 else c
+
+    if len(i):
+        p, q, d = gaps if gaps is not None else pair_gaps(W, i, j)
+        gap = d.min(axis=1)
+        near = (gap < rho) | overlapping
+        if near.any():
+            ii, jj, ov = i[near], j[near], overlapping[near]
+            point, normal = approach_geometry(p[near], q[near], d[near], rho, pos[ii] - pos[jj], ov)
+            vn = ((_point_velocity(vel, pos, ii, point) - _point_velocity(vel, pos, jj, point)) * normal).sum(axis=1)
+            a_star = radius[ii] * radius[jj] / (radius[ii] + radius[jj])
+            m_star = 1.0 / (1.0 / m[ii] + 1.0 / m[jj])
+            c = cap(model.coefficient(np.where(ov, -np.inf, gap[near]), a_star), m_star)
+            f = (-c * vn)[:, None] * normal
+            _accumulate(F, T, pos, ii, f, point)
+            _accumulate(F, T, pos, jj, -f, point)
+            n_active += int(len(ii))
+    if walls is not None:
+        for k, gap, point, normal in wall_approaches(W, walls, rho, movable):
+            vn = (_point_velocity(vel, pos, k, point) * normal).sum(axis=1)
+            c = cap(model.coefficient(gap, radius[k]), m[k])
+            _accumulate(F, T, pos, k, (-c * vn)[:, None] * normal, point)
+            n_active += int(len(k))
+    return F, T, n_active
+
