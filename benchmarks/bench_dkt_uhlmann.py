@@ -3,7 +3,8 @@
 Set-up :func:`fluidem.cases.dkt.uhlmann_dkt_scene` (CGS): disks d = 0.25 cm (regular 96-gons),
 ρ_s/ρ_f = 1.5, ν = 0.01 cm²/s, g = 981 cm/s², closed channel 2 × 6 cm (8d × 24d), centres 4d
 (trailing) and 6d (leading) below the top wall, lateral offsets +d/250 and −d/250; P2+bubble/P1dc,
-mesh size h at the disks graded ×1.2 to 8h, implicit coupling, the short-range repulsion of range h;
+mesh size h at the disks graded ×1.2 to 8h, implicit coupling, the default contact model (lubrication
+correction below h, repulsion backstop below 0.01 h);
 dt = h / 20 s (a CFL number of about 1 at the largest speed, 19 cm/s); to t = 0.3 s (16.7 t_ref),
 the end of the published curves.  u_ref = √(π d (ρ_s/ρ_f − 1) g/2) = 13.88 cm/s, t_ref = d/u_ref
 = 0.0180 s, Re_ref = 347 (the peak fall speed gives U d/ν ≈ 475).

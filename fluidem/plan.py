@@ -424,13 +424,23 @@ def make_plan(scene: Scene) -> Plan:
                         "force scale (the largest buoyant weight) is 0, so bodies that meet overlap and the run stops; "
                         "expected contact.repulsion_force > 0 (a force per unit depth, e.g. the largest load that "
                         "presses bodies together)")
-                rng = f"{c.repulsion_range:g}" if c.repulsion_range is not None else f"mesh.h = {scene.mesh.h:g}"
+                from .coupling.contacts import lubrication_for, repulsion_for
+
+                rep = repulsion_for(scene, np.zeros(0), np.zeros(0))
+                lub = lubrication_for(scene)
                 force = (f"{c.repulsion_force:g}" if c.repulsion_force is not None
                          else "the largest buoyant weight of a free body")
-                notes.append(f"contacts inside the fluid step: the DEM contact law on overlaps and a short-range "
-                             f"repulsion (Glowinski et al. 2001) below the range {rng} (gaps the mesh cannot resolve), "
-                             f"force scale {force}, epsilon {c.repulsion_epsilon:g}; sub-stepped with the fluid's "
-                             "force held whenever outlines come within reach")
+                if lub is not None:
+                    what = ("the squeeze-film law" if lub.resolved_gap is None
+                            else f"the part of the squeeze-film law the mesh misses (resolved-film length "
+                                 f"{lub.resolved_gap:g})")
+                    lub_text = f"a lubrication correction, {what}, below the gap {lub.range:g}"
+                else:
+                    lub_text = "no lubrication correction (contact.lubrication off or resolved_gap = 0)"
+                notes.append(f"contacts inside the fluid step: {lub_text}; a short-range repulsion (Glowinski et "
+                             f"al. 2001) below {rep.range:g} as a backstop, force scale {force}, epsilon "
+                             f"{rep.epsilon:g}; the DEM contact law on overlaps; sub-stepped with the fluid's force "
+                             "held whenever outlines come within reach")
             elif nb + nw:
                 notes.append("no [contact] table: free bodies must stay apart and off the walls (the run stops with "
                              "a message if they overlap); add [contact] for contacts and short-range repulsion")

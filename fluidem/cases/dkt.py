@@ -4,11 +4,12 @@ Set-up (REFERENCES.md, "Resolved sedimentation in 2D"; CGS units: cm, g, s): a c
 2 × 8 cm of fluid (ρ_f = 1 g/cm², ν = 0.01 cm²/s), g = 980 cm/s², two disks of diameter
 d = 0.2 cm and density ρ_s = 1.01 released at rest with centres (1, 6.8) and (0.999, 7.2).
 The trailing (upper) disk falls in the wake of the leading one, faster (drafting), closes the
-gap until the short-range repulsion holds them apart (kissing), and the pair, unstable
+gap until the squeeze film between them holds them together (kissing), and the pair, unstable
 side by side, turns over (tumbling): the trailing disk passes the leading one.
 
 Events (:func:`dkt_events`): ``t_kiss`` the first time the gap between the outlines falls
-below the repulsion range ρ (the contact model acts); ``t_tumble`` the first time the line of
+below the mesh size h (the contact range of earlier versions; the film is resolved down to a
+fraction of h, :mod:`fluidem.coupling.contacts`); ``t_tumble`` the first time the line of
 centres is horizontal (the trailing disk level with the leading one); ``t_draft`` the first
 time the trailing disk falls 5 % faster than the leading one.  Glowinski et al. (2001) and
 Wan & Turek (2006) show these phases in figures; no tabulated event times were found
@@ -46,7 +47,8 @@ UHLMANN["t_ref"] = UHLMANN["d"] / UHLMANN["u_ref"]
 def dkt_scene(h: float = 0.02, dt: float = 0.005, t_end: float = 6.0, density: float = 1.01, segments: int = 64,
               element: str = "p2b", coupling: str = "implicit") -> Scene:
     """The Glowinski DKT scene (module docstring); ``h`` the mesh size at the disks (cm), graded by
-    1.2 to 8 h, the repulsion range ``mesh.h``; disks as regular ``segments``-gons."""
+    1.2 to 8 h, the default contact model (:mod:`fluidem.coupling.contacts`); disks as regular
+    ``segments``-gons."""
     disk = regular_polygon(D / 2, segments).tolist()
     return Scene.from_dict({
         "name": "dkt-glowinski",
@@ -66,7 +68,7 @@ def dkt_scene(h: float = 0.02, dt: float = 0.005, t_end: float = 6.0, density: f
 def uhlmann_dkt_scene(h: float = 0.01, dt: float = 5e-4, t_end: float = 0.3, segments: int = 96,
                       element: str = "p2b", growth: float = 1.2, coarse: float = 8.0) -> Scene:
     """The DKT of Uhlmann (2005), :data:`UHLMANN`: ``h`` the mesh size at the disks (cm), graded by
-    ``growth`` to ``coarse`` × h, the repulsion range ``mesh.h``; disks as regular ``segments``-gons.
+    ``growth`` to ``coarse`` × h, the default contact model; disks as regular ``segments``-gons.
     Bodies ``leading`` (first) and ``trailing``; the channel is x ∈ [0, 8d], y ∈ [0, 24d], gravity −y.
 
     >>> s = uhlmann_dkt_scene()
@@ -103,7 +105,7 @@ def dkt_events(t: np.ndarray, leading: np.ndarray, trailing: np.ndarray, v_leadi
     v_leading, v_trailing : (n,) float
         Vertical velocities, cm/s (negative: falling).
     contact_range : float
-        The repulsion range ρ, cm.
+        The gap that counts as kissing (the mesh size h in :func:`dkt`), cm.
 
     Returns
     -------
@@ -170,7 +172,7 @@ def dkt(element: str = "p2b", h: float = 0.02, dt: float = 0.005, t_end: float =
     sim.run(out_dir=None, progress=step_done)
     t_run = time.perf_counter() - t0
     R = np.array(rows)
-    ev = dkt_events(R[:, 0], R[:, 1:3], R[:, 3:5], R[:, 5], R[:, 6], fl.contacts.repulsion.range)
+    ev = dkt_events(R[:, 0], R[:, 1:3], R[:, 3:5], R[:, 5], R[:, 6], h)
     q = {k: v for k, v in ev.items() if not isinstance(v, list)}
     q.update({"y_lead_end": float(R[-1, 2]), "y_trail_end": float(R[-1, 4])})
     n = len(R)

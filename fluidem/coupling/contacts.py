@@ -1,5 +1,5 @@
-"""Contacts of free bodies inside the fluid step: short-range repulsion and the DEM contact law,
-sub-stepped with the fluid's force held.
+"""Contacts of free bodies inside the fluid step: lubrication correction, short-range repulsion
+and the DEM contact law, sub-stepped with the fluid's force held.
 
 The coupled step (:class:`fluidem.coupling.free_flow.FreeBodyFlow`) solves fluid and free
 bodies together, the hydrodynamic force and the buoyant weight implicit.  Contacts are far
@@ -11,23 +11,42 @@ their load is fed back into the same solve so that fluid and bodies agree on the
 2. the DEM (:class:`fluidem.dem.DEM`, no gravity) integrates the free bodies over
    [t, t + Δt] from (Xⁿ, Vⁿ) in stable sub-steps (:meth:`DEM.advance`), with the non-contact
    acceleration of the solve held (``(V_c − Vⁿ)/Δt`` less ``F``'s share), the contact law of
-   :mod:`fluidem.dem.contact` on overlaps and the short-range repulsion of
-   :mod:`fluidem.dem.repulsion` below its range; its contacts' impulse / Δt is the new ``F``;
+   :mod:`fluidem.dem.contact` on overlaps, the short-range repulsion of
+   :mod:`fluidem.dem.repulsion` below its range and the lubrication correction of
+   :mod:`fluidem.dem.lubrication` below its cut-off; its contacts' impulse / Δt is the new ``F``;
 3. repeat from 1 — one more back-substitution with the same matrix, only body rows change —
    until ``F`` settles (:meth:`fluidem.coupling.free_bodies.FreeBodyStepper.step`).
 
 The poses then advance with the final velocities by the step's BDF2 formula, as without
 contacts, so a body resting on another (or on a wall) has zero velocity and feels a contact
 load equal to its buoyant weight.  Nothing is sub-stepped while no pair of outlines (or outline
-and wall) is within reach — the repulsion range plus twice the distance the bodies can travel
-in a step — so a suspension of separated bodies pays one bounding-circle test per step.
-Where contacts act the splitting is first order in time, and the repulsion needs
-``Δt |v| ≪ ρ`` (approach speed v) to see a body coming.
+and wall) is within reach — the largest range of the two short-range models plus twice the
+distance the bodies can travel in a step — so a suspension of separated bodies pays one
+bounding-circle test per step.  Where contacts act the splitting is first order in time.
+
+Which model acts where (``benchmarks/bench_narrow_gap.py``, ``benchmarks/results/narrow_gap.md``).
+Quasi-statically the mesh resolves the squeeze film between close outlines down to gaps of a
+fraction of h — Taylor–Hood and P3/P2 within a few per cent to h/4, then too weak; P2+bubble/P1dc
+and MINI too strong (locking).  Dynamically the coupled step cannot follow the film once the gap
+closes by more than itself in one step: two disks of the Uhlmann (2005) DKT meet at 5.6 cm/s, i.e.
+5.6e-3 cm per step at dt = 1 ms, where the film stops them within a few 1e-3 cm; the step sees the
+gap only at its own geometry, and the pair rebounds (measured with the resolved film alone: three
+bounces, against a lasting kiss in both published computations).  So the default adds the whole
+squeeze-film law below the cut-off h, less its value there, in the DEM sub-steps, which follow the
+gap continuously: the pair then stops at a gap of 0.075 h and stays in contact for the time the
+references show.  The price is a double count where the film changes slowly: a quasi-static
+approach meets 1.5–2.6 × the exact resistance (the table's "full law" column), so a body draining
+onto a wall does so that much slower.  ``contact.lubrication_resolved_gap = δ_r`` (the element's
+:data:`RESOLVED_FILM` times h) adds only the measured deficit instead: right quasi-statically for
+Taylor–Hood and P3/P2 (within 1–12 % from h to h/50 at a ≥ 5 h), nothing for P2+bubble and MINI.
+The repulsion stays as a backstop at ``0.01 h`` (:data:`BACKSTOP`), where a steady load that
+drains the film eventually brings bodies.  Earlier versions put the repulsion at the range h: it
+stopped approaching bodies before the film could, elastically, and the DKT pair rebounded.
 
 The contact law acts on overlaps, which the repulsion prevents as long as its force scale
-exceeds the loads pressing the bodies together; the mesh needs the bodies apart (it
-re-triangulates a contact, :class:`fluidem.mesh.MovingMesh`), and the run's state checks stop
-it on overlap.
+exceeds the loads pressing the bodies together (c/ε: 100 × the buoyant weight by default); the
+mesh needs the bodies apart (it re-triangulates a contact, :class:`fluidem.mesh.MovingMesh`),
+and the run's state checks stop it on overlap.
 """
 
 from __future__ import annotations
@@ -37,23 +56,56 @@ import time
 import numpy as np
 
 from ..dem import DEM, Body, ContactModel
+from ..dem.lubrication import Lubrication
 from ..dem.repulsion import Repulsion
 
-__all__ = ["FluidContacts", "repulsion_for"]
+__all__ = ["BACKSTOP", "FluidContacts", "RESOLVED_FILM", "lubrication_for", "repulsion_for"]
+
+
+#: Resolved-film length δ_r / h of each element pair, for ``contact.lubrication_resolved_gap``:
+#: the resolved force on a disk approaching a wall follows the squeeze-film law at the gap
+#: √(δ² + δ_r²) (:mod:`fluidem.dem.lubrication`).  Measured by ``benchmarks/bench_narrow_gap.py``
+#: (``benchmarks/results/narrow_gap.md``; disk radius a = 5–10 h, gaps δ = h … h/50):
+#: Taylor–Hood 0.021–0.036, P3/P2 0.010–0.030.  P2+bubble/P1dc and MINI resist at least as much
+#: as the exact solution on those meshes (P2+bubble up to 1.6×, MINI up to 5.3×: locking): 0.
+RESOLVED_FILM = {"th": 0.025, "p3": 0.015, "p2b": 0.0, "mini": 0.0}
+
+#: The repulsion's default range as a fraction of the mesh size: a backstop below the gaps whose
+#: film the mesh resolves (down to h/50 in the measurement above).
+BACKSTOP = 0.01
 
 
 def repulsion_for(scene, free_areas: np.ndarray, free_densities: np.ndarray) -> Repulsion:
-    """The scene's repulsion: ``contact.repulsion_*`` or their defaults (range ``mesh.h``, force
-    the largest buoyant weight |ρ_s − ρ_f| A |g| of a free body)."""
+    """The scene's repulsion: ``contact.repulsion_*`` or their defaults (range ``0.01 mesh.h``,
+    ε = 1e-4 · h/range, force the largest buoyant weight |ρ_s − ρ_f| A |g| of a free body)."""
     c = scene.contact
-    rng = c.repulsion_range if c.repulsion_range is not None else scene.mesh.h
+    rng = c.repulsion_range if c.repulsion_range is not None else BACKSTOP * scene.mesh.h
+    eps = c.repulsion_epsilon if c.repulsion_epsilon is not None else 1e-4 * scene.mesh.h / rng
     if c.repulsion_force is not None:
         force = c.repulsion_force
     else:
         g = float(np.hypot(*scene.gravity))
         w = np.abs(free_densities - scene.fluid.density) * free_areas * g
         force = float(w.max()) if len(w) else 0.0
-    return Repulsion(range=rng, force=force, epsilon=c.repulsion_epsilon)
+    return Repulsion(range=rng, force=force, epsilon=eps)
+
+
+def lubrication_for(scene) -> Lubrication | None:
+    """The scene's lubrication correction (``contact.lubrication*``; μ = ρ_f ν, cut-off ``mesh.h``,
+    the full law below it unless ``lubrication_resolved_gap`` is set, regularised at the
+    repulsion's range), or None where it is off, cannot act (δ_r = 0) or the flow has no inertia
+    (Stokes free bodies feel no contacts)."""
+    c = scene.contact
+    if c is None or not c.lubrication or scene.fluid is None or scene.fluid.model == "stokes":
+        return None
+    h = scene.mesh.h
+    rng = c.lubrication_range if c.lubrication_range is not None else h
+    dr = c.lubrication_resolved_gap
+    if dr == 0.0:
+        return None
+    backstop = c.repulsion_range if c.repulsion_range is not None else BACKSTOP * h
+    return Lubrication(viscosity=scene.fluid.density * scene.fluid.viscosity, range=rng,
+                       min_gap=min(backstop, 0.5 * rng), resolved_gap=dr)
 
 
 class FluidContacts:
@@ -94,13 +146,14 @@ class FluidContacts:
         dens = np.array([B[k].density for k in self.free])
         areas = np.array([bodies[k].area for k in self.free])
         self.repulsion = repulsion_for(scene, areas, dens)
+        self.lubrication = lubrication_for(scene)
         x0, x1, y0, y1 = scene.domain.box
         solid = {s: scene.domain.side(s).type in ("wall", "moving-wall") for s in ("left", "right", "bottom", "top")}
         walls = (x0 if solid["left"] else -np.inf, x1 if solid["right"] else np.inf,
                  y0 if solid["bottom"] else -np.inf, y1 if solid["top"] else np.inf)
         c = scene.contact
         self.dem = DEM(bodies, walls=walls, gravity=(0.0, 0.0), contact=ContactModel(E=c.E, mu=c.mu, gamma=c.gamma),
-                       repulsion=self.repulsion)
+                       repulsion=self.repulsion, lubrication=self.lubrication)
         self.radii = np.array([b.radius for b in bodies])
         self.walls = walls
         # no rotational added mass: the free bodies' moments of inertia are their own, ρ_s J
@@ -112,7 +165,7 @@ class FluidContacts:
     def within_reach(self, poses: np.ndarray, travel: float) -> bool:
         """Whether any outline may come within the repulsion range of another or of a wall
         during a step in which no body moves more than ``travel`` (length): bounding circles."""
-        reach = self.repulsion.range + 2.0 * travel
+        reach = self.dem.near_range + 2.0 * travel
         p, r, f = poses[:, :2], self.radii, self.free
         x0, x1, y0, y1 = self.walls
         pf, rf = p[f], r[f] + reach

@@ -342,14 +342,27 @@ class ContactSpec:
         ``false`` switches contacts off whatever the geometry.
     repulsion_range : float or None
         Fluid scenes: cut-off distance ρ of the short-range repulsion between outlines
-        (:mod:`fluidem.dem.repulsion`, Glowinski et al. 2001), length, > 0; ``None`` takes the
-        mesh size ``mesh.h`` (gaps the mesh cannot resolve).
+        (:mod:`fluidem.dem.repulsion`, Glowinski et al. 2001), length, > 0; ``None`` takes
+        ``0.01 · mesh.h``: a backstop well below the gaps whose film the mesh resolves
+        (``benchmarks/results/narrow_gap.md``).
     repulsion_force : float or None
         Fluid scenes: its force scale c, force (per unit depth), ≥ 0 (0: no repulsion);
         ``None`` takes the largest buoyant weight |ρ_s − ρ_f| A |g| of a free body.
-    repulsion_epsilon : float
+    repulsion_epsilon : float or None
         Fluid scenes: its stiffness ε, > 0 (force c/ε at contact; a body pressed by c rests
-        at the gap ρ(1 − √ε)).
+        at the gap ρ(1 − √ε)); ``None`` takes ``1e-4 · mesh.h / ρ``, which keeps the stiffness at
+        contact, 2c/(ερ), and so the DEM sub-step, those of ε = 1e-4 at ρ = h.
+    lubrication : bool
+        Fluid scenes with inertia: the lubrication correction between outlines (and from walls)
+        closer than ``lubrication_range``, the 2D squeeze-film force sub-stepped with the gap
+        (:mod:`fluidem.dem.lubrication`, :mod:`fluidem.coupling.contacts`).
+    lubrication_range : float or None
+        Its cut-off g_c, length, > 0; ``None`` takes ``mesh.h``.
+    lubrication_resolved_gap : float or None
+        The mesh's resolved-film length δ_r, length, ≥ 0 (0: no correction): add only the part of
+        the film force the mesh misses quasi-statically (the element's measured value is
+        :data:`fluidem.coupling.contacts.RESOLVED_FILM` times ``mesh.h``); ``None`` adds the
+        whole law less its value at the cut-off.
     """
 
     E: float = 1e7
@@ -358,9 +371,13 @@ class ContactSpec:
     enabled: bool = True
     repulsion_range: float | None = None
     repulsion_force: float | None = None
-    repulsion_epsilon: float = 1e-4
+    repulsion_epsilon: float | None = None
+    lubrication: bool = True
+    lubrication_range: float | None = None
+    lubrication_resolved_gap: float | None = None
 
-    KEYS = ("E", "mu", "gamma", "enabled", "repulsion_range", "repulsion_force", "repulsion_epsilon")
+    KEYS = ("E", "mu", "gamma", "enabled", "repulsion_range", "repulsion_force", "repulsion_epsilon", "lubrication",
+            "lubrication_range", "lubrication_resolved_gap")
 
     def validate(self, where="contact"):
         self.E = positive(f"{where}.E", self.E, error=SceneError)
@@ -371,7 +388,14 @@ class ContactSpec:
             self.repulsion_range = positive(f"{where}.repulsion_range", self.repulsion_range, error=SceneError)
         if self.repulsion_force is not None:
             self.repulsion_force = nonnegative(f"{where}.repulsion_force", self.repulsion_force, error=SceneError)
-        self.repulsion_epsilon = positive(f"{where}.repulsion_epsilon", self.repulsion_epsilon, error=SceneError)
+        if self.repulsion_epsilon is not None:
+            self.repulsion_epsilon = positive(f"{where}.repulsion_epsilon", self.repulsion_epsilon, error=SceneError)
+        self.lubrication = boolean(f"{where}.lubrication", self.lubrication, error=SceneError)
+        if self.lubrication_range is not None:
+            self.lubrication_range = positive(f"{where}.lubrication_range", self.lubrication_range, error=SceneError)
+        if self.lubrication_resolved_gap is not None:
+            self.lubrication_resolved_gap = nonnegative(f"{where}.lubrication_resolved_gap",
+                                                        self.lubrication_resolved_gap, error=SceneError)
 
 
 @dataclass
