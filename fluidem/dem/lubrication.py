@@ -3,10 +3,12 @@
 Two no-slip bodies approaching each other squeeze the fluid out of the gap between them; in 2D
 the film's resistance grows as ``g^(-3/2)`` with the gap ``g``, so it decelerates the bodies
 long before they touch (Hillairet 2007: never, in finite time).  A mesh of size h resolves that
-film only in part once the gap is a fraction of h, and how much of it depends on the element
-pair: ``benchmarks/bench_narrow_gap.py`` measures the resolved force on a disk approaching a wall
-against the exact bipolar solution (results ``benchmarks/results/narrow_gap.md``).  This module
-adds the part the mesh misses.
+film quasi-statically down to a fraction of h, how far depends on the element pair
+(``benchmarks/bench_narrow_gap.py``, ``benchmarks/results/narrow_gap.md``), but a fluid step of
+the usual size cannot follow it in time once the gap closes by more than itself in one step.
+This module adds the film force in the DEM sub-steps, which follow the gap continuously: the
+whole law below a cut-off (the default of :mod:`fluidem.coupling.contacts`), or only the part the
+mesh misses quasi-statically.
 
 Law.  A cylinder of radius a approaching a plane wall at speed V through fluid of dynamic
 viscosity μ, gap δ ≪ a (Reynolds' lubrication equation for the gap δ + x²/2a; the δ → 0 limit
@@ -19,17 +21,19 @@ Two cylinders of radii aᵢ, aⱼ have the gap δ + x²/2a* with the reduced rad
 
 Resolved part.  The measured resolved force of an element pair that under-resolves the film
 follows the same law at a wider gap, ``L(√(δ² + δ_r²))``, with a *resolved-film length*
-``δ_r`` of a few hundredths of h (Taylor–Hood: the corrected force is within a few per cent of
-the exact one from δ = h down to δ = h/50 where the resolved one alone falls to half of it).  The
-correction is the difference, continued to zero at the cut-off ``g_c``::
+``δ_r`` of a few hundredths of h (Taylor–Hood on a fresh mesh: with the deficit added the force is
+within a few per cent of the exact one from δ = h down to δ = h/50, where the resolved one alone
+falls to half of it; on a dragged mesh the film is resolved less well, 0.7 of the exact force at
+h/10).  The correction is the whole law (``δ_r`` None) or that deficit, continued to zero at the
+cut-off ``g_c``::
 
     F = −c(g) Vₙ n,   c(g) = μ [D(g_e) − D(g_c)]₊,   D(g) = L(g) − L(√(g² + δ_r²)),   g_e = max(g, g_min)
 
 with ``Vₙ`` the normal relative velocity of the two outlines at the point of closest approach
 (negative while approaching) and ``n`` the unit vector from the other body (or the wall) towards
 this one.  It is equal and opposite on a pair, so it keeps momentum, and it only dissipates
-(``−c Vₙ² ≤ 0``).  ``D`` falls as ``δ_r² g^(−7/2)`` for g ≫ δ_r, so the cut-off (default h) only
-spares work.  ``δ_r = 0`` (an element pair whose resolved film is at least the exact one, such as
+(``−c Vₙ² ≤ 0``).  With ``δ_r``, ``D`` falls as ``δ_r² g^(−7/2)`` for g ≫ δ_r, so the cut-off only
+spares work; ``δ_r = 0`` (an element pair whose resolved film is at least the exact one, such as
 P2+bubble/P1dc on the meshes measured) means no correction.  Below ``g_min`` the coefficient
 stays at its value there (default the repulsion's range: below it the short-range repulsion of
 :mod:`fluidem.dem.repulsion` holds bodies apart that a steady load drains towards each other).
