@@ -18,6 +18,49 @@ Measured (seed 0, E = 2000 N/m, 1 s of settling; printed by the tests with ``-s`
 E = 2000 N/m is soft on purpose (the number of steps grows as √E): E/(ρ g d) = 2000, so
 the static overlap areas stay around 1 % of a grain's area (depth ~0.3 % of its size) at
 the bottom of these ≤ 40-grain-high deposits, small enough for the overlap-area law.
+
+Coming to rest (seed 0; the heap poured as :func:`pour_heap`, then settled in windows of
+0.05 s up to 5 s, which reproduces the 1 s heap of the tests exactly): 99th-percentile grain
+displacement per 0.05 s (D) / kinetic energy (J) at t s of settling after the last batch:
+
+=====  ===============  ===============  ===============  ===============  ====================
+ μ     t = 1            1.5              2                3                angle at 1/2/3/5 s
+=====  ===============  ===============  ===============  ===============  ====================
+ 0.1   0.15 / 6.4e-6    3.1e-3 / 5.8e-9  1.6e-2 / 1.4e-8  1.2e-3 / 1.1e-9  12.7/12.5/12.5/12.5°
+ 0.3   1.8e-2 / 2.2e-7  9.6e-3 / 1.4e-7  1.5e-2 / 1.3e-7  1.6e-2 / 1.7e-7  22.2/22.6/22.6/20.1°
+ 0.6   0.12 / 3.5e-5    0.21 / 5.1e-5    0.18 / 2.9e-5    0.13 / 2.8e-5    28.2/20.9/17.9/15.4°
+=====  ===============  ===============  ===============  ===============  ====================
+
+Decay rates (1/s), expected from the contact law against measured:
+
+=====  ==========================  ==========================  ================  ==============
+ μ     expected, contacts stuck    expected, Coulomb-limit     measured arrest   measured
+       (slowest mode)              contacts free to slip       0.55 s → rest     1–3 s / 2–5 s
+=====  ==========================  ==========================  ================  ==============
+ 0.1   1.7  (ω 94 rad/s)           0 (40 mechanisms); 0.026    9.1 (KE 18)       0.9 / −0.6
+ 0.3   1.9  (ω 94 rad/s)           0 (20 mechanisms); 0.016    8.3 (KE 14)       −0.3 / 0.2
+ 0.6   0.12 (ω 27 rad/s)           0 (78 mechanisms); 0.014    7.8 (KE 9)        0.3 / −0.1
+=====  ==========================  ==========================  ================  ==============
+
+Expected: the contact network of the heap at t = 1 s linearised (normal spring E|S|/l and
+dashpot γ√(m_eff E)|S|/l, tangential spring κE and dashpot γ√(m_eff κE) per contact, lever
+arms to the contact points; ``M ẍ + C ẋ + K x = 0`` on the 1500 grain coordinates, largest real
+part of its eigenvalues).  The damping is stiffness proportional (c/k = γ√(m_eff/E) ≈ 4e-4 s),
+so a mode of frequency ω decays at ≈ 2e-4 ω² 1/s.  With every contact stuck the slowest mode is
+a collective one at ω ≈ 94 rad/s (27 for μ = 0.6); with the 35–50 % of contacts that sit at the
+Coulomb limit free to slip (the ``sliding`` flag at t = 1 s), 20–78 modes have no restoring
+force at all (mechanisms: no decay from the contact law) and the slowest elastic ones have
+ω ≈ 0.5–2 rad/s.  Measured: the rate of the arrest of the last surface avalanches
+(log-slope of the 99th-percentile move, of KE in brackets, from 0.55 s to 1.2/1.0/0.95 s)
+is faster than any elastic prediction: it is friction stopping a flow, not a mode ringing
+down.  After it there is no decay: the rate fitted over 1–3 s and 2–5 s is zero within ±1 1/s.
+μ = 0.1 is at rest (p99 move 1–4e-3 D per 0.05 s, KE ~1e-9 J, with rare one-grain
+events); μ = 0.3 keeps rearranging intermittently (0.01–0.06 D per 0.05 s, bursts of 20–100
+grains moving > 0.01 D); μ = 0.6 creeps as a whole (median grain 0.18 D/s, 99th-percentile
+rotation 1.4–2.7 rad per 0.5–1 s, i.e. grains roll; potential energy −1e-3 J/s, height
+−7 % from 1 to 5 s) and its fitted flank angle falls from 28.2° at 1 s to 15.4° at 5 s, so
+its angle of repose in the table above is that of a heap still relaxing, not of a static one.
+(Measured with scripts outside the suite; the tests below keep the 1.0–1.5 s figures.)
 """
 
 from __future__ import annotations
@@ -112,12 +155,12 @@ def test_poured_heap_is_a_symmetric_heap(mu):
 _SETTLED: dict = {}
 
 
-def settle_more(mu, duration=1.0, window=0.05):
-    """Continue a copy of the poured heap :func:`heap` (``mu``) for ``duration`` seconds in
-    windows of ``window`` seconds (the cached heap is left as it is).
+def settle_more(mu, duration=0.5, window=0.05):
+    """Continue a copy of the poured heap :func:`heap` (``mu``, 1 s of settling) for
+    ``duration`` seconds in windows of ``window`` seconds; the cached heap is left as it is.
 
     Returns the simulation and, per window, the 99th-percentile grain displacement (in D)
-    and the kinetic energy at its end (J).
+    and the kinetic energy at its end (J).  About 24 s of CPU per heap.
     """
     if mu not in _SETTLED:
         sim = copy.deepcopy(heap(mu))
@@ -130,23 +173,37 @@ def settle_more(mu, duration=1.0, window=0.05):
     return _SETTLED[mu]
 
 
+def _report(mu, sim, moves, kes):
+    print(f"\nmu={mu}, t = {sim.time:.2f} s: median over 1-1.5 s of settling of the 99th-percentile "
+          f"move per 0.05 s {np.median(moves):.2e} D (max {moves.max():.2e}), KE median {np.median(kes):.1e} J")
+
+
 @pytest.mark.slow
 def test_poured_heap_is_static():
-    """mu = 0.1 comes to rest: over the second second of settling, the median over the
-    0.05 s windows of the 99th-percentile grain displacement is MEASURED_D (bound BOUND)."""
+    """The μ = 0.1 heap is at rest after 1 s of settling (the last surface avalanche stops
+    at 1.0–1.15 s): over 1.0–1.5 s, the median over the 0.05 s windows of the 99th-percentile
+    grain displacement is 1.9e-3 D (windows 1.6e-3 … 2.8e-2 D; KE 3.4e-9 J)."""
     sim, moves, kes = settle_more(0.1)
-    print(f"\nmu=0.1, t = {sim.time:.2f} s: median 99th-percentile move per 0.05 s over the 2nd second "
-          f"{np.median(moves):.2e} D (max {moves.max():.2e}), KE median {np.median(kes):.1e} J")
-    assert np.median(moves) < 1.0
+    _report(0.1, sim, moves, kes)
+    assert np.median(moves) < 0.005          # D; measured 1.9e-3
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("mu, measured", [(0.3, 1.0), (0.6, 1.0)])
+@pytest.mark.parametrize("mu, measured", [(0.3, 0.013), (0.6, 0.245)])
 def test_poured_heap_creep_is_a_measured_limit(mu, measured):
-    """PLACEHOLDER"""
+    """Measured limit: the μ = 0.3 and 0.6 heaps do not come to rest (see the module docstring).
+
+    Median over 1.0–1.5 s of settling of the 99th-percentile grain displacement per 0.05 s:
+    0.013 D (μ = 0.3: intermittent rearrangements, KE ~1e-7 J, no decay up to 5 s) and
+    0.245 D (μ = 0.6: the whole heap creeps, grains rolling, KE ~5e-5 J, no decay up to
+    5 s).  Only Coulomb friction can stop this motion: the contacts at the Coulomb limit
+    leave 20 (μ = 0.3) and 78 (μ = 0.6) zero-frequency mechanisms in the linearised contact
+    network, on which the stiffness-proportional contact damping does nothing (the stuck
+    network's slowest mode would decay at 1.9 and 0.12 1/s).  The bound is
+    2.5× the measured value, so the test fails if the creep gets worse.
+    """
     sim, moves, kes = settle_more(mu)
-    print(f"\nmu={mu}, t = {sim.time:.2f} s: median 99th-percentile move per 0.05 s over the 2nd second "
-          f"{np.median(moves):.2e} D (max {moves.max():.2e}), KE median {np.median(kes):.1e} J")
+    _report(mu, sim, moves, kes)
     assert np.median(moves) < 2.5 * measured
 
 
@@ -156,23 +213,27 @@ def test_angle_of_repose_grows_with_friction():
     assert a[0] < a[1] < a[2]
 
 
-#: Normalised runout (L∞ − L0)/L0 measured with :func:`collapse` (μ = 0.5, seed 1; at
-#: least 10 grains across the smaller side) against Lube et al. (2005).  Two protocols
-#: that differ only in how the 1 s settling and 3 s flow are split into calls of
-#: ``DEM.run`` (chunks of 0.05 s, or one call) give different realisations of the same
-#: collapse; the spread between them is the scatter of a single ~200–400-grain run.
+#: Normalised runout (L∞ − L0)/L0 measured with :func:`fluidem.cases.collapse.collapse`
+#: (μ = 0.5, seed 1; at least 10 grains across the smaller side) against Lube et al. (2005);
+#: ``benchmarks/bench_dem_collapse.py`` writes ``benchmarks/results/column_collapse.md``
+#: (one ``DEM.run`` call for the 3 s of flow).  Two protocols that differ only in how the
+#: 1 s settling and 3 s flow are split into calls of ``DEM.run`` (chunks of 0.05 s, or one
+#: call) give different realisations of the same collapse; the spread between them is the
+#: scatter of a single ~200–400-grain run.
 #:
-#: =====  ===================  ======  ===========  =====================================
-#: a      (L∞−L0)/L0           Lube    ratio        grains, wall time on the shared machine
-#: =====  ===================  ======  ===========  =====================================
-#: 0.49   0.70 (chunked)       0.59    1.18         376 (L0 = 20 grains), 15 min
-#: 1.03   1.40 / 1.20          1.23    1.14 / 0.98  189, 2.5–5 min
-#: 1.95   2.80 / 3.10          2.34    1.20 / 1.33  379, 5–6.6 min
-#: =====  ===================  ======  ===========  =====================================
+#: =====  ===================  ======  ===========  ========  ===================================
+#: a      (L∞−L0)/L0           Lube    ratio        packing   grains, wall time on the shared machine
+#: =====  ===================  ======  ===========  ========  ===================================
+#: 0.49   0.70 (chunked)/0.60  0.59    1.18 / 1.02  0.835     376 (L0 = 20 grains), 5–15 min
+#: 1.03   1.40 / 1.20          1.23    1.14 / 0.98  0.807     189, 2.5–6 min
+#: 1.95   2.80 / 3.10          2.34    1.20 / 1.33  0.836     379, 5–11 min
+#: 3.73   5.68                 4.57    1.24         0.865     749, 9–11 min
+#: =====  ===================  ======  ===========  ========  ===================================
 #:
-#: a = 4 was not measured (the run did not finish within the time available).  Only a = 1
-#: and 2 run in the test suite (time budget); a = 2 misses the 20 % band with the
-#: protocol of :func:`collapse`.
+#: (packing: solid fraction of the settled column, :func:`fluidem.cases.collapse.packing_fraction`.)
+#: Only a = 1 and 2 run in the test suite (time budget); a = 2 and 4 miss the 20 % band
+#: with the protocol of :func:`collapse`: the 2D polygons run out 24–33 % further than
+#: Lube's sand for a ≳ 2.
 COLUMN_ASPECTS = (
     1.0,
     pytest.param(2.0, marks=pytest.mark.xfail(strict=False, reason=(
