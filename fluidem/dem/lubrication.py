@@ -215,7 +215,8 @@ def lubrication_forces(model: Lubrication, W: np.ndarray, pos: np.ndarray, vel: 
             point, normal = approach_geometry(p[near], q[near], d[near], rho, pos[ii] - pos[jj], ov)
             vn = ((_point_velocity(vel, pos, ii, point) - _point_velocity(vel, pos, jj, point)) * normal).sum(axis=1)
             a_star = radius[ii] * radius[jj] / (radius[ii] + radius[jj])
-            m_star = 1.0 / (1.0 / m[ii] + 1.0 / m[jj])
+            inv = 1.0 / m[ii] + 1.0 / m[jj]  # 0 for two bodies that are not free: no cap needed
+            m_star = np.divide(1.0, inv, out=np.full_like(inv, np.inf), where=inv > 0)
             c = cap(model.coefficient(np.where(ov, -np.inf, gap[near]), a_star), m_star)
             f = (-c * vn)[:, None] * normal
             _accumulate(F, T, pos, ii, f, point)
