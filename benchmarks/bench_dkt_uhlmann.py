@@ -177,7 +177,7 @@ def report(recs: list, machine: str) -> None:
              f"for t before the reference's kissing time (centres closer than {KISS_DISTANCE} d) and over the whole "
              "run (to t = 0.3 s).  'fall' is the distance from the top wall, 'lat' the lateral position.", "",
              "| h cm | dt s | DOFs | steps | wall s | CPU s | s/step | re-triangulations | t_kiss s (t/t_ref) | "
-             "min gap cm | reference | ref t_kiss s | lat sign | before kiss: fall lead / trail, lat lead / trail "
+             "min gap cm (centres − d) | reference | ref t_kiss s | lat sign | before kiss: fall lead / trail, lat lead / trail "
              "| whole run: fall lead / trail, lat lead / trail |", "|" + "---|" * 15]
 
     def four(d):
@@ -188,7 +188,7 @@ def report(recs: list, machine: str) -> None:
         for k, (name, a) in enumerate(c["against"].items()):
             head = (f"| {r['h']} | {r['dt']:.2g} | {r['dofs']} | {r['steps']} | {r['wall_s']:.0f} | {r['cpu_s']:.0f} | "
                     f"{r['wall_s'] / max(r['steps'], 1):.2f} | {r['triangulations']} | {c['t_kiss']:.4f} "
-                    f"({c['t_kiss'] / T_REF:.2f}) | {r['min_gap']:.4f} |") if k == 0 else "| | | | | | | | | | |"
+                    f"({c['t_kiss'] / T_REF:.2f}) | {r['min_gap']:.1e} |") if k == 0 else "| | | | | | | | | | |"
             lines.append(f"{head} {name} | {a['t_kiss']:.4f} ({a['t_kiss'] / T_REF:.2f}) | {a['lateral_sign']:+.0f} | "
                          f"{four(a['before_kiss'])} | {four(a['whole'])} |")
     if recs:
