@@ -177,8 +177,9 @@ def report(recs: list, machine: str) -> None:
              f"for t before the reference's kissing time (centres closer than {KISS_DISTANCE} d) and over the whole "
              "run (to t = 0.3 s).  'fall' is the distance from the top wall, 'lat' the lateral position.", "",
              "| h cm | dt s | DOFs | steps | wall s | CPU s | s/step | re-triangulations | t_kiss s (t/t_ref) | "
-             "min gap cm (centres − d) | reference | ref t_kiss s | lat sign | before kiss: fall lead / trail, lat lead / trail "
-             "| whole run: fall lead / trail, lat lead / trail |", "|" + "---|" * 15]
+             "min gap cm (centres − d) | reference | ref t_kiss s | lat sign | "
+             "before kiss: fall lead / trail, lat lead / trail | whole run: fall lead / trail, lat lead / trail |",
+             "|" + "---|" * 15]
 
     def four(d):
         return " / ".join(f"{d[f'{q}_{s}']:.3f}" for q in ("fall", "lateral") for s in ("leading", "trailing"))
