@@ -379,7 +379,8 @@ class DEM:
                 n = self.n
                 body = C.j >= 0
                 touching = np.isin(ri * n + rj, np.minimum(C.i, C.j)[body] * n + np.maximum(C.i, C.j)[body])
-            gaps = pair_gaps(W, ri, rj, pos, self.radii, self.near_range) if len(ri) else None
+            active = self.lubrication is not None or self.repulsion.force > 0  # a zero force scale measures nothing
+            gaps = pair_gaps(W, ri, rj, pos, self.radii, self.near_range) if len(ri) and active else None
             if self.repulsion is not None:
                 Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, W, pos, ri, rj, touching, self.walls,
                                                                 self.movable, self.radii, gaps=gaps)
