@@ -5,7 +5,8 @@ time derivatives ``X_k = d^k x / dt^k``, k = 0 … q−1.  One step:
 
 * predict with the Taylor (Pascal-triangle) matrix,
   ``X_k^p = Σ_{m ≥ k} X_m dt^(m−k) / (m−k)!``;
-* evaluate the acceleration ``a`` at the predicted positions and velocities;
+* evaluate the acceleration ``a`` at the predicted positions and velocities (for q = 3 the
+  DEM hands the forces the mid-step velocity instead, :mod:`fluidem.dem.system`, "Velocity");
 * correct with ``Δ = (a − X_2^p) dt² / 2``, ``X_k ← X_k^p + c_k Δ k! / dt^k``.
 
 Corrector coefficients ``c_k`` for second-order equations (Gear 1971; Allen &

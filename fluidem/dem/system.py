@@ -10,6 +10,15 @@ Time step.  The bound is ``dt_max = 0.1 π √(m_min / E)`` (Matuttis & Chen 201
 :class:`~fluidem.errors.InputError` (a ``ValueError``) naming that body above it,
 :meth:`DEM.advance` sub-steps below it.
 
+Velocity.  With the default 2nd-order scheme (velocity Verlet, :mod:`fluidem.dem.integrate`) the
+forces of a step see the positions at ``t + Δt`` and the mid-step velocity ``v_n + a_n Δt/2``, the one
+that moved the bodies over the step (as LAMMPS's granular and lubrication pair styles do): the
+tangential spring grows by the real relative displacement, and a dashpot ``c`` on a mass ``m``
+multiplies the velocity by ``1 − cΔt/m`` per step, stable for ``cΔt/m < 2``; it is first order in Δt
+for the dissipative forces.  The predictor's ``v_n + a_n Δt`` (second order) feeds ``a_n`` back into
+``a_{n+1}`` through the dashpots: a period-2 oscillation that grows once ``cΔt/m > 1``, which the grains
+of a heap reach through their rotational damping (Σ c r² Δt / I up to 1.3), so that heaps crept.
+
 Units: one consistent system of the user's choice, quantities of a slab of unit depth (see
 :mod:`fluidem.dem`, "Units"); dimensions below, SI as the example.
 """
@@ -348,8 +357,11 @@ class DEM:
                         f"{A[k] / ref[k]:.3g} of the body area; allowed: overlap_tolerance = "
                         f"{self.overlap_tolerance:g}")
 
-    def _evaluate(self, x, v, dt):
-        """Contacts and total forces/torques at state (x, v); advances spring history by dt."""
+    def _evaluate(self, x, v, dt, cap_dt=None):
+        """Contacts and total forces/torques at state (x, v); advances spring history by dt.
+
+        ``cap_dt`` (default ``dt``) is the step that caps the lubrication's coefficient at m*/Δt.
+        """
         W = self.world_vertices(x)
         ovs = self._overlaps(x, W)
         t0 = time.perf_counter()
@@ -389,7 +401,7 @@ class DEM:
             if self.lubrication is not None:
                 Fl, Tl, self.lubrication_pairs = lubrication_forces(
                     self.lubrication, W, pos, v, ri, rj, touching, self.lubrication_radius, self.mass, self.free,
-                    dt, self.walls, self.movable, gaps=gaps)
+                    dt if cap_dt is None else cap_dt, self.walls, self.movable, gaps=gaps)
                 forces = forces + Fl
                 torques = torques + Tl
         order = np.argsort(C.key, kind="stable")
@@ -403,12 +415,14 @@ class DEM:
         self.cost.count("contacts", len(C))
         return forces, torques
 
-    def _initial_forces(self):
+    def _initial_forces(self, dt=None):
+        # accelerations at the current state; no spring increment, the lubrication capped with the
+        # coming step ``dt`` (default dt_max): uncapped, a stiff film would reverse the first step
         self._fresh = False
         x = self.gear.X[0]
         if len(self._prescribed):
             self._apply_prescribed(self.time, x, self.gear.X[1])
-        F, T = self._evaluate(x, self.gear.X[1], 0.0)
+        F, T = self._evaluate(x, self.gear.X[1], 0.0, cap_dt=self._dt_max if dt is None else dt)
         self.cost.count("contacts", -len(self.contacts))
         a = np.where(self._mask, self._acc(F, T), 0.0)
         self.gear.set(a=a)
@@ -447,14 +461,17 @@ class DEM:
         if self._fresh:
             # accelerations at t0 with the external forces the caller may have set since
             # construction (the predictor uses them)
-            self._initial_forces()
+            self._initial_forces(dt)
         t0 = time.perf_counter()
         x, v = self.gear.predict(dt, self._mask)
         x, v = x.copy(), v.copy()
         if len(self._prescribed):
             self._apply_prescribed(self.time + dt, x, v)
+        # the velocity the forces see: for the 2nd-order scheme (velocity Verlet) the mid-step
+        # velocity v_n + a_n dt/2, which moved the bodies over the step (module docstring, "Velocity")
+        v_forces = np.where(self._mask, 0.5 * (v + self.gear.X[1]), v) if self.order == 2 else v
         self.cost.add("integrate", time.perf_counter() - t0)
-        F, T = self._evaluate(x, v, dt)
+        F, T = self._evaluate(x, v_forces, dt)
         t0 = time.perf_counter()
         self.gear.correct(self._acc(F, T))
         if len(self._prescribed):

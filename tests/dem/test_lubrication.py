@@ -31,33 +31,42 @@ def _gap_to_floor(sim):
     return float(sim.world_vertices()[0, :, 1].min())
 
 
-def test_disk_approaching_a_wall_follows_the_exact_squeeze_film_deceleration():
-    """A disk (96-gon, a = √(A/π)) released towards the floor at 2 from the gap 0.019 < g_c slows down as
-    the exact solution of m dV/dg = c(g) says, and stops near g = 0.0033 without touching.
-    Measured: largest |V − V_exact| / V0 while V > 0.1 V0 1.1e-6 (dt = 1e-5); smallest gap 0.00327."""
-    V0 = 2.0
-    body = Body.polygon(DISK, density=1.0, position=(0.5, 0.0), velocity=(0.0, -V0))
-    g0 = 0.019
+def _wall_approach_error(dt, V0=2.0, g0=0.019, duration=0.03):
+    """Largest |V − V_exact| / V0 while V > 0.1 V0 and the smallest gap of a 96-gon released towards the floor."""
+    body = Body.polygon(DISK, density=1.0, velocity=(0.0, -V0))
     body.position = np.array([0.5, g0 - DISK[:, 1].min()])
     sim = _dem([body], walls=(-np.inf, np.inf, 0.0, np.inf))
     assert _gap_to_floor(sim) == pytest.approx(g0, rel=1e-12)
     m, a = sim.mass[0], equal_area_radius(sim.area)[0]
     rows = []
-    for _ in range(3000):
-        sim.step(1e-5)
+    for _ in range(int(round(duration / dt))):
+        sim.step(dt)
         rows.append((_gap_to_floor(sim), -sim.velocities[0, 1]))
     r = np.array(rows)
     moving = r[:, 1] > 0.1 * V0
     err = np.abs(r[moving, 1] - _approach_speed(r[moving, 0], g0, V0, m, a)).max() / V0
-    assert err < 3e-6, err
-    assert 0.0025 < r[:, 0].min() < 0.004                   # stopped by the film, far from the floor
     assert np.abs(sim.velocities[0, 0]) < 1e-12 and abs(sim.omegas[0]) < 1e-9
+    return err, r[:, 0].min()
+
+
+def test_disk_approaching_a_wall_follows_the_exact_squeeze_film_deceleration():
+    """A disk (96-gon, a = √(A/π)) released towards the floor at 2 from the gap 0.019 < g_c slows down as
+    the exact solution of m dV/dg = c(g) says, and stops near g = 0.0033 without touching.  The damper
+    sees the mid-step velocity (velocity Verlet, :meth:`fluidem.dem.DEM.step`), so the error is first
+    order in Δt.  Measured: largest |V − V_exact| / V0 while V > 0.1 V0 1.17e-3 (Δt = 1e-5) and
+    5.84e-4 (Δt = 5e-6), ratio 2.00; smallest gap 0.00327."""
+    err, gap = _wall_approach_error(1e-5)
+    err_half, _ = _wall_approach_error(5e-6)
+    assert err < 2.5e-3, err                               # measured 1.17e-3
+    assert 1.8 < err / err_half < 2.2, (err, err_half)     # first order: measured 2.00
+    assert 0.0025 < gap < 0.004                            # stopped by the film, far from the floor
 
 
 def test_two_disks_meeting_head_on_keep_their_momentum_and_follow_the_reduced_law():
     """Two equal disks approaching at ±1: the pair's law is the wall's with the reduced radius a/2 and
     the reduced mass m/2; the forces are equal and opposite, so the momentum stays zero to round-off.
-    Measured: relative-speed error 1.4e-6 of the initial one, momentum 0 to 3.4e-18."""
+    Measured (Δt = 1e-5, first order as for the wall): relative-speed error 1.29e-3 of the initial one,
+    momentum 0 to 3.4e-18."""
     g0, V0 = 0.019, 1.0
     x0 = DISK[:, 0].max() + 0.5 * g0  # the facing vertices g0 apart
     left = Body.polygon(DISK, density=1.0, position=(-x0, 0.0), velocity=(V0, 0.0))
@@ -78,7 +87,7 @@ def test_two_disks_meeting_head_on_keep_their_momentum_and_follow_the_reduced_la
     r = np.array(rows)
     moving = r[:, 1] > 0.1 * 2 * V0
     err = np.abs(r[moving, 1] - _approach_speed(r[moving, 0], g0, 2 * V0, m / 2, a / 2)).max() / (2 * V0)
-    assert err < 4e-6, err
+    assert err < 3e-3, err  # measured 1.29e-3
     assert r[:, 2].max() < 1e-14 * sim.mass[0] * V0
 
 
@@ -97,20 +106,23 @@ def test_outside_the_range_and_sliding_along_a_wall_nothing_acts():
 
 
 def test_the_capped_damper_never_reverses_the_approach():
-    """At a regularisation gap so small that c(g) Δt / m reaches 10⁴, the capped coefficient m/Δt still
-    leaves a stable step: the approach speed decreases monotonically and never changes sign."""
-    body = Body.polygon(DISK, density=1.0, velocity=(0.0, -2.0))
-    body.position = np.array([0.5, 0.004 - DISK[:, 1].min()])
+    """At a regularisation gap so small that the uncapped c(g) Δt / m would reach 10⁴, the coefficient
+    capped at m/Δt gives the mid-step velocity update v ← (1 − k) v with k = 1 (stable for k < 2): the
+    approach stops within two sub-steps (measured speeds 1, 1/4, then 0 to round-off) and never changes
+    sign.  Released at gap 0.001 at speed 1, Δt = dt_max; the uncapped k would be 3.8 at the stop."""
+    body = Body.polygon(DISK, density=1.0, velocity=(0.0, -1.0))
+    body.position = np.array([0.5, 0.001 - DISK[:, 1].min()])
     sim = _dem([body], walls=(-np.inf, np.inf, 0.0, np.inf), min_gap=1e-9)
     dt = sim.dt_max
-    v = [2.0]
+    v = [1.0]
     for _ in range(200):
         sim.step(dt)
         v.append(-sim.velocities[0, 1])
     v = np.array(v)
-    assert (v >= -1e-12 * v[0]).all() and (np.diff(v) <= 1e-15).all()  # measured: halves each step to round-off
+    assert (v >= -1e-12).all() and (np.diff(v) <= 1e-15).all()
+    assert np.abs(v[3:]).max() < 1e-12                     # stopped; measured 1.2e-17
     c = sim.lubrication.coefficient(np.array([_gap_to_floor(sim)]), equal_area_radius(sim.area))[0]
-    assert c * dt / sim.mass[0] > 1.0  # the cap was in play
+    assert c * dt / sim.mass[0] > 2.0  # the cap was in play (measured 3.8)
 
 
 def test_lubrication_checks_its_parameters():
