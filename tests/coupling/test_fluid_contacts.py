@@ -109,7 +109,7 @@ def test_head_on_collision_in_a_periodic_box_conserves_momentum_to_discretisatio
     the lubrication correction below h) stops the disks without a rebound, far above the repulsion's
     backstop.  Measured (Taylor–Hood, h = 0.04, dt = 0.01, to t = 1.3): |ΔP| 2.6e-4 (x) and 3.9e-4 (y)
     of one body's initial momentum m U = 0.0377; smallest gap 0.0027 = 0.067 h; speeds at the end
-    1.2e-3 of the initial ones.  (With the repulsion at the range h of earlier versions: 2.8e-4, a
+    1.15e-3 of the initial ones.  (With the repulsion at the range h of earlier versions: 2.8e-4, a
     bounce at 0.95 h.)"""
     sim = Simulation(_pair_scene())
     fl = sim.flow

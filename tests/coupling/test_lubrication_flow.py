@@ -44,10 +44,10 @@ def _drain(lubrication: bool, h=0.02, t_end=6.0):
 @pytest.mark.slow(seconds=40)
 def test_disk_draining_onto_the_floor_meets_the_film_plus_the_correction():
     """Taylor–Hood, h = a/5.  Without the correction the disk drains at the speed the exact resistance
-    gives, W / (μ 4π/(α − tanh α)), while the gap is resolved (0.45 h … 0.3 h: measured 0.996–1.009 of
+    gives, W / (μ 4π/(α − tanh α)), while the gap is resolved (0.45 h … 0.3 h: measured 0.995–1.013 of
     it; faster below, 1.43× at 0.1 h on this dragged mesh).  With it, the sub-stepped correction adds
     exactly its coefficient to the resistance: 1/v = 1/v_resolved + c(g)/W at equal gaps (measured to
-    0.97 %), i.e. the default double-counts the resolved film quasi-statically (v ≈ 0.56 of the exact
+    0.48 %), i.e. the default double-counts the resolved film quasi-statically (v ≈ 0.56 of the exact
     speed, README).  Neither run ever moves up or reaches the repulsion's backstop."""
     fl0, off = _drain(False)
     fl1, full = _drain(True)
@@ -56,7 +56,7 @@ def test_disk_draining_onto_the_floor_meets_the_film_plus_the_correction():
     a = float(equal_area_radius(polygon_area(regular_polygon(A, 96))))
     resolved = (off[:, 1] < 0.45 * 0.02) & (off[:, 1] > 0.3 * 0.02)
     ratio = -off[resolved, 2] / (W / (mu * bipolar_force(off[resolved, 1], a)))
-    assert resolved.sum() > 10 and np.abs(ratio - 1).max() < 0.025, ratio  # measured 0.009
+    assert resolved.sum() > 10 and np.abs(ratio - 1).max() < 0.025, ratio  # measured 0.013
     lub = fl1.contacts.lubrication
     assert isinstance(lub, Lubrication) and lub.resolved_gap is None and lub.range == 0.02
     g = full[:, 1]
@@ -64,7 +64,7 @@ def test_disk_draining_onto_the_floor_meets_the_film_plus_the_correction():
     v_off = np.interp(g, off[order, 1], -off[order, 2])
     both = (g < 0.45 * 0.02) & (g > off[:, 1].min())
     predicted = 1.0 / (1.0 / v_off[both] + lub.coefficient(g[both], np.full(both.sum(), a)) / W)
-    assert np.abs(-full[both, 2] / predicted - 1).max() < 0.025  # measured 0.0097
+    assert np.abs(-full[both, 2] / predicted - 1).max() < 0.015  # measured 0.0048
     for run, fl in ((off, fl0), (full, fl1)):
         assert (run[1:, 2] < 0).all() and run[:, 1].min() > fl.contacts.repulsion.range
 
