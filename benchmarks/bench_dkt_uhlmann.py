@@ -21,7 +21,8 @@ Writes ``benchmarks/results/dkt_uhlmann.{md,json,png}`` (rewritten after every r
 
 Run (about 30 minutes on one core for the three resolutions)::
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dkt_uhlmann.py [h ...]     # run and write
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dkt_uhlmann.py [h ...]     # run (default all), write;
+                                                                              # stored runs at other h are kept
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dkt_uhlmann.py report      # redraw from the JSON
 """
 
@@ -158,9 +159,22 @@ def run(h: float, t_end: float = 0.3, log=sys.stderr) -> dict:
            "cost_per_step_s": {k: v / max(len(rows), 1) for k, v in parts.items()},
            "triangulations": int(sim.counters["triangulations"]), "contact_substeps": int(fl.contacts.substeps),
            "min_gap": float(min(r[7] for r in rows)), "repulsion_range": float(fl.contacts.repulsion.range),
-           "rows": rows}
+           "load_average": os.getloadavg()[0], "dem_force_velocity": DEM_FORCE_VELOCITY, "rows": rows}
     rec["comparison"] = compare(rec)
     return rec
+
+
+#: The velocity the DEM's contact forces see (:mod:`fluidem.dem.system`, "Velocity"), stored with each
+#: run: rows without it were measured when the forces saw the predictor velocity v_n + a_n dt.
+DEM_FORCE_VELOCITY = "mid-step"
+
+
+def merged(new: list) -> list:
+    """The stored runs with those of ``new`` replaced (same h) or added, finest last."""
+    path = RESULTS / "dkt_uhlmann.json"
+    old = json.loads(path.read_text())["rows"] if path.exists() else []
+    hs = {r["h"] for r in new}
+    return sorted([r for r in old if r["h"] not in hs] + new, key=lambda r: -r["h"])
 
 
 def report(recs: list, machine: str) -> None:
@@ -192,6 +206,10 @@ def report(recs: list, machine: str) -> None:
                     f"({c['t_kiss'] / T_REF:.2f}) | {r['min_gap']:.1e} |") if k == 0 else "| | | | | | | | | | |"
             lines.append(f"{head} {name} | {a['t_kiss']:.4f} ({a['t_kiss'] / T_REF:.2f}) | {a['lateral_sign']:+.0f} | "
                          f"{four(a['before_kiss'])} | {four(a['whole'])} |")
+    stale = [r["h"] for r in recs if r.get("dem_force_velocity") != DEM_FORCE_VELOCITY]
+    if stale:
+        lines += ["", f"Runs at h = {', '.join(map(str, stale))} are from an earlier version whose DEM forces saw "
+                      "the predictor velocity v_n + a_n dt instead of the mid-step velocity (not re-run since)."]
     if recs:
         c = recs[0]["comparison"]["references"]
         lines += ["", f"The references against each other ({c['pair']}): before kiss {four(c['before_kiss'])}, "
@@ -232,9 +250,12 @@ if __name__ == "__main__":
         report(data["rows"], data["machine"])
     else:
         hs = [float(a) for a in sys.argv[1:]] or list(RESOLUTIONS)
-        recs = []
-        for h in hs:
-            recs.append(run(h))
+        new = []
+        for h in hs:  # the other resolutions' stored runs are kept
+            new.append(run(h))
             machine = machine_description()
+            recs = merged(new)
+            for r in recs:
+                r.setdefault("comparison", compare(r))
             write_json("dkt_uhlmann", machine, recs)
             report(recs, machine)

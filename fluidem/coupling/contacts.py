@@ -33,7 +33,7 @@ closes by more than itself in one step: two disks of the Uhlmann (2005) DKT meet
 gap only at its own geometry, and the pair rebounds (measured with the resolved film alone: three
 bounces, against a lasting kiss in both published computations).  So the default adds the whole
 squeeze-film law below the cut-off h, less its value there, in the DEM sub-steps, which follow the
-gap continuously: the pair then stops at a gap of 0.075 h and stays together from 9.5 to 15.5–15.9
+gap continuously: the pair then stops at a gap of 0.075 h and stays together from 9.5 to 15.5–15.8
 t_ref (both references: 9.5 to 14).  The price is a double count where the film changes slowly: a quasi-static
 approach meets 1.5–2.6 × the exact resistance (the table's "full law" column), so a body draining
 onto a wall does so that much slower.  ``contact.lubrication_resolved_gap = δ_r`` (the element's
