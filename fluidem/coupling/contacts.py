@@ -29,9 +29,13 @@ Quasi-statically the mesh resolves the squeeze film between close outlines down 
 fraction of h — Taylor–Hood and P3/P2 within a few per cent to h/4, then too weak; P2+bubble/P1dc
 and MINI too strong (locking).  Dynamically the coupled step cannot follow the film once the gap
 closes by more than itself in one step: two disks of the Uhlmann (2005) DKT meet at 5.6 cm/s, i.e.
-5.6e-3 cm per step at dt = 1 ms, where the film stops them within a few 1e-3 cm; the step sees the
-gap only at its own geometry, and the pair rebounds (measured with the resolved film alone: three
-bounces, against a lasting kiss in both published computations).  So the default adds the whole
+5.6e-3 cm per step at dt = 1 ms, where the film stops them within a few 1e-3 cm, in one or two
+steps, and the pair rebounds (measured with the resolved film alone, h = 0.02: three bounces,
+separating to 0.047 cm, against a lasting kiss in both published computations).  The rebound is the
+time step's: at dt/2 the first separation is 0.031 cm and the pair then kisses for good (from 11.7
+t_ref); re-solving a step with the mesh at the poses the solve gave (those predicted from
+2V − V_prev were off by 0.6 of the gap in the stopping step, by less than 3e-5 cm before it)
+reduces it to 0.040 cm only.  So the default adds the whole
 squeeze-film law below the cut-off h, less its value there, in the DEM sub-steps, which follow the
 gap continuously: the pair then stops at a gap of 0.075 h and stays together from 9.5 to 15.5–15.8
 t_ref (both references: 9.5 to 14).  The price is a double count where the film changes slowly: a quasi-static
