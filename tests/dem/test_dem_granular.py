@@ -47,24 +47,34 @@ Before the change (predictor velocity): 0.15 / 6.4e-6, 3.1e-3 / 5.8e-9, 1.6e-2 /
 
 Decay rates (1/s), expected from the contact law against measured:
 
-=====  ==========================  ==========================  ================  =========================
- μ     expected, contacts stuck    expected, Coulomb-limit     measured arrest   measured
-       (slowest mode)              contacts free to slip       0.55 s → rest     1–3 s / 2–5 s (KE)
-=====  ==========================  ==========================  ================  =========================
- 0.1   1.7  (ω 94 rad/s)           0 (40 mechanisms); 0.026    6.1 (KE 12)       4.1 / 0.6  (4.0 / 1.0)
- 0.3   1.9  (ω 94 rad/s)           0 (20 mechanisms); 0.016    10  (KE 17)       1.9 / 0.8  (2.8 / 1.5)
- 0.6   0.12 (ω 27 rad/s)           0 (78 mechanisms); 0.014    9.7 (KE 10)       2.2 / 1.5  (5.2 / 3.2)
-=====  ==========================  ==========================  ================  =========================
+=====  ===============================  ==============================  ================  =========================
+ μ     expected, contacts stuck         expected, Coulomb-limit         measured arrest   measured
+       (slowest mode; zero modes)       contacts free to slip           0.55 s → rest     1–3 s / 2–5 s (KE)
+=====  ===============================  ==============================  ================  =========================
+ 0.1   2.2  (ω 108 rad/s); 1 zero mode  2.2  (3 of 1074 contacts slip)  6.1 (KE 12)       4.1 / 0.6  (4.0 / 1.0)
+ 0.3   0.51 (ω 50 rad/s); 4 zero modes  0.51 (2 of 994 contacts slip)   10  (KE 17)       1.9 / 0.8  (2.8 / 1.5)
+ 0.6   0.59 (ω 54 rad/s); 4 zero modes  0.59 (1 of 947 contacts slips)  9.7 (KE 10)       2.2 / 1.5  (5.2 / 3.2)
+=====  ===============================  ==============================  ================  =========================
 
-Expected (not recomputed since the change: the figures are those of the heaps poured with the
-predictor velocity): the contact network of the heap at t = 1 s linearised (normal spring E|S|/l
-and dashpot γ√(m_eff E)|S|/l, tangential spring κE and dashpot γ√(m_eff κE) per contact, lever
-arms to the contact points; ``M ẍ + C ẋ + K x = 0`` on the 1500 grain coordinates, largest real
-part of its eigenvalues).  The damping is stiffness proportional (c/k = γ√(m_eff/E) ≈ 4e-4 s),
-so a mode of frequency ω decays at ≈ 2e-4 ω² 1/s.  With every contact stuck the slowest mode was
-a collective one at ω ≈ 94 rad/s (27 for μ = 0.6); with the 35–50 % of contacts that then sat at
-the Coulomb limit free to slip, 20–78 modes had no restoring force at all (mechanisms: no decay
-from the contact law) and the slowest elastic ones had ω ≈ 0.5–2 rad/s.
+Expected (computed for these heaps, the pickled states after 2 s of settling): the contact network
+linearised (normal spring E|S|/l and dashpot γ√(m_eff E)|S|/l, tangential spring κE and dashpot
+γ√(m_eff κE) per contact, acting on the relative velocity at the overlap centroid, lever arms from
+the centres; ``M ẍ + C ẋ + K x = 0`` on the x, y, θ of the 500 (μ = 0.6: 499) grains above the
+floor, floor grains fixed; largest real part of the nonzero eigenvalues of the first-order
+system).  The geometric stiffness (normals, lever arms and contact points turning with the poses
+under the static forces) is neglected.  The same assembly for one square on the floor gives the
+23.7 1/s of ``test_dem_rest.slowest_linear_decay(1)``.  The damping is stiffness proportional
+(c/k = γ√(m_eff/E) ≈ 4e-4 s), so a mode of frequency ω decays at ≈ 2e-4 ω² 1/s.  The slowest modes, at
+ω ≈ 108/50/54 rad/s, are not collective: they sit on one to a few grains held by two contacts
+(participation ratio 1.6/4.6/2.3 grains).  Freeing the tangential spring and dashpot of the
+0.1–0.3 % of contacts at the Coulomb limit changes nothing (rates equal to 1e-6, no new zero
+mode).  The zero modes, in both variants, are the rocking of the grains held by a single contact
+(1/3/4 of them) about their contact point, plus for μ = 0.3 one of two grains with two contacts:
+the linear law has no restoring force for them (as for the rocking of a single block; the real law
+restores it through the shift of the overlap centroid, i.e. the neglected geometric stiffness).
+At 5 s the contacts are the same and the rates 2.2/0.51/0.58 1/s.  For comparison, the heaps
+poured with the predictor velocity, linearised at 1 s, gave 1.7/1.9/0.12 1/s stuck and 20–78
+mechanisms with the 35–50 % of contacts then sliding free to slip.
 
 Measured: the rate of the arrest of the last surface avalanches (log-slope of the
 99th-percentile move, of KE in brackets, from 0.55 s to the first window below 5e-3 D, at
@@ -73,10 +83,11 @@ mode ringing down.  (Measured on the same pour continued in 0.05 s windows from 
 shorter at 1 s than the tests' heap; from 1 s on its moves agree with those above to within
 10 % and its angles to 0.01°.)  After it the three heaps are at rest and the residual motion
 keeps decaying: fitted over 2–5 s, 0.6–1.5 1/s for the move (KE 1.6–2.1 times as fast, as for a
-linear ringing-down), within the range of the stuck networks' slowest modes computed for the old
-heaps (0.12–1.9 1/s; not recomputed for these); the flank angles no longer change, and 0–0.3 %
-of the contacts remain at the Coulomb limit (3–6 % at 1 s, 29–79 % at 0.5 s while the surface
-still flows).
+linear ringing-down), of the order of the slowest modes of these heaps' linearised networks
+(2.2/0.51/0.59 1/s) but not equal to them: 0.28, 1.6 and 2.5 times those rates for μ = 0.1,
+0.3, 0.6, so for μ = 0.1 slower than any mode of the stuck network; the flank angles no longer
+change, and 0–0.3 % of the contacts remain at the Coulomb limit (3–6 % at 1 s, 29–79 % at 0.5 s
+while the surface still flows).
 
 The creep measured before was the integrator's, not that of Coulomb mechanisms: the forces of a
 step saw the predictor velocity v_n + a_n dt, which feeds a_n back into a_{n+1} through the
