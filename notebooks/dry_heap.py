@@ -55,12 +55,12 @@ def draw(ax, outlines, title):
 # %% [markdown]
 # ## The run
 #
-# One second of simulated time; every tenth step we record the energies, and a few
+# Two seconds of simulated time; every tenth step we record the energies, and a few
 # snapshots of the grains.
 
 # %%
 energies, snapshots = [], {}
-times_to_show = (0.0, 0.2, 0.4, 1.0)
+times_to_show = (0.0, 0.2, 0.4, 2.0)
 snapshots[0.0] = sim.outlines()
 
 
@@ -71,8 +71,8 @@ def record(s):
             snapshots[t] = s.outlines()
 
 
-sim.run(1.0, dt, callback=record, every=10)
-snapshots[1.0] = sim.outlines()
+sim.run(2.0, dt, callback=record, every=10)
+snapshots[2.0] = sim.outlines()
 cost = sim.cost_per_step()
 print(f"{sim.cost.steps} steps, {1e3 * sum(cost[k] for k in ('broad', 'narrow', 'forces', 'integrate')):.2f} ms "
       f"per step, {sim.cost.contacts / sim.cost.steps:.0f} contacts per step on average")
@@ -112,8 +112,8 @@ for ax in axes:
 fig.tight_layout()
 print(f"potential energy released {pot[0] - pot[-1]:.3e} J, dissipated {total[0] - total[-1]:.3e} J, "
       f"kinetic energy left {kin[-1]:.1e} J ({kin[-1] / kin.max():.1e} of its peak)")
-# measured: 5.9e-5 J left, 1.0e-3 of the peak
-assert kin[-1] < 3e-3 * kin.max()
+# measured: 9.8e-6 J left, 1.7e-4 of the peak (at 1 s the last rearrangements still move: 4e-3)
+assert kin[-1] < 5e-4 * kin.max()
 
 # %% [markdown]
 # ## The heap carries its weight
@@ -131,8 +131,8 @@ for w in np.unique(C.j[on_wall]):
     print(f"wall {names[int(w)]}: {(C.j == w).sum():2d} contacts, vertical force {Fy[C.j == w].sum():.4f} N")
 ratio = Fy[on_wall].sum() / (M * g)
 print(f"wall forces / weight = {ratio:.4f}; coordination number {sim.coordination_number():.2f}")
-# measured: 0.9994 at t = 1 s (the rest is the grains' net acceleration)
-assert abs(ratio - 1) < 2e-3
+# measured: 0.9974 at t = 2 s (the rest is the grains' net acceleration)
+assert abs(ratio - 1) < 8e-3
 
 # %% [markdown]
 # The heap's shape: the top of the grains across the box.
@@ -144,7 +144,7 @@ edges = np.linspace(walls[0], walls[1], 29)
 top = np.array([y_all[(x_all >= a) & (x_all < b)].max(initial=0.0) for a, b in zip(edges[:-1], edges[1:])])
 mid = 0.5 * (edges[:-1] + edges[1:])
 fig, ax = plt.subplots(figsize=(6.4, 3.0))
-draw(ax, sim.outlines(), "the heap at t = 1 s, and its upper surface")
+draw(ax, sim.outlines(), "the heap at t = 2 s, and its upper surface")
 ax.step(mid, top, where="mid", color="C0")
 ax.set_ylim(0, 0.2)
 ax.set_ylabel("y (m)")
