@@ -106,7 +106,7 @@ def test_outside_the_range_and_sliding_along_a_wall_nothing_acts():
 
 
 def test_the_capped_damper_never_reverses_the_approach():
-    """At a regularisation gap so small that the uncapped c(g) Δt / m would reach 10⁴, the coefficient
+    """With a regularisation gap (1e-9) so small that only the cap bounds c(g), the coefficient
     capped at m/Δt gives the mid-step velocity update v ← (1 − k) v with k = 1 (stable for k < 2): the
     approach stops within two sub-steps (measured speeds 1, 1/4, then 0 to round-off) and never changes
     sign.  Released at gap 0.001 at speed 1, Δt = dt_max; the uncapped k would be 3.8 at the stop."""
