@@ -414,8 +414,14 @@ def make_plan(scene: Scene) -> Plan:
                 notes.append("solver = 'iterative': the coupled fluid-body system uses the lagged LU (the block "
                              "preconditioner has no body block yet)")
             if c_on and fl.model == "stokes":
-                notes.append("contacts are not modelled for Stokes free bodies (no inertia to sub-step): they must "
-                             "stay apart and off the walls (the run stops with a message if they overlap)")
+                from .coupling.contacts import repulsion_for
+
+                rep = repulsion_for(scene, np.zeros(0), np.zeros(0))
+                notes.append(f"contacts of Stokes free bodies: the short-range repulsion (Glowinski et al. 2001) "
+                             f"below {rep.range:g}, epsilon {rep.epsilon:g}, in the mobility problem, linearly "
+                             "implicit in the poses (Euler in the steps where it acts); no lubrication correction, "
+                             "no DEM contact law or friction (bodies pressed together harder than the repulsion's "
+                             "largest force overlap, and the run stops with a message)")
             elif c_on:
                 c = scene.contact
                 if c.repulsion_force is None and (not g_on or all(b.density == fl.density for b in free)):

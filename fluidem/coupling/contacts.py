@@ -98,7 +98,7 @@ def lubrication_for(scene) -> Lubrication | None:
     """The scene's lubrication correction (``contact.lubrication*``; μ = ρ_f ν, cut-off ``mesh.h``,
     the full law below it unless ``lubrication_resolved_gap`` is set, regularised at the
     repulsion's range), or None where it is off, cannot act (δ_r = 0) or the flow has no inertia
-    (Stokes free bodies feel no contacts)."""
+    (Stokes free bodies feel only the repulsion)."""
     c = scene.contact
     if c is None or not c.lubrication or scene.fluid is None or scene.fluid.model == "stokes":
         return None
@@ -238,6 +238,58 @@ class FluidContacts:
         V_end = np.column_stack([d.velocities, d.omegas])[f]
         self.seconds += time.perf_counter() - t_start
         return m * (V_end - V0 - dt * a) / dt
+
+    def repulsion_linearised(self, poses: np.ndarray):
+        """The repulsion on the free bodies at ``poses`` and its derivative in their poses.
+
+        Each pair within range pushes with f(g) along its unit normal n at its point of action
+        c; a pose change dX of a body changes the gap by aᵀ dX with a = (n, (c − X) × n) for the
+        body pushed along +n and −a for the other.  The derivative keeps only this normal
+        stiffness, K = −Σ_pairs f′(g) a aᵀ (symmetric, negative semi-definite; the turn of n is
+        neglected), which is what a linearly implicit step needs to be stable.
+
+        Parameters
+        ----------
+        poses : (n_bodies, 3) float
+            x, y (length), angle (rad) of every body.
+
+        Returns
+        -------
+        F : (n_free, 3) float
+            Force (x, y) and torque on the free bodies, force, force·length.
+        K : (3 n_free, 3 n_free) scipy.sparse.csr_matrix
+            dF/dX of the free bodies' poses, force/length (force per rad in the angle columns).
+        """
+        import scipy.sparse as sp
+
+        x = np.asarray(poses, float)
+        a, b, gap, point, n = self.dem.repulsion_geometry(x)
+        nf = len(self.free)
+        slot = np.full(len(x), -1)
+        slot[self.free] = np.arange(nf)
+        rep = self.repulsion
+        f = rep.magnitude(gap)
+        k = rep.stiffness(gap)
+
+        def gen(body):  # generalised normal (P, 3) of each pair's end on ``body``
+            r = point - x[np.maximum(body, 0), :2]
+            return np.column_stack([n, r[:, 0] * n[:, 1] - r[:, 1] * n[:, 0]])
+
+        ends = [(slot[a], gen(a)), (np.where(b >= 0, slot[np.maximum(b, 0)], -1), -gen(b))]
+        F = np.zeros((nf, 3))
+        for s_, g in ends:
+            on = s_ >= 0
+            np.add.at(F, s_[on], f[on, None] * g[on])
+        rows, cols, vals = [], [], []
+        for s1, g1 in ends:
+            for s2, g2 in ends:
+                on = (s1 >= 0) & (s2 >= 0)
+                blk = -k[on, None, None] * g1[on, :, None] * g2[on, None, :]  # (P, 3, 3)
+                rows.append((3 * s1[on, None, None] + np.arange(3)[None, :, None]).repeat(3, axis=2).ravel())
+                cols.append((3 * s2[on, None, None] + np.arange(3)[None, None, :]).repeat(3, axis=1).ravel())
+                vals.append(blk.ravel())
+        K = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * nf, 3 * nf))
+        return F, K
 
     def get_state(self) -> dict:
         return {"springs": self.dem.spring_history, "substeps": self.substeps, "dem_calls": self.dem_calls}

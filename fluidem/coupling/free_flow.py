@@ -30,7 +30,10 @@ Contacts (scenes with a ``[contact]`` table whose bodies may meet):
 short-range repulsion over the step with the fluid's force held, and its mean load enters the
 coupled solve of step 3 by fixed-point iteration (a few back-substitutions, only in steps
 where outlines are within reach), or the staggered body update.  Stokes free bodies have no
-inertia to sub-step: contacts are not modelled there (the run stops if bodies overlap).
+inertia to sub-step: there the short-range repulsion enters the mobility problem itself, at the
+poses of the end of the step, linearised (linearly implicit Euler, Newton iterations, one solve
+each: :meth:`FreeBodyFlow._solve_with_repulsion`), so a body rests where the repulsion carries
+its buoyant weight at any stiffness; no lubrication correction, DEM contact law or friction.
 """
 
 from __future__ import annotations
@@ -98,7 +101,14 @@ class FreeBodyFlow(MovingMeshFlow):
         self.system = RigidBodySystem(self.problem, self.rigid, self.free)
         self.explicit = scene.fluid.coupling == "explicit" and not self.stokes
         self.contacts = None
-        if sim.plan.on("contacts") and not self.stokes and len(self.free):
+        self._contact_step = False  # Stokes: the last mobility solve had the repulsion in it
+        #: Stokes with contacts: Newton iterations of the repulsion per step (relative tolerance
+        #: on the force, of the repulsion's force scale, and most iterations); the last count
+        self.contact_tolerance = 1e-3
+        self.contact_iterations = 8
+        self.last_contact_iterations = 0
+        self.contact_load = np.zeros((len(self.free), 3))
+        if sim.plan.on("contacts") and len(self.free):
             self.contacts = FluidContacts(scene, self.free, [b.local_vertices(scene.default_segments(b)) for b in B],
                                           self.path)
         if self.stokes:
@@ -152,7 +162,8 @@ class FreeBodyFlow(MovingMeshFlow):
         f = self.free
         X, V = self.poses[f], self.body_velocities[f]
         if self.stokes:  # Adams–Bashforth 2 with the mobilities of the current geometry
-            X_new = X + dt * (V if self._V_prev is None else 1.5 * V - 0.5 * self._V_prev)
+            ab2 = self._V_prev is not None and not self._contact_step  # Euler where the repulsion acted
+            X_new = X + dt * (1.5 * V - 0.5 * self._V_prev if ab2 else V)
         else:
             V_star = V if self._V_prev is None else 2.0 * V - self._V_prev
             X_new = self._bdf_pose(X, V_star, dt)
@@ -270,8 +281,16 @@ class FreeBodyFlow(MovingMeshFlow):
         K = sysm.matrix(pr.A_data, np.zeros(3 * len(self.free)))
         t1 = time.perf_counter()
         solver = self._mobility_solver(rebuilt)
-        solver.factorize(K)
-        z -= solver.solve(rz)
+        dt = self.scene.time.dt
+        c = self.contacts
+        self._contact_step = c is not None and c.within_reach(
+            self._mesh_poses, 2.0 * dt * float(np.abs(self.body_velocities[self.free, :2]).max()))
+        if self._contact_step:
+            z, dem_s = self._solve_with_repulsion(t, solver, K, z, rz, dt, cost)
+            t1 += dem_s
+        else:
+            solver.factorize(K)
+            z = z - solver.solve(rz)
         t2 = time.perf_counter()
         self.x = sysm.prolong(z, x)
         pr.normalise_pressure(self.x)
@@ -282,13 +301,64 @@ class FreeBodyFlow(MovingMeshFlow):
             cost.add("assembly", t1 - t0)
             cost.add("solve", t2 - t1)
 
+    def _solve_with_repulsion(self, t, solver, K, z0, rz, dt, cost):
+        """Stokes with the short-range repulsion: the velocities V of the coming step [t, t + Δt]
+        at which the fluid's force balances the buoyant weight and the repulsion at the end of
+        the step, F_c(Xⁿ + Δt V): linearly implicit Euler in the poses, Newton on the
+        linearisation F_c(X*) + K*(X − X*) (:meth:`FluidContacts.repulsion_linearised`), each
+        iteration one solve with −Δt K*/ρ added to the body block.  Stable for any stiffness
+        (K* is negative semi-definite, the mobility positive definite); a body resting on
+        another or on a wall carries its buoyant weight on the repulsion and does not move.
+        Returns (z, seconds spent in the contact geometry)."""
+        import scipy.sparse as sp
+
+        c, sysm, f = self.contacts, self.system, self.free
+        nf = len(f)
+        X0 = self._prescribed(t + dt)[0]  # the other bodies where they will be at the end of the step
+        X0[f] = self._mesh_poses[f]
+        X_lin = X0.copy()
+        scale = max(float(c.repulsion.force), 1e-300)
+        body = np.arange(sysm.n_fluid, sysm.shape[0])
+        geo_s = 0.0
+        z = z0
+        self.last_contact_iterations = 0
+        for _ in range(self.contact_iterations):
+            t0 = time.perf_counter()
+            F_lin, K_lin = c.repulsion_linearised(X_lin)
+            geo_s += time.perf_counter() - t0
+            # F_c(X0 + Δt V) ≈ F_lin + K_lin (X0 − X_lin) + Δt K_lin V
+            F_at_0 = F_lin.ravel() + K_lin @ (X0[f] - X_lin[f]).ravel()
+            Kb = K_lin.tocoo()
+            Kc = K + sp.csr_matrix((-(dt / self.rho) * Kb.data, (body[Kb.row], body[Kb.col])), shape=K.shape)
+            r = rz.copy()
+            r[sysm.n_fluid:] -= F_at_0 / self.rho
+            solver.factorize(Kc)
+            z = z0 - solver.solve(r)
+            self.last_contact_iterations += 1
+            V = sysm.split(z)[1]
+            X_end = X0.copy()
+            X_end[f] = X0[f] + dt * V
+            t0 = time.perf_counter()
+            F_end, _ = c.repulsion_linearised(X_end)
+            geo_s += time.perf_counter() - t0
+            predicted = F_at_0 + dt * (K_lin @ V.ravel())
+            if np.abs(F_end.ravel() - predicted).max() <= self.contact_tolerance * scale:
+                break
+            X_lin = X_end
+        self.contact_load = F_end.reshape(nf, 3)
+        if cost is not None:
+            cost.add("dem", geo_s)
+            cost.count("contact_solves", self.last_contact_iterations)
+        return z, geo_s
+
     # -- checkpoints --------------------------------------------------------------------------
     def get_state(self):
         s = super().get_state()
         s["bodies"] = {"poses": self.poses.copy(), "velocities": self.body_velocities.copy(),
                        "mesh_poses": self._mesh_poses.copy(),
                        "poses_prev": None if self._poses_prev is None else self._poses_prev.copy(),
-                       "V_prev": None if self._V_prev is None else self._V_prev.copy()}
+                       "V_prev": None if self._V_prev is None else self._V_prev.copy(),
+                       "contact_step": self._contact_step}
         if self.contacts is not None:
             s["bodies"]["contacts"] = self.contacts.get_state()
         if self.coupled is not None:
@@ -304,6 +374,7 @@ class FreeBodyFlow(MovingMeshFlow):
         self._mesh_poses = np.array(b["mesh_poses"], float)
         self._poses_prev = None if b["poses_prev"] is None else np.array(b["poses_prev"], float)
         self._V_prev = None if b["V_prev"] is None else np.array(b["V_prev"], float)
+        self._contact_step = bool(b.get("contact_step", False))
         super().set_state(s)
         self._lagged_mobility = None
         self.system = RigidBodySystem(self.problem, self.rigid, self.free)

@@ -39,7 +39,7 @@ import numpy as np
 
 from .. import validate
 
-__all__ = ["Repulsion", "approach_geometry", "pair_gaps", "repulsion_forces", "wall_approaches"]
+__all__ = ["Repulsion", "approach_geometry", "pair_gaps", "repulsion_forces", "repulsion_pairs", "wall_approaches"]
 
 
 @dataclass(frozen=True)
@@ -79,6 +79,13 @@ class Repulsion:
         """Force magnitude at the gaps ``gap`` (length; negative = overlap), force."""
         s = np.clip((self.range - np.asarray(gap, float)) / self.range, 0.0, 1.0)
         return (self.force / self.epsilon) * s * s
+
+    def stiffness(self, gap: np.ndarray) -> np.ndarray:
+        """``−dF/dg`` at the gaps ``gap``, ``2 c s / (ε ρ)``, force/length (0 beyond the range; at
+        an overlap the force no longer grows, 0)."""
+        g = np.asarray(gap, float)
+        s = np.clip((self.range - g) / self.range, 0.0, 1.0)
+        return np.where(g < 0.0, 0.0, 2.0 * self.force / (self.epsilon * self.range) * s)
 
     @property
     def max_stiffness(self) -> float:
@@ -158,6 +165,44 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray |
     return p, q, np.concatenate([dj, di], axis=1)
 
 
+def repulsion_pairs(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.ndarray, j: np.ndarray,
+                    overlapping: np.ndarray, walls=None, movable: np.ndarray | None = None,
+                    radii: np.ndarray | None = None, gaps=None):
+    """The pairs and body–wall pairs within the repulsion's range, one row each.
+
+    Parameters are those of :func:`repulsion_forces`.
+
+    Returns
+    -------
+    a, b : (P,) int
+        The two bodies; ``b = -1`` for a wall.
+    gap : (P,) float
+        Gap between the outlines (0 for overlapping pairs, which act along their centre
+        line), length.
+    point : (P, 2) float
+        Where the force acts, length.
+    direction : (P, 2) float
+        Unit vector from ``b`` (or the wall) towards ``a``: the force on ``a`` is
+        ``model.magnitude(gap) * direction``, the one on ``b`` its opposite.
+    """
+    rows = []
+    rho = model.range
+    if len(i):
+        p, q, d = gaps if gaps is not None else pair_gaps(W, i, j, pos if radii is not None else None, radii, rho)
+        gap = d.min(axis=1)
+        near = gap < rho
+        if near.any():
+            ii, jj, ov = i[near], j[near], overlapping[near]
+            point, direction = approach_geometry(p[near], q[near], d[near], rho, pos[ii] - pos[jj], ov)
+            rows.append((ii, jj, np.where(ov, 0.0, gap[near]), point, direction))
+    if walls is not None:
+        for k, gap, point, normal in wall_approaches(W, walls, rho, movable):
+            rows.append((k, np.full(len(k), -1), gap, point, normal))
+    if not rows:
+        return (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))
+    return tuple(np.concatenate(c) for c in zip(*rows))
+
+
 def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.ndarray, j: np.ndarray,
                      overlapping: np.ndarray, walls=None, movable: np.ndarray | None = None,
                      radii: np.ndarray | None = None, gaps=None):
@@ -196,26 +241,14 @@ def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.nda
     n = len(pos)
     F = np.zeros((n, 2))
     T = np.zeros(n)
-    n_active = 0
     if model.force == 0.0:
         return F, T, 0
-    rho = model.range
-    if len(i):
-        p, q, d = gaps if gaps is not None else pair_gaps(W, i, j, pos if radii is not None else None, radii, rho)
-        gap = d.min(axis=1)
-        near = gap < rho
-        if near.any():
-            ii, jj, ov = i[near], j[near], overlapping[near]
-            point, direction = approach_geometry(p[near], q[near], d[near], rho, pos[ii] - pos[jj], ov)
-            f = model.magnitude(np.where(ov, 0.0, gap[near]))[:, None] * direction
-            _accumulate(F, T, pos, ii, f, point)
-            _accumulate(F, T, pos, jj, -f, point)
-            n_active += int(len(ii))
-    if walls is not None:
-        for k, gap, point, normal in wall_approaches(W, walls, rho, movable):
-            _accumulate(F, T, pos, k, model.magnitude(gap)[:, None] * normal, point)
-            n_active += int(len(k))
-    return F, T, n_active
+    a, b, gap, point, direction = repulsion_pairs(model, W, pos, i, j, overlapping, walls, movable, radii, gaps)
+    f = model.magnitude(gap)[:, None] * direction
+    _accumulate(F, T, pos, a, f, point)
+    body = b >= 0
+    _accumulate(F, T, pos, b[body], -f[body], point[body])
+    return F, T, int(len(a))
 
 
 def approach_geometry(p, q, d, reach, centre_line, overlapping):

@@ -38,7 +38,7 @@ from .contact import (Contacts, ContactModel, contact_forces, grid_pairs, polygo
                       wall_overlaps)
 from .integrate import GEAR_ORDERS, Gear
 from .lubrication import Lubrication, equal_area_radius, lubrication_forces
-from .repulsion import Repulsion, pair_gaps, repulsion_forces
+from .repulsion import Repulsion, pair_gaps, repulsion_forces, repulsion_pairs
 
 __all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS"]
 
@@ -506,6 +506,24 @@ class DEM:
         for _ in range(n):
             self.step(duration / n)
         return n
+
+    def repulsion_geometry(self, poses: np.ndarray):
+        """The short-range repulsion's pairs within range at ``poses`` (N, 3), walls included.
+
+        No contact detection and no change of state: overlapping pairs are measured like the
+        others (a fluid run stops on overlap).  Returns ``(a, b, gap, point, direction)`` of
+        :func:`fluidem.dem.repulsion.repulsion_pairs` (``b = -1`` for a wall), empty without a
+        repulsion.
+        """
+        x = np.asarray(poses, float).reshape(self.n, 3)
+        if self.repulsion is None or self.repulsion.force == 0.0:
+            return repulsion_pairs(Repulsion(1.0, 0.0), np.zeros((0, 1, 2)), np.zeros((0, 2)), np.zeros(0, int),
+                                   np.zeros(0, int), np.zeros(0, bool))
+        W = self.world_vertices(x)
+        pos = x[:, :2]
+        ri, rj = self._neighbours(pos, self.repulsion.range)
+        return repulsion_pairs(self.repulsion, W, pos, ri, rj, np.zeros(len(ri), bool), self.walls, self.movable,
+                               self.radii)
 
     def set_motion(self, poses: np.ndarray, velocities: np.ndarray, time: float | None = None) -> None:
         """Replace every body's pose and velocity (e.g. to sub-step a fluid step from its state).
