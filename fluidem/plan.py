@@ -410,9 +410,11 @@ def make_plan(scene: Scene) -> Plan:
             unsupported.append(f"free bodies in a fluid ({len(free)}) need the moving-mesh layer "
                                "(fluidem.mesh.MovingMesh), which is not available in this installation")
         elif free:
-            if fl.solver == "iterative":
-                notes.append("solver = 'iterative': the coupled fluid-body system uses the lagged LU (the block "
-                             "preconditioner has no body block yet)")
+            if fl.solver == "iterative" and fl.model == "stokes":
+                notes.append("solver = 'iterative': the Stokes mobility problem of free bodies uses the lagged LU")
+            elif fl.solver == "iterative":
+                notes.append("solver = 'iterative': the coupled fluid-body system is solved by block-preconditioned "
+                             "GMRES with the body velocities in the velocity block")
             if c_on and fl.model == "stokes":
                 from .coupling.contacts import repulsion_for
 

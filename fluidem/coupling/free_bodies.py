@@ -26,6 +26,7 @@ import numpy as np
 from ..cost import CostSplit
 from ..fluid.problem import FlowState
 from ..fluid.solvers import AutoSolver, LaggedLUSolver
+from .body_krylov import BodyBlockKrylovSolver
 
 __all__ = ["FreeBodyStepper"]
 
@@ -144,7 +145,7 @@ class FreeBodyStepper:
         K = sysm.matrix(pr.A_data + pr.M_data * (a0 / dt) + pr.convection_data(b), minv * (a0 / dt))
         tm.add("assembly", time.perf_counter() - t0)
         t0 = time.perf_counter()
-        if self.refactorize and isinstance(self.solver, (LaggedLUSolver, AutoSolver)):
+        if self.refactorize and isinstance(self.solver, (LaggedLUSolver, AutoSolver, BodyBlockKrylovSolver)):
             self.solver.factorize(K, force=True)
         else:
             self.solver.factorize(K)

@@ -119,17 +119,25 @@ class FreeBodyFlow(MovingMeshFlow):
                                            velocities=self.body_velocities[self.free], solver=self._coupled_solver())
 
     def _coupled_solver(self):
-        """The fluid's solver when it is an LU (fresh or lagged); otherwise (``"auto"`` above the
-        iterative threshold, ``"iterative"``) the lagged LU: the block preconditioner has no body
-        block yet."""
+        """The coupled system's solver, by the scene's ``fluid.solver``: the fluid's LU (fresh or
+        lagged) for ``"direct"`` and ``"lagged"``; block-preconditioned GMRES with the bodies in the
+        velocity block (:class:`~fluidem.coupling.body_krylov.BodyBlockKrylovSolver`) for
+        ``"iterative"``, and for ``"auto"`` where the run starts with at least
+        :data:`~fluidem.fluid.solvers.choose.LAGGED_MAX_DOFS` DOFs (the lagged LU below: 10× cheaper
+        per step at 12.7k DOFs, 0.027 against 0.27 s, as for the fluid alone)."""
         from ..fluid.solvers import AutoSolver, DirectSolver, LaggedLUSolver
+        from ..fluid.solvers.choose import choose_solver
         from ..fluid.solvers.lagged import MOVING_MESH_STEPPING
+        from .body_krylov import BodyBlockKrylovSolver
 
         s = self.stepper.solver
         if isinstance(s, (DirectSolver, LaggedLUSolver)):
             return s
+        dt = self.scene.time.dt
+        if self.scene.fluid.solver == "iterative" or choose_solver(self.dofs, "unsteady")[0] == "iterative":
+            return BodyBlockKrylovSolver(self, dt)
         if isinstance(s, AutoSolver):  # "auto" without the iterative path: lagged for a run of steps
-            return AutoSolver(direct_options=s.direct_options, iterative_options={"dt": self.scene.time.dt},
+            return AutoSolver(direct_options=s.direct_options, iterative_options={"dt": dt},
                               lagged_options=s.lagged_options)
         return LaggedLUSolver(direct=self.problem.direct_solver(), **MOVING_MESH_STEPPING)
 
