@@ -122,11 +122,11 @@ class FreeBodyFlow(MovingMeshFlow):
         """The coupled system's solver, by the scene's ``fluid.solver``: the fluid's LU (fresh or
         lagged) for ``"direct"`` and ``"lagged"``; block-preconditioned GMRES with the bodies in the
         velocity block (:class:`~fluidem.coupling.body_krylov.BodyBlockKrylovSolver`) for
-        ``"iterative"``, and for ``"auto"`` where the run starts with at least
-        :data:`~fluidem.fluid.solvers.choose.LAGGED_MAX_DOFS` DOFs (the lagged LU below: 10× cheaper
-        per step at 12.7k DOFs, 0.027 against 0.27 s, as for the fluid alone)."""
+        ``"iterative"`` (less memory); the lagged LU for ``"auto"`` at every size, also above the
+        fluid's :data:`~fluidem.fluid.solvers.choose.LAGGED_MAX_DOFS`: it took 0.027 s per step
+        against 0.27 s for the block GMRES at 12.7k DOFs, and 4.7 s at 353k DOFs (100 disks,
+        ``benchmarks/results/free_flow.md``) where the fluid's block GMRES took 11.7 s."""
         from ..fluid.solvers import AutoSolver, DirectSolver, LaggedLUSolver
-        from ..fluid.solvers.choose import choose_solver
         from ..fluid.solvers.lagged import MOVING_MESH_STEPPING
         from .body_krylov import BodyBlockKrylovSolver
 
@@ -134,7 +134,7 @@ class FreeBodyFlow(MovingMeshFlow):
         if isinstance(s, (DirectSolver, LaggedLUSolver)):
             return s
         dt = self.scene.time.dt
-        if self.scene.fluid.solver == "iterative" or choose_solver(self.dofs, "unsteady")[0] == "iterative":
+        if self.scene.fluid.solver == "iterative":
             return BodyBlockKrylovSolver(self, dt)
         if isinstance(s, AutoSolver):  # "auto" without the iterative path: lagged for a run of steps
             return AutoSolver(direct_options=s.direct_options, iterative_options={"dt": dt},
