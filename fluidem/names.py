@@ -66,6 +66,10 @@ REGISTRY: dict[str, Kind] = {
         "explicit": "staggered: bodies moved by the fluid forces of the last step (unstable when the added "
                     "mass exceeds the body mass)",
     }),
+    "ALE form": Kind("ALE form", {
+        "non-conservative": "mass matrix of the new time level, convection (u - w)·∇u; keeps a uniform flow exactly",
+        "conservative": "mass matrix of each time level, convection in divergence form; keeps momentum exactly",
+    }),
     "strategy": Kind("mesh strategy", {
         "drag": "nodes move with nearby bodies; re-triangulate every K steps or when quality drops",
         "regenerate": "a new triangulation every step",

@@ -312,9 +312,16 @@ def make_plan(scene: Scene) -> Plan:
         mesh = "moving"
         E.append(Effect("mesh", True, f"{len(outline_moving)} body outline(s) move: the mesh follows them",
                         f"moving, strategy {scene.mesh.strategy}"))
-        E.append(Effect("ale", fl.model == "navier-stokes",
-                        "mesh velocity enters convection (u − w)·∇u" if fl.model == "navier-stokes"
-                        else "Stokes has no convection: the mesh velocity does not enter"))
+        if fl.model != "navier-stokes":
+            E.append(Effect("ale", False, "Stokes has no convection: the mesh velocity does not enter"))
+        elif fl.ale_form == "conservative":
+            E.append(Effect("ale", True, "conservative form: each time level's mass matrix, convection "
+                                         "div(u ⊗ (u − w)); momentum kept to solver tolerance",
+                            "conservative"))
+        else:
+            E.append(Effect("ale", True, "mesh velocity enters convection (u − w)·∇u (non-conservative form: "
+                                         "uniform flow kept exactly, momentum to discretisation error)",
+                            "non-conservative"))
     # contacts
     nb, nw = contact_candidates(scene)
     if scene.contact is None:

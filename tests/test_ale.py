@@ -155,3 +155,34 @@ def test_locate_tries_few_candidates_first_with_the_same_answer():
     back = (m.p[:, m.t[:, cells]] * bary.T[None]).sum(axis=1)
     np.testing.assert_allclose(back[:, inside], x[:, inside], atol=1e-12)
     assert np.all(bary >= 0) and np.allclose(bary.sum(axis=1), 1.0)
+
+
+def test_conservative_form_is_second_order_and_keeps_a_uniform_flow():
+    """The conservative ALE form (each time level's mass matrix, convection in divergence form) on
+    the same moving Taylor–Green mesh (n = 8, dt 0.1/0.05/0.025 against 0.00625 of the same form).
+    Measured: velocity rates 1.98, 2.13, errors 1.9× those of the default form (9.7e-4 against
+    5.1e-4 at dt = 0.025); bottom-wall force errors 0.027 / 0.011 / 3.3e-3 (default 0.10 / 0.019 /
+    3.5e-3); a uniform flow is kept to 2.8e-15 (the defect of its discrete GCL goes into the
+    pressure here)."""
+    U = np.array([1.0, -0.5])
+    r = run(8, 0.1, 1.0, uniform=U, amplitude=0.1, conservative=True)
+    space = r["space"]
+    comp = np.zeros(space.n_u, dtype=int)
+    comp[space.ub.split_indices()[1]] = 1
+    nodal = np.isfinite(space.ub.doflocs).all(axis=0)
+    assert np.abs(r["u"][nodal] - U[comp[nodal]]).max() < 1e-12
+    ref = run(8, 0.00625, conservative=True)
+    ub = ref["space"].ub
+
+    def l2(u):
+        return float(np.sqrt((ub.dx * (np.asarray(ub.interpolate(u)) ** 2).sum(axis=0)).sum()))
+
+    errors = []
+    for dt in (0.1, 0.05, 0.025):
+        r = run(8, dt, conservative=True)
+        errors.append((l2(r["u"] - ref["u"]) / l2(ref["u"]),
+                       np.linalg.norm(r["force"] - ref["force"]) / np.linalg.norm(ref["force"])))
+    e = np.array(errors)
+    rates = np.log2(e[:-1, 0] / e[1:, 0])
+    assert (rates > 1.8).all(), rates
+    assert e[-1, 0] < 2.5e-3 and e[-1, 1] < 8e-3, e[-1]

@@ -67,6 +67,12 @@ def _scene_coupling(v):
     return Scene.from_dict(d).fluid.coupling
 
 
+def _scene_ale_form(v):
+    d = _fluid_scene()
+    d["fluid"]["ale_form"] = v
+    return Scene.from_dict(d).fluid.ale_form
+
+
 def _scene_side_type(v):
     d = _fluid_scene()
     d["domain"] = {"box": _BOX, "left": v, "right": v, "inflow_profile": {"type": "uniform", "umax": 1.0}}
@@ -104,7 +110,7 @@ SCENE = {"units": _scene_units, "time scheme": _scene_time_scheme,
          "solver": _scene_solver, "convection": _scene_convection, "element": _scene_element,
          "fluid model": _scene_model, "strategy": _scene_strategy, "shape": _scene_shape, "motion": _scene_motion,
          "side type": _scene_side_type, "side": _scene_side, "profile": _scene_profile,
-         "coupling": _scene_coupling}
+         "coupling": _scene_coupling, "ALE form": _scene_ale_form}
 
 
 # ---------------------------------------------------------------------------------------

@@ -288,3 +288,12 @@ def test_old_spellings_are_stored_canonically_and_plan_modules_agree():
     assert fluidem.scene.Plan is fluidem.plan.Plan
     assert fluidem.scene.contact_candidates is fluidem.plan.contact_candidates
     assert fluidem.scene.SIDES == ("bottom", "right", "top", "left")
+
+
+def test_conservative_ale_form_with_another_convection_is_refused_naming_both():
+    from fluidem.errors import SceneError
+
+    with pytest.raises(SceneError, match=r"fluid.ale_form = 'conservative' with fluid.convection = 'newton': "
+                                         r"the conservative form needs convection = 'semi-implicit'"):
+        Scene.from_dict({"fluid": {"ale_form": "conservative", "convection": "newton"},
+                         "domain": {"box": [0, 1, 0, 1]}})

@@ -80,7 +80,7 @@ def _box_mesh(n: int):
 
 
 def run(n: int, dt: float, t_end: float = 1.0, order: int = 2, nu: float = 0.05, amplitude: float = 0.08,
-        period: float = 1.0, element: str = "th", uniform=None) -> dict:
+        period: float = 1.0, element: str = "th", uniform=None, conservative: bool = False) -> dict:
     """One run to ``t_end``; returns the final velocity, the bottom-wall force and the exact errors.
 
     Parameters
@@ -93,6 +93,8 @@ def run(n: int, dt: float, t_end: float = 1.0, order: int = 2, nu: float = 0.05,
         Mesh-velocity formula (module docstring).
     uniform : (2,) float, optional
         Instead of the vortex, the uniform flow of this velocity (the GCL check).
+    conservative : bool
+        The conservative ALE form (:meth:`~fluidem.fluid.navier_stokes.BDF2Stepper.use_conservative_form`).
 
     Returns
     -------
@@ -130,6 +132,8 @@ def run(n: int, dt: float, t_end: float = 1.0, order: int = 2, nu: float = 0.05,
     nodal = np.isfinite(locs).all(axis=0)
     u0[~nodal] = 0.0
     stepper.take_over(problem, u0)
+    if conservative:
+        stepper.use_conservative_form()
     hist = [X, X]  # x^n, x^{n-1}
     mesh = mesh0
     for k in range(steps):

@@ -142,7 +142,7 @@ class FreeBodyStepper:
         guess = np.zeros((sysm.n_bodies, 3)) if contact is None or contact_guess is None else \
             np.asarray(contact_guess, float).reshape(sysm.n_bodies, 3)
         rz[sysm.n_fluid:] += minv * D_t.ravel() - (np.asarray(external, float) + guess).ravel() / self.rho
-        K = sysm.matrix(pr.A_data + pr.M_data * (a0 / dt) + pr.convection_data(b), minv * (a0 / dt))
+        K = sysm.matrix(pr.A_data + pr.M_data * (a0 / dt) + st.convection_data(b), minv * (a0 / dt))
         tm.add("assembly", time.perf_counter() - t0)
         t0 = time.perf_counter()
         if self.refactorize and isinstance(self.solver, (LaggedLUSolver, AutoSolver, BodyBlockKrylovSolver)):

@@ -165,6 +165,8 @@ class MovingMeshFlow(FlowLoads):
             solver = self._make_solver()
             self.stepper = BDF2Stepper(self.problem, scene.time.dt, convection=fl.convection, solver=solver,
                                        mesh_velocity=np.zeros(self.space.n_u))
+            if fl.ale_form == "conservative":
+                self.stepper.use_conservative_form(self._outline_dofs())
             self.x = self.stepper.state.x
         self.events = []
         sim.counters["fluid_solvers"] += 1
@@ -215,6 +217,31 @@ class MovingMeshFlow(FlowLoads):
                                    body_force=fl.body_force, moving=True, periodic=self.mm.periodic,
                                    viscous=viscous_form_of(self.scene))
         self.rigid = RigidModes(self.space, self.names, self.centers)
+
+    def _outline_dofs(self) -> np.ndarray:
+        """Velocity DOFs on the body outlines (both components), (k,) int."""
+        return np.unique(self.rigid.matrix.indices)
+
+    def _constant_fields(self, space) -> np.ndarray:
+        """Coefficients (2, n_u) of the constant fields e_x and e_y on ``space`` (exact in every pair)."""
+        n = space.mesh.p.shape[1]
+        return np.stack([p1_at_dofs(space, np.tile(e, (n, 1))) for e in ((1.0, 0.0), (0.0, 1.0))])
+
+    def _transfer_mass_history(self, old_space, old_history, new_fields):
+        """Conservative form after a re-triangulation: M u of the transferred fields on the new
+        DOFs, shifted by a uniform velocity per component so that the momentum ∫ u dA of each
+        level equals the old one (the transfer conserves it only to interpolation error)."""
+        M = self.problem.M
+        e_old = self._constant_fields(old_space)
+        e_new = self._constant_fields(self.space)
+        Me = M @ e_new.T  # (n_u, 2)
+        area = np.einsum("cn,nc->c", e_new, Me)
+        out = []
+        for m_old, u in zip(old_history, new_fields):
+            m = M @ u
+            shift = (e_old @ m_old - e_new @ m) / area  # (2,)
+            out.append(m + Me @ shift)
+        return out
 
     def _refit(self, t) -> bool:
         """Move space, problem and rigid modes to the current node positions; False if the triangles changed."""
@@ -286,19 +313,27 @@ class MovingMeshFlow(FlowLoads):
         and the mesh velocity of this step."""
         st = self.stepper
         t0 = time.perf_counter()
+        history = outline = None
         if ev.retriangulated:
             u_n, u_p = self._transfer(ev, old_space, st.state.u, st.previous_velocity)
+            if st.conservative:
+                history = self._transfer_mass_history(old_space, st.mass_history, [u for u in (u_n, u_p)
+                                                                                   if u is not None])
+                outline = self._outline_dofs()
             cost.add("rebuild", time.perf_counter() - t0)
             t0 = time.perf_counter()
         else:
             u_n, u_p = st.state.u, st.previous_velocity
+            if st.conservative and rebuilt:  # a new problem on the same DOFs: the history stands
+                history, outline = st.mass_history, self._outline_dofs()
         # BDF2 derivative of the node trajectories at t + dt (second order; BDF1 on the first step)
         w_nodes = self.mm.node_velocity(dt, order=2)
         t1 = time.perf_counter()
         w = p1_at_dofs(self.space, w_nodes)
         cost.add("mesh", t1 - t0)
         cost.add("rebuild", time.perf_counter() - t1)
-        st.take_over(self.problem, u_n, u_p, mesh_velocity=w, renumbered=rebuilt)
+        st.take_over(self.problem, u_n, u_p, mesh_velocity=w, renumbered=rebuilt, mass_history=history,
+                     no_flux_dofs=outline)
 
     def _transfer(self, ev, old_space, u_n, u_p):
         """u^n, u^{n−1} on the new DOFs after a re-triangulation (``ev.history``, :meth:`MovingMesh.node_history`).
@@ -360,5 +395,6 @@ class MovingMeshFlow(FlowLoads):
         self._build(self.t)
         self.x = s["x"].copy()
         if self.stepper is not None:
-            self.stepper.take_over(self.problem, self.x[: self.space.n_u], renumbered=True)
+            outline = self._outline_dofs() if self.stepper.conservative else None
+            self.stepper.take_over(self.problem, self.x[: self.space.n_u], renumbered=True, no_flux_dofs=outline)
             self.stepper.set_state(s["stepper"])

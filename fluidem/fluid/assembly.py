@@ -232,6 +232,28 @@ class VectorAssembler:
                     local[:, ca::2, cb::2] += Mab
         return self._scatter_local(local)
 
+    def divergence_mass(self, c: np.ndarray) -> np.ndarray:
+        """Pattern data of (div c) u · v for velocity coefficients ``c`` (n_u,), (nnz,).
+
+        Added to the convection ((c·∇)u)·v it makes the divergence form div(u ⊗ c) · v, whose
+        integral against a constant v is the flux of c through the boundary (the conservative
+        ALE form of :class:`fluidem.fluid.navier_stokes.BDF2Stepper`).
+        """
+        G = self.gradients(c)
+        return self._block_diagonal(np.matmul(self.psi_dx * (G[0, 0] + G[1, 1])[:, None, :],
+                                              self.psi.transpose(0, 2, 1)))
+
+    def divergence_mass_vector(self, c: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """Load vector (div c) a · v, (n_u,), for velocity coefficients ``c`` and ``a`` (n_u,)."""
+        G = self.gradients(c)
+        w = (G[0, 0] + G[1, 1]) * self.dx  # (nel, nq)
+        aq = self.values(a)
+        out = np.zeros(self.n)
+        for k in range(2):
+            loc = np.einsum("esq,eq->es", self.psi, w * aq[k])
+            out += np.bincount(self.dofs_c[k].ravel(), weights=loc.ravel(), minlength=self.n)
+        return out
+
     def convection_vector(self, a: np.ndarray, b: np.ndarray | None = None,
                           b_values: np.ndarray | None = None) -> np.ndarray:
         """Load vector ((b·∇)a)·v, shape (n_u,) (b = a if omitted); ``b_values`` (2, nel, nq), if

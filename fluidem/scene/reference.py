@@ -55,7 +55,8 @@ TABLES = {
 #: names a key takes from :mod:`fluidem.names` (key -> registry kind)
 NAME_KINDS = {
     ".units": "units", "fluid.model": "fluid model", "fluid.element": "element", "fluid.convection": "convection",
-    "fluid.solver": "solver", "fluid.coupling": "coupling", "time.scheme": "time scheme", "domain.bottom": "side type",
+    "fluid.solver": "solver", "fluid.coupling": "coupling",
+    "fluid.ale_form": "ALE form", "time.scheme": "time scheme", "domain.bottom": "side type",
     "domain.right": "side type", "domain.top": "side type", "domain.left": "side type",
     "domain.<side>.type": "side type", "domain.inflow_profile.type": "profile", "bodies.shape": "shape",
     "bodies.motion": "motion", "bodies_table.shape": "shape", "bodies_table.motion": "motion",
@@ -114,6 +115,7 @@ KEY_DOCS = {
     "fluid.convection": ("name", "—", "convection term of the unsteady solver"),
     "fluid.solver": ("name", "—", "linear solver"),
     "fluid.coupling": ("name", "—", "how free bodies and the fluid are coupled"),
+    "fluid.ale_form": ("name", "—", "moving meshes: the ALE form (conservative keeps the momentum exactly)"),
     "domain.box": ("[xmin, xmax, ymin, ymax]", "length", "the rectangular domain"),
     "domain.bottom": ("name or table", "—", "side y = ymin: a side type, or a table (below)"),
     "domain.right": ("name or table", "—", "side x = xmax: a side type, or a table (below)"),

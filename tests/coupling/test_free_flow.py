@@ -55,9 +55,11 @@ def test_neutrally_buoyant_disk_in_fluid_at_rest_stays_at_rest():
     assert np.abs(sim.flow.x).max() == 0.0
 
 
-def test_settling_disk_restarts_bit_for_bit(tmp_path):
+@pytest.mark.parametrize("ale_form", ["non-conservative", "conservative"])
+def test_settling_disk_restarts_bit_for_bit(tmp_path, ale_form):
+    """Also in the conservative ALE form, whose checkpoints carry the mass-weighted history."""
     d = settling("navier-stokes", nu=0.01, steps=6, h=0.05).to_dict()
-    d["fluid"]["solver"] = "direct"
+    d["fluid"].update(solver="direct", ale_form=ale_form)
     d["output"] = {"checkpoint_every": 3}
     full, part = tmp_path / "full", tmp_path / "part"
     Simulation(Scene.from_dict(d)).run(out_dir=full)
