@@ -103,7 +103,8 @@ class FreeBodyFlow(MovingMeshFlow):
         self.contacts = None
         self._contact_step = False  # Stokes: the last mobility solve had the repulsion in it
         #: Stokes with contacts: Newton iterations of the repulsion per step (relative tolerance
-        #: on the force, of the repulsion's force scale, and most iterations); the last count
+        #: on the force, of the repulsion's force scale, and most iterations); the last count and
+        #: the repulsion (n_free, 3) at the end poses of the last step
         self.contact_tolerance = 1e-3
         self.contact_iterations = 8
         self.last_contact_iterations = 0
@@ -334,9 +335,10 @@ class FreeBodyFlow(MovingMeshFlow):
         z = z0
         relax, last_miss = 1.0, np.inf
         self.last_contact_iterations = 0
+        at_lin = None  # the repulsion and its stiffness at X_lin when already evaluated there
         for _ in range(self.contact_iterations):
             t0 = time.perf_counter()
-            F_lin, K_lin = c.repulsion_linearised(X_lin)
+            F_lin, K_lin = at_lin if at_lin is not None else c.repulsion_linearised(X_lin)
             geo_s += time.perf_counter() - t0
             # F_c(X0 + Δt V) ≈ F_lin + K_lin (X0 − X_lin) + Δt K_lin V
             F_at_0 = F_lin.ravel() + K_lin @ (X0[f] - X_lin[f]).ravel()
@@ -351,7 +353,8 @@ class FreeBodyFlow(MovingMeshFlow):
             X_end = X0.copy()
             X_end[f] = X0[f] + dt * V
             t0 = time.perf_counter()
-            F_end, _ = c.repulsion_linearised(X_end)
+            at_end = c.repulsion_linearised(X_end)
+            F_end = at_end[0]
             geo_s += time.perf_counter() - t0
             predicted = F_at_0 + dt * (K_lin @ V.ravel())
             miss = float(np.abs(F_end.ravel() - predicted).max())
@@ -361,6 +364,7 @@ class FreeBodyFlow(MovingMeshFlow):
                 relax *= 0.5
             last_miss = miss
             X_lin = X_lin + relax * (X_end - X_lin)
+            at_lin = at_end if relax == 1.0 else None
         self.contact_load = F_end.reshape(nf, 3)
         if cost is not None:
             cost.add("dem", geo_s)
