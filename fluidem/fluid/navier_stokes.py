@@ -237,8 +237,11 @@ class BDFStepper:
                              f"convection = {self.convection!r}, order {self.order}")
         self.conservative = True
         self.no_flux_dofs = None if no_flux_dofs is None else np.asarray(no_flux_dofs, dtype=np.int64)
-        M = self.problem.M
-        self._mass_history = [M @ self.state.u] + ([] if self._u_prev is None else [M @ self._u_prev])
+        self._mass_history = self._mass_weighted(self.problem.M)
+
+    def _mass_weighted(self, M) -> list:
+        """[M u^n] or [M u^n, M u^{n−1}]: the mass-weighted velocities with the mass matrix ``M``."""
+        return [M @ self.state.u] + ([] if self._u_prev is None else [M @ self._u_prev])
 
     @property
     def mass_history(self) -> list | None:
@@ -292,8 +295,7 @@ class BDFStepper:
             if mass_history is not None:
                 self._mass_history = [np.asarray(m, dtype=float) for m in mass_history]
             elif renumbered or self._mass_history is None:
-                M = problem.M
-                self._mass_history = [M @ self.state.u] + ([] if self._u_prev is None else [M @ self._u_prev])
+                self._mass_history = self._mass_weighted(problem.M)
 
     def _past(self) -> list:
         """[u^n, u^{n−1}, ...]: the velocities the next step's formulas use (at most ``order``)."""
