@@ -6,10 +6,17 @@ The state is an object graph of plain values, numpy arrays and instances of flui
 classes; :func:`encode` turns it into a JSON tree whose arrays are stored beside it, and
 :func:`decode` rebuilds it.
 
-Loading never executes code from the file: the JSON tree can only name classes defined in
-the ``fluidem`` package (any other name is refused), which are created empty
-(``cls.__new__``) and filled with their decoded attributes (``__setstate__`` when the class
-defines one); arrays are read with ``allow_pickle=False``.
+Loading never executes code from the file.  A checkpoint is data: numbers, strings, arrays
+(read with ``allow_pickle=False``), lists and dicts of them, shapely geometries (as
+well-known binary) and the state of fluidem's own classes.  The JSON tree names a class by
+``"module:QualName"``, and only the exact names in :data:`STATE_CLASSES` are looked up (one
+attribute of one fluidem module, no walk through attributes; anything else is a damaged
+checkpoint); such a class is created empty (``cls.__new__``, no constructor runs) and
+filled with its decoded attributes (``__setstate__`` when the class defines one, which
+only assigns).  :func:`encode` refuses every other class, so a state class missing from the
+list fails the first save, not a user's restart.  What a checkpoint holds is then checked
+against the scene before a run continues from it (:func:`mismatches`,
+:meth:`fluidem.Simulation.restore`).
 
 Writing is atomic: the file is written under a temporary name in the same directory,
 flushed to disk and renamed, so a crash leaves either the previous file or the new one.
@@ -29,7 +36,6 @@ Examples
 from __future__ import annotations
 
 import base64
-import enum
 import importlib
 import json
 import math
@@ -41,10 +47,37 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["FORMAT", "CheckpointError", "encode", "decode", "save", "load", "checkpoint_files"]
+__all__ = ["FORMAT", "STATE_CLASSES", "CheckpointError", "encode", "decode", "save", "load", "checkpoint_files",
+           "mismatches"]
 
 #: format tag in every header; a file without it is not a checkpoint of this kind
 FORMAT = "fluidem-checkpoint-npz-1"
+
+
+#: the classes a checkpoint may hold, as ``"module:QualName"``: the run state of bodies, flows
+#: and meshes.  Decoding looks up these exact names and nothing else.
+STATE_CLASSES = frozenset({
+    "fluidem.cost:CostSplit",
+    "fluidem.dem.bodies:Body",
+    "fluidem.dem.contact:ContactModel",
+    "fluidem.dem.contact:Contacts",
+    "fluidem.dem.integrate:Gear",
+    "fluidem.dem.system:DEM",
+    "fluidem.mesh.background:GradedSize",
+    "fluidem.mesh.background:UniformSize",
+    "fluidem.mesh.drag:DragAssociation",
+    "fluidem.mesh.moving:MovingMesh",
+    "fluidem.mesh.nodes:BackgroundNodes",
+    "fluidem.mesh.nodes:BodyOutlines",
+    "fluidem.mesh.nodes:UidSource",
+    "fluidem.mesh.params:MeshParams",
+    "fluidem.mesh.proximity:PolygonTable",
+    "fluidem.mesh.quality:OscillationDetector",
+    "fluidem.mesh.relax:MeshTopology",
+    "fluidem.mesh.relax:RelaxParams",
+    "fluidem.mesh.triangulate:BoxDomain",
+    "fluidem.mesh.triggers:QualityBaseline",
+})
 
 
 class CheckpointError(InputError):
@@ -85,7 +118,7 @@ def encode(obj, arrays: list, copy: bool = False):
     def enc(o, where):
         if o is None or isinstance(o, (bool, str)):
             return o
-        if isinstance(o, int) and not isinstance(o, enum.Enum):
+        if type(o) is int:
             return o
         if isinstance(o, float):
             return o if math.isfinite(o) else {"__float__": repr(o)}
@@ -120,10 +153,9 @@ def encode(obj, arrays: list, copy: bool = False):
 
             if isinstance(o, shapely.Geometry):  # as well-known binary: plain data
                 return {"__shapely__": base64.b64encode(shapely.to_wkb(o)).decode("ascii")}
-        if not (cls.__module__ == "fluidem" or cls.__module__.startswith("fluidem.")):
-            raise TypeError(f"{where}: a {name} cannot be checkpointed (only fluidem's own classes)")
-        if isinstance(o, enum.Enum):
-            return {"__enum__": name, "value": enc(o.value, where)}
+        if name not in STATE_CLASSES:
+            raise TypeError(f"{where}: a {name} cannot be checkpointed (only the classes of "
+                            "fluidem.checkpoint.STATE_CLASSES)")
         if id(o) in omemo:
             return {"__objref__": omemo[id(o)]}
         key = omemo[id(o)] = len(omemo)
@@ -134,19 +166,17 @@ def encode(obj, arrays: list, copy: bool = False):
     return enc(obj, "state")
 
 
-def _class(name: str):
+def _class(name) -> type:
+    """The class ``name`` (``"module:QualName"``) if it is one of :data:`STATE_CLASSES`."""
+    if not isinstance(name, str) or name not in STATE_CLASSES:
+        raise CheckpointError(f"class = {str(name)[:80]!r}: not one of fluidem's checkpoint state classes "
+                              "(fluidem.checkpoint.STATE_CLASSES); the checkpoint is damaged or was not written "
+                              "by fluidem")
     module, _, qual = name.partition(":")
-    if not (module == "fluidem" or module.startswith("fluidem.")):
-        raise CheckpointError(f"class = {name!r}: expected a class of the fluidem package")
-    try:
-        obj = importlib.import_module(module)
-        for part in qual.split("."):
-            obj = getattr(obj, part)
-    except (ImportError, AttributeError):
-        raise CheckpointError(f"class = {name!r}: not found in this version of fluidem") from None
-    if not isinstance(obj, type):
-        raise CheckpointError(f"class = {name!r}: expected a class")
-    return obj
+    cls = vars(importlib.import_module(module)).get(qual)  # one name of one module: no attribute walk
+    if not (isinstance(cls, type) and cls.__module__ == module and cls.__qualname__ == qual):
+        raise CheckpointError(f"class = {name!r}: not found in this version of fluidem")
+    return cls
 
 
 def decode(tree, arrays):
@@ -194,8 +224,6 @@ def decode(tree, arrays):
             import shapely
 
             return shapely.from_wkb(base64.b64decode(t["__shapely__"]))
-        if "__enum__" in t:
-            return _class(t["__enum__"])(dec(t["value"]))
         if "__objref__" in t:
             return objects[int(t["__objref__"])]
         if "__obj__" in t:
@@ -269,7 +297,12 @@ def load(path) -> tuple[dict, object]:
     except (zipfile.BadZipFile, ValueError, KeyError, OSError, EOFError, UnicodeDecodeError, TypeError) as exc:
         raise CheckpointError(f"checkpoint {str(path)!r} is damaged or truncated ({type(exc).__name__}: "
                               f"{str(exc)[:80]})") from None
-    state = decode(head.pop("state"), arrays)
+    try:
+        state = decode(head.pop("state"), arrays)
+    except CheckpointError as exc:
+        raise CheckpointError(f"checkpoint {str(path)!r}: {exc}") from None
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:  # a tree that is not ours
+        raise CheckpointError(f"checkpoint {str(path)!r} is damaged ({type(exc).__name__} in its state tree)") from None
     return head, state
 
 
@@ -277,3 +310,86 @@ def checkpoint_files(out_dir) -> list[Path]:
     """Checkpoint files ``checkpoints/ckpt_<step>.npz`` of a run directory, newest (highest step) first."""
     d = Path(out_dir) / "checkpoints"
     return sorted(d.glob("ckpt_*.npz"), reverse=True) if d.is_dir() else []
+
+
+def _state_of(o):
+    """The attributes of a fluidem object as encoded (its ``__getstate__`` dict, or ``__dict__``)."""
+    st = o.__getstate__() if hasattr(o, "__getstate__") else o.__dict__
+    if isinstance(st, tuple) and len(st) == 2:  # (dict, slots) of object.__getstate__
+        st = {**(st[0] or {}), **(st[1] or {})}
+    return st if isinstance(st, dict) else {}
+
+
+def _kind(v) -> str:
+    if isinstance(v, (bool, np.bool_)):
+        return "a boolean"
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        return "a number"
+    if isinstance(v, (str, bytes)):
+        return "a " + type(v).__name__
+    if isinstance(v, (list, tuple)):
+        return "a list"
+    if isinstance(v, dict):
+        return "a dict"
+    if isinstance(v, np.ndarray):
+        return "an array"
+    return f"a {type(v).__module__}.{type(v).__qualname__}"
+
+
+def mismatches(value, template, where: str = "state", exact_shape=None, limit: int = 5) -> list:
+    """Where a decoded state ``value`` does not have the make of ``template`` (a state of the same scene).
+
+    The state of a run changes in size as it goes (meshes are re-triangulated, contacts come
+    and go), not in make: at every place both hold, the value must be of the template's kind
+    (number, string, list, dict, array) and of the same fluidem class; an array must have the
+    template's number of dimensions and kind of number (float, integer, boolean), and its
+    shape where ``exact_shape(where, template_shape)`` says so (e.g. the arrays of the
+    bodies, whose number does not change).  ``None`` on either
+    side stands for "not computed yet" and matches anything.
+
+    Returns
+    -------
+    list of str
+        At most ``limit`` lines ``"<where>: <what> (expected <what>)"``; empty when it fits.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> mismatches({"x": np.zeros((3, 2)), "t": 0.5}, {"x": np.zeros((4, 2)), "t": 0.0})
+    []
+    >>> mismatches({"x": np.zeros(3), "t": "0.5"}, {"x": np.zeros((4, 2)), "t": 0.0})
+    ['state.x: an array of shape (3,) (expected 2 dimensions of float)', 'state.t: a str (expected a number)']
+    """
+    out: list = []
+    seen: set = set()
+
+    def walk(v, t, at):
+        if len(out) >= limit or v is None or t is None:
+            return
+        kv, kt = _kind(v), _kind(t)
+        if kv != kt:
+            out.append(f"{at}: {kv} (expected {kt})")
+            return
+        if isinstance(t, np.ndarray):
+            kinds = {"f": "float", "i": "integer", "u": "integer", "b": "boolean", "c": "complex"}
+            if v.ndim != t.ndim or kinds.get(v.dtype.kind, v.dtype.kind) != kinds.get(t.dtype.kind, t.dtype.kind):
+                out.append(f"{at}: an array of shape {v.shape} (expected {t.ndim} dimensions of "
+                           f"{kinds.get(t.dtype.kind, t.dtype.kind)})")
+            elif v.shape != t.shape and exact_shape is not None and exact_shape(at, t.shape):
+                out.append(f"{at}: an array of shape {v.shape} (expected {t.shape})")
+            return
+        if isinstance(t, dict):
+            for k in t:
+                if k in v:
+                    walk(v[k], t[k], f"{at}.{k}")
+            return
+        if isinstance(t, (list, tuple)):
+            for i, (a, b) in enumerate(zip(v, t)):
+                walk(a, b, f"{at}[{i}]")
+            return
+        if type(t).__module__.startswith("fluidem") and id(v) not in seen:
+            seen.add(id(v))
+            walk(_state_of(v), _state_of(t), at)
+
+    walk(value, template, where)
+    return out

@@ -68,6 +68,9 @@ __all__ = ["Simulation", "RunResult", "StepTimes", "run", "LinearPath", "RunStop
 #: steps for cheap DEM steps of many bodies
 SNAPSHOT_RATIO = 20.0
 
+#: parts of a run's state whose sizes change as it goes (contact lists, spring histories, neighbour pairs)
+_VARIABLE_STATE = (".contacts", "._hist.", "._nbr[", "_pairs", ".springs")
+
 #: smallest triangle angle (degrees) of a freshly built mesh before a warning
 MIN_ANGLE = 5.0
 
@@ -194,8 +197,9 @@ class Simulation:
     # -- state ------------------------------------------------------------------------------
     def _state(self) -> dict:
         """The run's state: bodies, flow and counters (plain data, arrays and fluidem objects)."""
+        loads = getattr(self, "last_loads", None)
         return {"bodies": self.bodies.get_state(), "flow": self.flow.get_state() if self.flow else None,
-                "counters": dict(self.counters)}
+                "counters": dict(self.counters), "loads": None if loads is None else list(loads)}
 
     def _header(self) -> dict:
         """What a checkpoint carries beside the state: the scene, dt and the plan it ran with."""
@@ -216,35 +220,60 @@ class Simulation:
     def restore(self, checkpoint, allow_pickle: bool = False) -> Path:
         """Continue from a checkpoint file, or from the newest valid checkpoint of an output directory.
 
-        A damaged newer checkpoint in the directory is skipped with a :class:`RunWarning`.  The
-        scene may differ from the checkpoint's only in ``time.t_end``, ``[output]``, its name and
-        description; when the longer ``t_end`` switches contacts on, the DEM continues the
-        closed-form motion.  Returns the checkpoint used.
+        What the checkpoint holds is checked against the scene before the run continues: each
+        part must be of the kind and fluidem class a fresh state of this scene has, the arrays
+        of the bodies must have their shapes (:func:`fluidem.checkpoint.mismatches`), and the
+        restored bodies and flow must be finite and of the scene's sizes.  In a directory a
+        checkpoint that fails (damaged, crafted or edited) is skipped with a
+        :class:`RunWarning` and the previous one is used.  The scene may differ from the
+        checkpoint's only in ``time.t_end``, ``[output]``, its name and description; when the
+        longer ``t_end`` switches contacts on, the DEM continues the closed-form motion.
+        Returns the checkpoint used.
 
         Raises
         ------
         fluidem.errors.InputError
             A different scene (the message lists each change), a checkpoint beyond ``t_end``,
             or a plan that needs another kind of flow; :class:`fluidem.checkpoint.CheckpointError`
-            for a damaged or missing file.
+            for a damaged or missing file, or a directory without a valid checkpoint.
         """
-        from .io import load_checkpoint, load_latest_checkpoint
+        from .checkpoint import CheckpointError, checkpoint_files
+        from .io import latest_checkpoint, load_checkpoint
 
         path = Path(checkpoint)
-        if path.is_dir():
-            path, data, skipped = load_latest_checkpoint(path)
-            for bad, why in skipped:
-                warnings.warn(f"{why}; continuing from the previous valid checkpoint {str(path)!r}", RunWarning,
-                              stacklevel=2)
-        else:
-            data = load_checkpoint(path, allow_pickle=allow_pickle)
+        if not path.is_dir():
+            self._apply_checkpoint(path, load_checkpoint(path, allow_pickle=allow_pickle))
+            return path
+        files = checkpoint_files(path) or [latest_checkpoint(path)]
+        bodies, counters = self.bodies, dict(self.counters)
+        skipped = []
+        for f in files:
+            try:
+                self._apply_checkpoint(f, load_checkpoint(f))
+            except CheckpointError as exc:
+                skipped.append(str(exc))
+                self.bodies, self.counters = bodies, dict(counters)  # the next one applies to the scene's own
+                continue
+            for why in skipped:
+                warnings.warn(f"{why}; continuing from the previous valid checkpoint {str(f)!r}", RunWarning,
+                              stacklevel=3)
+            return f
+        raise CheckpointError(f"no valid checkpoint in {str(path / 'checkpoints')!r}: " + "; ".join(skipped))
+
+    def _apply_checkpoint(self, path: Path, data: dict) -> None:
+        """Set the run's state from a loaded checkpoint of this scene (see :meth:`restore`)."""
+        from .checkpoint import CheckpointError, mismatches
+
         sc = self.scene
-        changes = scene_changes(data["scene"], sc.to_dict())
+        changes = scene_changes(data.get("scene") or {}, sc.to_dict())
         if changes:
             raise InputError(f"checkpoint {str(path)!r} belongs to a different scene: changed "
                              + "; ".join(changes) + "; a restart may change only time.t_end and [output] (anything "
                              "else is a new run: --overwrite or another --out)")
-        step, t = int(data["step"]), float(data["t"])
+        try:
+            step, t = int(data["step"]), float(data["t"])
+        except (KeyError, TypeError, ValueError):
+            raise CheckpointError(f"checkpoint {str(path)!r} has no valid step and time") from None
         if step > self.plan.n_steps:
             raise InputError(f"time.t_end = {sc.time.t_end:g}: the checkpoint {str(path)!r} is at t = {t:g} (step "
                              f"{step}); expected a t_end of at least {t:g}")
@@ -254,7 +283,35 @@ class Simulation:
             raise InputError(f"time.t_end = {sc.time.t_end:g}: the longer run needs a {self.plan.mesh!r} mesh, the "
                              f"checkpoint {str(path)!r} holds a {old.get('mesh')!r} one; run the longer scene from the "
                              "start (--overwrite)")
-        bs = data["bodies"]
+        n, n_free = len(sc.bodies), sum(b.motion == "free" for b in sc.bodies)
+
+        def per_body(at, shape):  # arrays of the bodies keep their shape; contact lists vary
+            return (at.startswith(("state.bodies.", "state.flow.bodies.")) or at.endswith(".mm.poses")) and \
+                (n in shape or n_free in shape) and not any(v in at for v in _VARIABLE_STATE)
+
+        state = {k: data.get(k) for k in ("bodies", "flow")}
+        template = {"bodies": self.bodies.get_state(), "flow": self.flow.get_state() if self.flow else None}
+        if isinstance(self.bodies, DEMBodies) != ("dem" in (state["bodies"] or {})):
+            template["bodies"] = None  # a longer t_end switched contacts on (or off): converted below
+        bad = mismatches(state, template, exact_shape=per_body)
+        if bad:
+            raise CheckpointError(f"checkpoint {str(path)!r} does not fit the scene: " + "; ".join(bad))
+        try:
+            self._set_state(state["bodies"], state["flow"], step)
+            self._check_restored()
+        except CheckpointError as exc:
+            raise CheckpointError(f"checkpoint {str(path)!r} does not fit the scene: {exc}") from None
+        except Exception as exc:  # a part that decodes but does not fit where it goes
+            raise CheckpointError(f"checkpoint {str(path)!r} does not fit the scene ({type(exc).__name__}: "
+                                  f"{_one_line(exc)[:120]})") from None
+        self.step_index = step
+        self.t = t
+        loads = data.get("loads")
+        if loads is not None:
+            self.last_loads = (np.asarray(loads[0], float), np.asarray(loads[1], float))
+
+    def _set_state(self, bs: dict, flow_state, step: int) -> None:
+        sc = self.scene
         if isinstance(self.bodies, DEMBodies) and "dem" not in bs:
             kin = KinematicBodies(sc)
             kin.set_state(bs)
@@ -268,10 +325,23 @@ class Simulation:
         else:
             self.bodies.set_state(bs)
         if self.flow is not None:
-            self.flow.set_state(data["flow"])
-        self.step_index = step
-        self.t = t
-        return path
+            self.flow.set_state(flow_state)
+
+    def _check_restored(self) -> None:
+        """The restored bodies and flow have the scene's sizes and finite values (else CheckpointError)."""
+        from .checkpoint import CheckpointError
+
+        n, b = len(self.scene.bodies), self.bodies
+        parts = [("positions", b.positions, (n, 2)), ("angles", b.angles, (n,)),
+                 ("velocities", b.velocities, (n, 2)), ("omegas", b.omegas, (n,))]
+        if self.flow is not None:
+            parts.append(("flow", self.flow.x, (self.flow.dofs,)))
+        for name, a, shape in parts:
+            a = np.asarray(a)
+            if a.shape != shape or a.dtype.kind != "f" or not np.isfinite(a).all():
+                raise CheckpointError(f"{name} of shape {a.shape}" + ("" if a.shape != shape or a.dtype.kind != "f"
+                                                                      else " with non-finite values")
+                                      + f" (expected finite numbers of shape {shape})")
 
     def _record(self, writer, fields: bool, last: bool = False):
         b = self.bodies

@@ -12,7 +12,7 @@ from fluidem import Scene, Simulation
 from fluidem.checkpoint import CheckpointError, load
 from fluidem.cli import main
 from fluidem.io import load_checkpoint, read_history, read_run_record
-from fluidem.simulation import RunStopped
+from fluidem.simulation import RunStopped, RunWarning
 
 DRY = {"gravity": [0.0, -9.81], "domain": {"box": [0.0, 0.4, 0.0, 0.4]},
        "bodies": [{"shape": "disk", "radius": 0.015, "segments": 6, "density": 100.0, "angle": 0.1 * i,
@@ -53,7 +53,7 @@ def test_loading_never_executes_code(tmp_path):
     head = {"format": "fluidem-checkpoint-npz-1", "version": 2, "step": 1, "t": 0.1, "n_arrays": 0,
             "state": {"__obj__": "os:system", "id": 0, "state": "echo hacked"}}
     np.savez(bad, header=np.frombuffer(json.dumps(head).encode(), np.uint8))
-    with pytest.raises(CheckpointError, match="class = 'os:system': expected a class of the fluidem package"):
+    with pytest.raises(CheckpointError, match="class = 'os:system': not one of fluidem's checkpoint state classes"):
         load(bad)
     obj = tmp_path / "ckpt_0000002.npz"
     np.savez(obj, header=np.frombuffer(json.dumps(dict(head, state=None, n_arrays=1)).encode(), np.uint8),
@@ -64,6 +64,96 @@ def test_loading_never_executes_code(tmp_path):
     pkl.write_bytes(b"\x80\x04K\x01.")
     with pytest.raises(CheckpointError, match="loading a pickle can execute code"):
         load_checkpoint(pkl)
+
+
+def _crafted(path, tree):
+    head = {"format": "fluidem-checkpoint-npz-1", "version": 2, "step": 10, "t": 0.04, "n_arrays": 0, "state": tree}
+    path.write_bytes(b"")
+    with open(path, "wb") as f:
+        np.savez(f, header=np.frombuffer(json.dumps(head).encode(), np.uint8))
+
+
+@pytest.mark.parametrize("tag", ["__enum__", "__obj__"])
+def test_a_crafted_checkpoint_naming_a_class_through_a_module_attribute_runs_nothing(tmp_path, capsys, tag):
+    """A class reached by walking attributes from a fluidem module (here subprocess.Popen through
+    numpy.f2py) is not looked up; a restart skips the file with a warning and continues from the
+    previous checkpoint, as if the file were damaged."""
+    marker = tmp_path / "ran"
+    name = "fluidem.checkpoint:np.f2py.subprocess.Popen"
+    tree = {"__dict__": [["bodies", {tag: name, "value": ["touch", str(marker)], "id": 0, "state": {"__dict__": []}}]]}
+    with pytest.raises(CheckpointError):
+        _crafted(tmp_path / "c.npz", tree)
+        load(tmp_path / "c.npz")
+    for bad in ("fluidem.dem.system:np.f2py", "fluidem.dem.system:DEM.__init__", "fluidem.dem.system:DEM ",
+                ["fluidem.dem.system:DEM"]):
+        _crafted(tmp_path / "d.npz", {"__obj__": bad, "id": 0, "state": {"__dict__": []}})
+        with pytest.raises(CheckpointError, match="not one of fluidem's checkpoint state classes"):
+            load(tmp_path / "d.npz")
+    scene = tmp_path / "s.toml"
+    Scene.from_dict(DRY).to_toml(scene)
+    out = tmp_path / "o"
+    assert main(["run", str(scene), "--out", str(out), "--quiet", "--steps", "10"]) == 0
+    _crafted(out / "checkpoints" / "ckpt_0000010.npz", tree)
+    assert main(["run", str(scene), "--out", str(out), "--quiet", "--restart"]) == 0
+    assert not marker.exists()
+    err = capsys.readouterr().err
+    assert "ckpt_0000010.npz" in err and "continuing from the previous valid checkpoint" in err
+    assert "Traceback" not in err
+
+
+def _edit_newest(out, edit):
+    """Load the newest checkpoint of ``out``, change its state with ``edit(state)`` and save it again."""
+    from fluidem.checkpoint import save
+
+    path = sorted((out / "checkpoints").glob("ckpt_*.npz"))[-1]
+    header, state = load(path)
+    edit(state)
+    header.pop("n_arrays")
+    save(path, header, state)
+    return path
+
+
+def _drop_a_body(state):
+    g = state["bodies"]["dem"].gear
+    g.X = g.X[:, :-1].copy()
+
+
+def _swap_class(state):
+    from fluidem.dem.contact import Contacts
+
+    state["bodies"]["dem"] = Contacts.empty()
+
+
+@pytest.mark.parametrize("edit,why", [(_drop_a_body, r"state.bodies.dem.gear.X: an array of shape \(3, 9, 3\) "
+                                                     r"\(expected \(3, 10, 3\)\)"),
+                                      (_swap_class, "state.bodies.dem: a fluidem.dem.contact.Contacts "
+                                                    "\\(expected a fluidem.dem.system.DEM\\)")])
+def test_a_checkpoint_edited_by_hand_is_damaged_and_the_previous_one_is_used(tmp_path, edit, why):
+    out, full = tmp_path / "o", tmp_path / "full"
+    Simulation(Scene.from_dict(DRY)).run(out_dir=out, n_steps=10)
+    path = _edit_newest(out, edit)
+    aside = tmp_path / path.name
+    aside.write_bytes(path.read_bytes())
+    with pytest.warns(RunWarning, match=f"checkpoint {str(path)!r} does not fit the scene: {why}; continuing from "
+                                        "the previous valid checkpoint .*ckpt_0000009.npz"):
+        Simulation(Scene.from_dict(DRY)).run(out_dir=out, restart=True)
+    Simulation(Scene.from_dict(DRY)).run(out_dir=full)
+    assert _same_history(full, out) == 0.0
+    with pytest.raises(CheckpointError, match="does not fit the scene"):  # given by name: no fall-back
+        Simulation(Scene.from_dict(DRY)).run(out_dir=tmp_path / "o2", restart=aside)
+
+
+def test_a_flow_vector_of_another_size_is_damaged(tmp_path):
+    from tiny_scene import tiny_channel
+
+    scene = tmp_path / "s.toml"
+    scene.write_text(tiny_channel(t_end=0.3))
+    out = tmp_path / "o"
+    Simulation(scene).run(out_dir=out, n_steps=2)
+    path = _edit_newest(out, lambda s: s["flow"].update(x=s["flow"]["x"][:-3].copy()))
+    with pytest.raises(CheckpointError, match=r"does not fit the scene: flow of shape \((\d+),\) \(expected finite "
+                                              r"numbers of shape \(\1\+3,\)|does not fit the scene: flow of shape"):
+        Simulation(scene).run(out_dir=out, restart=path)
 
 
 @pytest.fixture(autouse=True)
