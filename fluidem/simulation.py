@@ -44,6 +44,7 @@ Runs that never lose or silently corrupt a result:
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 import warnings
@@ -111,8 +112,8 @@ class Simulation:
 
     Parameters
     ----------
-    scene : Scene or str or Path
-        A scene or the path of a TOML scene file.
+    scene : Scene, dict, str or Path
+        A scene, a scene as a dict (:meth:`Scene.from_dict`) or the path of a TOML scene file.
 
     Attributes
     ----------
@@ -143,8 +144,13 @@ class Simulation:
     """
 
     def __init__(self, scene):
-        if not isinstance(scene, Scene):
+        if isinstance(scene, dict):
+            scene = Scene.from_dict(scene)
+        elif isinstance(scene, (str, os.PathLike)):
             scene = Scene.from_toml(scene)
+        elif not isinstance(scene, Scene):
+            raise InputError(f"Simulation(scene = {str(scene)[:60]!r}): expected a Scene, a scene dict or the path "
+                             "of a TOML scene file")
         self.scene = scene
         self.plan = scene.plan()
         if self.plan.unsupported:
@@ -344,6 +350,8 @@ class Simulation:
                                       + f" (expected finite numbers of shape {shape})")
 
     def _record(self, writer, fields: bool, last: bool = False):
+        """Loads of the step just taken; with a writer its history rows and (``fields``) its fields.
+        Returns the seconds the loads took."""
         b = self.bodies
         F, T, cnt = b.loads()
         tl = time.perf_counter()
@@ -354,23 +362,32 @@ class Simulation:
         if writer is None:
             return t_loads
         sc = self.scene
+        pos, ang, vel, om = b.positions, b.angles, b.velocities, b.omegas
         if self.step_index % sc.output.history_every == 0 or last:
-            writer.history(self.step_index, self.t, b.positions, b.angles, b.velocities, b.omegas, F, T, cnt)
+            writer.history(self.step_index, self.t, pos, ang, vel, om, F, T, cnt)
+        # what run.json reports if a later step fails: this step, the last good one
+        self._recorded = (self.step_index, self.t, pos, ang, vel, om, np.array(F, float), np.array(T, float))
         if fields:
-            pos, ang = b.positions, b.angles
-            outlines = [sb.world_vertices(sc.default_segments(sb), pos[k], ang[k]) for k, sb in enumerate(sc.bodies)]
-            if outlines:
-                writer.bodies(self.step_index, self.t, outlines, b.velocities, b.omegas)
-            if self.flow is not None and sc.output.fields:
-                from .io import fluid_point_data, full_order_fields
-
-                m = self.flow.mesh
-                writer.fields(self.step_index, self.t, m.p[:, :m.nvertices].T, _ccw(m),
-                              fluid_point_data(self.flow.space, self.flow.x, sc.fluid.density))
-                if sc.output.full_order:
-                    writer.fields_full(self.step_index, self.t,
-                                       *full_order_fields(self.flow.space, self.flow.x, sc.fluid.density))
+            self._write_fields(writer)
         return t_loads
+
+    def _write_fields(self, writer) -> None:
+        """Body outlines and (fluid scenes) the fields of the current state into the series."""
+        sc, b = self.scene, self.bodies
+        pos, ang = b.positions, b.angles
+        outlines = [sb.world_vertices(sc.default_segments(sb), pos[k], ang[k]) for k, sb in enumerate(sc.bodies)]
+        if outlines:
+            writer.bodies(self.step_index, self.t, outlines, b.velocities, b.omegas)
+        if self.flow is not None and sc.output.fields:
+            from .io import fluid_point_data, full_order_fields
+
+            m = self.flow.mesh
+            writer.fields(self.step_index, self.t, m.p[:, :m.nvertices].T, _ccw(m),
+                          fluid_point_data(self.flow.space, self.flow.x, sc.fluid.density))
+            if sc.output.full_order:
+                writer.fields_full(self.step_index, self.t,
+                                   *full_order_fields(self.flow.space, self.flow.x, sc.fluid.density))
+        self._fields_step = self.step_index
 
     def _advance(self, dt: float, writer, check: StateCheck) -> CostSplit:
         """One step of the bodies and the flow, then the state checks; the step is not recorded yet."""
@@ -409,15 +426,18 @@ class Simulation:
             ``fx``, ``fy`` (force/depth) and ``torque`` (force*length/depth), the history.csv
             convention.
         """
-        out = {"steps": self.step_index, "t": self.t}
+        rec = getattr(self, "_recorded", None) if getattr(self, "_failed", False) else None
+        if rec is None:  # the state now (after a failed step: the last step recorded)
+            b, n = self.bodies, len(self.scene.bodies)
+            F, T = getattr(self, "last_loads", (np.zeros((n, 2)), np.zeros(n)))
+            rec = (self.step_index, self.t, b.positions, b.angles, b.velocities, b.omegas, F, T)
+        step, t, pos, ang, vel, om, F, T = rec
+        out = {"steps": step, "t": t}
         if wall_s is not None:
             out["wall_s"] = wall_s
         if self.flow is not None:
             out.update(dofs=int(self.flow.dofs), triangles=int(self.flow.mesh.t.shape[1]),
                        element=self.scene.fluid.element)
-        b = self.bodies
-        F, T = getattr(self, "last_loads", (np.zeros((len(self.scene.bodies), 2)), np.zeros(len(self.scene.bodies))))
-        pos, ang, vel, om = b.positions, b.angles, b.velocities, b.omegas
         bodies = {}
         for k, sb in enumerate(self.scene.bodies):
             name = sb.name or f"body{k}"
@@ -519,7 +539,9 @@ class Simulation:
         ----------
         out_dir : str, Path or None
             Output directory; ``"scene"`` takes ``[output] dir``; ``None`` writes nothing.  A
-            directory holding another run's output is refused unless ``overwrite`` or ``restart``.
+            directory holding another run's output is refused unless ``overwrite`` or ``restart``,
+            and so is one another run is writing now (:class:`fluidem.io.RunLock`, held for the
+            whole run).
         restart : str, Path or True, optional
             Continue from a checkpoint file, or from the newest valid checkpoint in ``out_dir``
             (``True``); the history is cut back to the checkpoint and continued.
@@ -527,9 +549,11 @@ class Simulation:
             ``progress(step, n_steps, t, cost)`` after every step, ``cost`` the step's
             :class:`~fluidem.cost.CostSplit`.
         n_steps : int, optional
-            Stop after this many steps in total (the plan's ``round(t_end/dt)`` by default).
+            Stop after this many steps in total (the plan's ``round(t_end/dt)`` by default, also
+            the most allowed).
         overwrite : bool
-            Clear the run output already in ``out_dir`` (:data:`fluidem.io.OUTPUT_ENTRIES`) first.
+            Clear the run output already in ``out_dir`` first: the entries its ``run.json``
+            lists (:data:`fluidem.io.OUTPUT_ENTRIES`), nothing else.
         allow_pickle : bool
             Accept a pickle checkpoint of an earlier version as ``restart`` (only for your own files).
         verbose : bool or file-like
@@ -545,26 +569,49 @@ class Simulation:
             good step is checkpointed, and the message says where and how to continue.
             Without output the error itself propagates.
         """
-        from .io import OutputWriter, prepare_output_dir
+        from .io import RunLock
 
         sc = self.scene
+        if isinstance(out_dir, str) and out_dir == "scene":
+            out_dir = sc.output.dir
+        if out_dir is not None and (not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir).strip()):
+            raise InputError(f"out_dir = {out_dir!r}: expected the path of a directory (str or Path), 'scene' for "
+                             "[output] dir, or None to write nothing")
+        if progress is not None and not callable(progress):
+            raise InputError(f"progress = {progress!r}: expected None or a callable progress(step, n_steps, t, cost)")
         if verbose is not False and verbose is not None:
+            if verbose is not True and not callable(getattr(verbose, "write", None)):
+                raise InputError(f"verbose = {verbose!r}: expected True, False or a text stream with a write method")
             stream = sys.stderr if verbose is True else verbose
             progress = _Verbose(self, stream, progress)
-        if out_dir == "scene":
-            out_dir = sc.output.dir
         restarting = restart is not None and restart is not False
         if restarting and overwrite:
             raise InputError("restart and overwrite exclude each other: restart continues the run in the output "
                              "directory, overwrite clears it")
+        if restart is True and out_dir is None:
+            raise InputError("restart = True needs an output directory with checkpoints")
         if n_steps is not None:
             n_steps = integer("n_steps", n_steps, lo=1)
+            if n_steps > self.plan.n_steps:
+                raise InputError(f"n_steps (--steps) = {n_steps}: the scene has {self.plan.n_steps} steps to "
+                                 f"time.t_end = {sc.time.t_end:g}; expected at most {self.plan.n_steps} (raise "
+                                 "time.t_end to run longer)")
+        lock = None if out_dir is None else RunLock(out_dir).acquire()  # one writer, from before the first read
+        try:
+            return self._run(out_dir, restart if restart is not True else out_dir, progress, n_steps, overwrite,
+                             allow_pickle)
+        finally:
+            if lock is not None:
+                lock.release()
+
+    def _run(self, out_dir, restart, progress, n_steps, overwrite: bool, allow_pickle: bool) -> RunResult:
+        """:meth:`run` with its arguments checked, holding the output directory's lock."""
+        from .io import OutputWriter, prepare_output_dir
+
+        sc = self.scene
+        restarting = restart is not None and restart is not False
         ck_used = None
         if restarting:
-            if restart is True:
-                if out_dir is None:
-                    raise InputError("restart = True needs an output directory with checkpoints")
-                restart = out_dir
             n_events = len(self.events)
             ck_used = self.restore(restart, allow_pickle=allow_pickle)  # lists any change of the scene
             if out_dir is not None and Path(out_dir).is_dir():
@@ -633,6 +680,7 @@ class Simulation:
                     except Exception as exc:
                         if writer is None:
                             raise
+                        self._failed = True  # the state is the failed step's; the last good one is recorded
                         stop = ("error", None, exc, self.step_index + 1)
                         break
                     self.step_index += 1
@@ -692,18 +740,23 @@ class Simulation:
                 self._run_record(out_dir, "complete" if self.step_index >= self.plan.n_steps else "stopped", N,
                                  last_ck, totals=totals, summary=self.summary(time.perf_counter() - wall0))
             else:
-                self._stop(writer, out_dir, N, stop, snap, keep)
+                self._stop(writer, out_dir, N, stop, snap, keep, totals, wall0)
         if isinstance(self.bodies, DEMBodies):
             self.counters["dem_substeps"] = self.bodies.substeps
         return RunResult(self.step_index, self.t, None if out_dir is None else str(out_dir),
                          time.perf_counter() - wall0, self.flow.dofs if self.flow else 0, totals,
                          ("curved" if self.flow.curved else "polygonal") if self.flow else "")
 
-    def _stop(self, writer, out_dir, n_steps, stop, snap, keep):
-        """Close the outputs at the last good step, checkpoint it and raise :class:`RunStopped`."""
+    def _stop(self, writer, out_dir, n_steps, stop, snap, keep, totals, wall0):
+        """Close the outputs at the last good step (its fields written, if they were not), checkpoint
+        it, record the run's cost and summary, and raise :class:`RunStopped`."""
         kind, sig, exc = stop[:3]
         step, t, snapshot = snap if snap is not None else (self.step_index, self.t, None)
         failed_at = stop[3] if kind == "error" else self.step_index + 1
+        try:
+            self._last_good_fields(writer, snap)
+        except Exception as err:  # e.g. the directory is read-only now
+            writer.event(step, t, "fields-failed", _one_line(err))
         path = None
         try:
             if snapshot is not None:
@@ -719,6 +772,10 @@ class Simulation:
             status, code = "interrupted", 143 if sig == "SIGTERM" else 130
         else:
             what = _one_line(exc)
+            if isinstance(exc, OSError):
+                what = (f"writing the output failed ({exc.strerror or what}" + (f": {exc.filename!r}" if exc.filename
+                                                                                else "")
+                        + f"); expected a writable output directory {str(out_dir)!r} with free space")
             msg = (f"step {failed_at} (t = {failed_at * sc.time.dt:.6g}) failed: {what}; the output holds steps 0 to "
                    f"{failed_at - 1}, the last good state "
                    + (f"saved (step {step}) " if step != failed_at - 1 else "") + f"is in {where}")
@@ -728,11 +785,28 @@ class Simulation:
         writer.event(step, t, status, _one_line(msg))
         writer.event(step, t, "end", f"{self.counters['steps']} steps this run")
         writer.close()
-        self._run_record(out_dir, status, n_steps, path, _one_line(msg))
+        self._run_record(out_dir, status, n_steps, path, _one_line(msg), totals=totals,
+                         summary=self.summary(time.perf_counter() - wall0))
         err = RunStopped(msg, status=status, exit_status=code, checkpoint=path)
         if exc is not None:
             raise err from exc
         raise err
+
+
+    def _last_good_fields(self, writer, snap) -> None:
+        """Write the fields of the last recorded step if its output step did not (after a failed step:
+        from the snapshot, when it is of that step)."""
+        if getattr(self, "_failed", False):
+            rec = getattr(self, "_recorded", None)
+            if snap is None or rec is None or snap[0] != rec[0]:
+                return
+            from .checkpoint import decode
+
+            state = decode(*snap[2])
+            self._set_state(state["bodies"], state["flow"], snap[0])
+            self._failed = False
+        if getattr(self, "_fields_step", None) != self.step_index:
+            self._write_fields(writer)
 
 
 def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str:
