@@ -141,6 +141,7 @@ _TINY = {"domain": {"box": [0, 1, 0, 1]}, "time": {"dt": 0.1, "t_end": 0.2}}
     (lambda: Simulation(_TINY).run(out_dir=""), "out_dir = '': expected the path"),
     (lambda: Simulation(_TINY).run(out_dir=None, progress=5),
      "progress = 5: expected None or a callable progress(step, n_steps, t, cost)"),
+    (lambda: Simulation(_TINY).run(out_dir=None, verbose=5), "verbose = 5: expected True, False or a text stream"),
 ])
 def test_arguments_of_the_wrong_kind_are_one_line(call, message):
     with pytest.raises(InputError) as err:
