@@ -38,7 +38,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .scene import Scene
 
 __all__ = ["Plan", "Effect", "make_plan", "moving_mesh_available", "contact_candidates", "prescribed_collisions",
-           "mesh_estimate", "machine_memory"]
+           "mesh_estimate", "machine_memory", "boundary_fluxes", "FLUX_TOLERANCE"]
 
 @dataclass
 class Effect:
@@ -99,8 +99,12 @@ class Plan:
         lines += [str(e) for e in self.effects]
         if self.estimate:
             e = self.estimate
-            lines.append(f"  estimate: about {e['triangles']:.2g} triangles, {e['nodes']:.2g} nodes, {e['dofs']:.2g} "
-                         f"DOFs, peak memory {_bytes(e['peak_bytes'])} (this machine: {_bytes(e['machine_bytes'])})")
+            if np.isfinite(e["peak_bytes"]):
+                lines.append(f"  estimate: about {e['triangles']:.2g} triangles, {e['nodes']:.2g} nodes, "
+                             f"{e['dofs']:.2g} DOFs, peak memory {_bytes(e['peak_bytes'])} (this machine: "
+                             f"{_bytes(e['machine_bytes'])})")
+            else:
+                lines.append(f"  estimate: beyond 1e308 triangles (this machine: {_bytes(e['machine_bytes'])})")
         lines += [f"  note: {n}" for n in self.notes]
         lines += [f"  warning: {w}" for w in self.warnings]
         if self.unsupported:
@@ -241,6 +245,80 @@ def _moving_mesh_available() -> bool:
 
 
 _MOVING_MESH_AVAILABLE = moving_mesh_available
+
+
+#: relative tolerance of a zero net boundary flux: |Σ Q| <= this × Σ |Q| (the fluxes' round-off)
+FLUX_TOLERANCE = 1e-9
+
+#: outward unit normal of each side of the box
+_OUTWARD = {"bottom": (0.0, -1.0), "right": (1.0, 0.0), "top": (0.0, 1.0), "left": (-1.0, 0.0)}
+
+
+def boundary_fluxes(scene: Scene) -> list:
+    """The flux into the box through each side that imposes one, exactly, at full speed.
+
+    An inflow side of length L carries ∫ u·(−n) ds = umax L (uniform profile) or 2/3 umax L
+    (parabolic, 4 umax s (L − s) / L²), reached after its ``ramp``; a moving wall −(v·n) L at
+    once (only its normal velocity counts).  Walls and periodic sides carry none, and the rigid
+    outlines of bodies none in total (a rigid motion is divergence-free).
+
+    Returns
+    -------
+    list of (side, flux, ramp, what)
+        ``flux`` into the box, length²/time (per unit depth), ``ramp`` its rise time, ``what``
+        a short description of the side; only ``inflow`` and ``moving-wall`` sides.
+
+    Examples
+    --------
+    >>> from fluidem.scene import Scene
+    >>> s = Scene.from_dict({"fluid": {}, "domain": {"box": [0, 2, 0, 1], "left": "inflow", "right": "outflow",
+    ...                      "inflow_profile": {"type": "parabolic", "umax": 1.5}}})
+    >>> boundary_fluxes(s)
+    [('left', 1.0, 0.0, 'inflow, parabolic umax = 1.5')]
+    """
+    x0, x1, y0, y1 = scene.domain.box
+    out = []
+    for s in names.choices("side"):
+        side = scene.domain.side(s)
+        L = x1 - x0 if s in ("bottom", "top") else y1 - y0
+        if side.type == "moving-wall":
+            n = _OUTWARD[s]
+            q = -(side.velocity[0] * n[0] + side.velocity[1] * n[1]) * L
+            out.append((s, q + 0.0, 0.0, f"moving-wall, velocity {list(side.velocity)}"))
+        elif side.type == "inflow":
+            p = scene.domain.profile_of(s)
+            mean = 2.0 / 3.0 if p["type"] == "parabolic" else 1.0
+            out.append((s, mean * p["umax"] * L, p["ramp"], f"inflow, {p['type']} umax = {p['umax']:g}"))
+    return out
+
+
+def _flux_refusal(scene: Scene) -> str | None:
+    """Why an incompressible flow cannot exist in ``scene``'s box, or None: without an ``outflow``
+    side the fluxes of :func:`boundary_fluxes` must sum to zero at every instant (those that ramp
+    up together, over the same ``ramp``, among themselves)."""
+    if any(scene.domain.side(s).type == "outflow" for s in names.choices("side")):
+        return None
+    flux = boundary_fluxes(scene)
+    total = sum(q for _, q, _, _ in flux)
+    tol = FLUX_TOLERANCE * sum(abs(q) for _, q, _, _ in flux) + 1e-300
+    parts = [f"{s} ({what}{f', ramp {r:g}' if r else ''}: {q:+.4g})" for s, q, r, what in flux if q != 0.0]
+    if not parts:
+        return None
+    sides = ("domain side " if len(parts) == 1 else "domain sides ") + (
+        parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1])
+    if abs(total) > tol:
+        return (f"{sides} {'carries' if len(parts) == 1 else 'carry'} a net flux of {abs(total):.4g} "
+                f"{'into' if total > 0 else 'out of'} the box (length²/time), and no side is 'outflow': an "
+                "incompressible flow cannot exist; expected a net flux of 0 (periodic pairs carry none), or a side "
+                "of type 'outflow'")
+    for r in sorted({r for _, _, r, _ in flux}):
+        part = sum(q for _, q, rr, _ in flux if rr == r)
+        if abs(part) > tol:
+            return (f"{sides} balance at full speed but ramp up differently (a moving wall at once, an inflow over "
+                    f"its ramp): those with ramp {r:g} carry a net flux of {part:+.4g} into the box (length²/time) "
+                    "on their own, and no side is 'outflow': an incompressible flow cannot exist while they ramp; "
+                    "expected the same ramp on the sides that balance each other, or a side of type 'outflow'")
+    return None
 
 
 #: Density ratio below which ``coupling = "explicit"`` is warned about: a disk settling in a
@@ -481,6 +559,9 @@ def make_plan(scene: Scene) -> Plan:
                                "'wall' and 'outflow' (open)")
     estimate, warnings = None, []
     if fl is not None:
+        flux = _flux_refusal(scene)
+        if flux:
+            unsupported.append(flux)
         estimate = mesh_estimate(scene)
         warnings, refuse = _mesh_warnings(scene, estimate)
         warnings = contact_warnings + warnings
@@ -521,6 +602,8 @@ MIN_EDGES_PER_BODY, MIN_THICKNESS_PER_H = 8, 0.1
 
 
 def _bytes(b: float) -> str:
+    if not np.isfinite(b):
+        return "beyond 1e308 bytes"
     for unit, f in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
         if b >= f:
             return f"{b / f:.3g} {unit}"
@@ -564,7 +647,7 @@ def _graded_cells(scene, fluid_area: float) -> float:
     reg = g["region"]
     if reg == "bodies":
         if not scene.bodies:
-            return fluid_area / h**2
+            return fluid_area / h / h
         C = np.array([b.position for b in scene.bodies], float)
         R = np.array([b.bounding_radius for b in scene.bodies])
         k = min(8, len(C))
@@ -577,7 +660,8 @@ def _graded_cells(scene, fluid_area: float) -> float:
         d = np.hypot(dx, dy)
     size = np.minimum(g["h_max"], h + (g["growth"] - 1.0) * d)
     box_area = (x1 - x0) * (y1 - y0)
-    return float(np.mean(1.0 / size**2)) * fluid_area if box_area > 0 else 0.0
+    with np.errstate(over="ignore"):  # an absurdly small h: inf, which the plan refuses
+        return float(np.mean((1.0 / size) / size)) * fluid_area if box_area > 0 else 0.0
 
 
 def mesh_estimate(scene) -> dict:
@@ -599,8 +683,9 @@ def mesh_estimate(scene) -> dict:
     A = max((x1 - x0) * (y1 - y0) - float(area_b.sum()), 0.0)
     h = scene.mesh.h
     g = scene.mesh.grading
-    if g is None:
-        tri = TRIANGLES_PER_AREA * A / h**2
+    if g is None:  # in ratios to h: inf, not an error, for an absurdly small h (the plan refuses it)
+        with np.errstate(over="ignore"):
+            tri = TRIANGLES_PER_AREA * max(((x1 - x0) / h) * ((y1 - y0) / h) - float(area_b.sum() / h / h), 0.0)
     else:
         tri = TRIANGLES_PER_AREA * _graded_cells(scene, A)
     n_boundary = 2.0 * ((x1 - x0) + (y1 - y0)) / h + sum(scene.default_segments(b) for b in scene.bodies)
@@ -620,7 +705,11 @@ def _mesh_warnings(scene, est) -> tuple[list, list]:
     L = min(x1 - x0, y1 - y0)
     size = (f"mesh.h = {h:g}: about {est['nodes']:.2g} nodes, {est['dofs']:.2g} DOFs, peak memory "
             f"{_bytes(est['peak_bytes'])}")
-    if est["peak_bytes"] > est["machine_bytes"]:
+    if not np.isfinite(est["peak_bytes"]):
+        refuse.append(f"mesh.h = {h:g} in the box {x1 - x0:g} × {y1 - y0:g}: more than 1e308 nodes (the estimate "
+                      f"overflows), far beyond this machine's {_bytes(est['machine_bytes'])}: raise mesh.h (or grade "
+                      "the mesh with mesh.grading)")
+    elif est["peak_bytes"] > est["machine_bytes"]:
         refuse.append(f"{size}, more than this machine's {_bytes(est['machine_bytes'])}: raise mesh.h (or grade the "
                       "mesh with mesh.grading)")
     elif est["peak_bytes"] > 0.5 * est["available_bytes"]:

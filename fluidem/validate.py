@@ -71,10 +71,11 @@ def fraction(key: str, value, lo_open: bool = False, hi_open: bool = False, erro
     return number(key, value, allowed, lo=0.0, lo_open=lo_open, hi=1.0, hi_open=hi_open, error=error)
 
 
-def integer(key: str, value, lo: int = 1, error=InputError) -> int:
-    """An integer >= ``lo`` (booleans are not integers here)."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
-        raise fail(key, value, f"an integer >= {lo}", error)
+def integer(key: str, value, lo: int = 1, error=InputError, hi: int | None = None) -> int:
+    """An integer >= ``lo`` (and <= ``hi`` when given; booleans are not integers here)."""
+    if (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo
+            or (hi is not None and value > hi)):
+        raise fail(key, value, f"an integer >= {lo}" if hi is None else f"an integer from {lo} to {hi}", error)
     return int(value)
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -19,7 +20,7 @@ import numpy as np
 
 from .. import geometry as geo
 from .. import names
-from ..errors import SceneError
+from ..errors import InputError, SceneError
 from ..validate import boolean, check_keys, fail, integer, nonnegative, number, pair, positive
 from . import files
 
@@ -27,7 +28,13 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..plan import Plan
 
 __all__ = ["Scene", "FluidSpec", "DomainSpec", "SideSpec", "BodySpec", "ContactSpec", "MeshSpec", "TimeSpec",
-           "OutputSpec", "default_h"]
+           "OutputSpec", "default_h", "MAX_SEGMENTS", "MAX_COORDINATE"]
+
+#: most outline vertices of a disk or ellipse (``segments``): a disk of radius r in a mesh of size h
+#: needs about 2πr/h, so 100000 is a mesh of more than 1e9 triangles, far beyond one machine
+MAX_SEGMENTS = 100_000
+#: largest |coordinate| of the box, and 1 / the shortest side (lengths to the fourth power stay in double range)
+MAX_COORDINATE = 1e50
 
 
 @dataclass
@@ -170,6 +177,10 @@ class DomainSpec:
                 or not (b[1] > b[0] and b[3] > b[2])):
             raise fail(f"{where}.box", b, "[xmin, xmax, ymin, ymax], finite, with xmax > xmin and ymax > ymin",
                        SceneError)
+        if max(abs(float(v)) for v in b) > MAX_COORDINATE or min(b[1] - b[0], b[3] - b[2]) < 1.0 / MAX_COORDINATE:
+            raise fail(f"{where}.box", list(b), f"coordinates of magnitude at most {MAX_COORDINATE:g} and sides at "
+                       f"least {1.0 / MAX_COORDINATE:g} long (squares and fourth powers of lengths must stay finite "
+                       "and nonzero in double precision; pick a unit that fits)", SceneError)
         self.box = tuple(float(v) for v in b)
         for s in names.choices("side"):
             side = getattr(self, s)
@@ -280,7 +291,7 @@ class BodySpec:
                                SceneError)
                 setattr(self, k, positive(f"{where}.{k}", getattr(self, k), error=SceneError))
         if self.segments is not None:
-            self.segments = integer(f"{where}.segments", self.segments, lo=3, error=SceneError)
+            self.segments = integer(f"{where}.segments", self.segments, lo=3, hi=MAX_SEGMENTS, error=SceneError)
         if self.shape == "polygon":
             try:
                 v = geo.validate_polygon(self.vertices, f"{where}.vertices", require_convex=True)
@@ -609,6 +620,8 @@ class Scene:
     @classmethod
     def from_toml(cls, path) -> Scene:
         """Read and validate a scene file (relative ``bodies_table.file`` is relative to it)."""
+        if not isinstance(path, (str, os.PathLike)) or not str(path):
+            raise fail("Scene.from_toml(path)", path, "the path of a TOML file (str or Path)", InputError)
         path = Path(path)
         data = files.read_toml(path)
         data.setdefault("name", path.stem)
@@ -619,6 +632,9 @@ class Scene:
     @classmethod
     def from_dict(cls, data: dict, base_dir=".") -> Scene:
         """Build and validate a scene from the nested dict of a TOML file."""
+        if not isinstance(data, dict):
+            raise fail("Scene.from_dict(data)", data, "a dict of the scene's tables, as a TOML file reads "
+                       "({'domain': {'box': [0, 1, 0, 1]}, ...})", InputError)
         check_keys(data, _TOP_KEYS, "", error=SceneError, hints=_TOP_HINTS)
         kw = {}
         for key, spec in _TABLES.items():
@@ -671,6 +687,7 @@ class Scene:
         fluidem.errors.SceneError
             (a ``ValueError``) naming the first bad key, its value and what is allowed.
         """
+        self._check_specs()
         self.gravity = pair("gravity", self.gravity, error=SceneError)
         if self.units is not None:
             self.units = names.lookup("units", self.units, "units", SceneError)
@@ -695,8 +712,60 @@ class Scene:
             if "mesh.h" not in self.defaulted and self.fluid is not None:
                 self.defaulted.append("mesh.h")
         self.mesh.validate("mesh")
+        self._check_free_body_convection()
+        self._check_cutoffs()
         self._check_geometry()
         return self
+
+    #: each table of a scene built in Python: (attribute, spec class, may be None)
+    _SPECS = (("domain", DomainSpec, False), ("fluid", FluidSpec, True), ("contact", ContactSpec, True),
+              ("mesh", MeshSpec, False), ("time", TimeSpec, False), ("output", OutputSpec, False))
+
+    def _check_specs(self):
+        """Each table is its spec dataclass, ``bodies`` a list, ``name`` and ``description`` strings: a
+        scene built in Python (``Scene(mesh=None)``) is refused here instead of failing in the plan or the run."""
+        for key, spec, optional in self._SPECS:
+            v = getattr(self, key)
+            if not isinstance(v, spec) and not (optional and v is None):
+                article = "an" if spec.__name__[0] in "AEIOU" else "a"
+                raise fail(f"Scene({key}=...)", v, f"{article} {spec.__name__}" + (" or None" if optional else "")
+                           + f" (Scene.from_dict takes the [{key}] table as a dict)", SceneError)
+        if not isinstance(self.bodies, (list, tuple)):
+            raise fail("Scene(bodies=...)", self.bodies, "a list of BodySpec (empty: no bodies)", SceneError)
+        self.bodies = list(self.bodies)
+        for key in ("name", "description"):
+            if not isinstance(getattr(self, key), str):
+                raise fail(f"Scene({key}=...)", getattr(self, key), "a string", SceneError)
+
+    def _check_free_body_convection(self):
+        """Free bodies in Navier–Stokes with ``coupling = "implicit"``: the coupled step
+        (:class:`fluidem.coupling.free_bodies.FreeBodyStepper`) linearises the convection
+        semi-implicitly, so ``"newton"`` and ``"explicit"`` cannot be honoured there."""
+        fl = self.fluid
+        if fl is None or fl.model != "navier-stokes" or fl.coupling != "implicit" or fl.convection == "semi-implicit":
+            return
+        free = [i for i, b in enumerate(self.bodies) if b.motion == "free"]
+        if free:
+            i = free[0]
+            raise SceneError(f"fluid.convection = {fl.convection!r} with free bodies (bodies[{i}] "
+                             f"{self.bodies[i].name!r}) and fluid.coupling = 'implicit': the coupled fluid-body step "
+                             "takes convection 'semi-implicit' only; expected fluid.convection = 'semi-implicit', or "
+                             "fluid.coupling = 'explicit' (the staggered step, which takes every convection)")
+
+    def _check_cutoffs(self):
+        """Contact cut-offs (``repulsion_range``, ``lubrication_range``) shorter than half the box's
+        shorter side: beyond that every body is within reach of a wall wherever it is, and the
+        short-range forces act everywhere."""
+        if self.contact is None:
+            return
+        x0, x1, y0, y1 = self.domain.box
+        half = 0.5 * min(x1 - x0, y1 - y0)
+        for key in ("repulsion_range", "lubrication_range"):
+            v = getattr(self.contact, key)
+            if v is not None and v >= half:
+                raise fail(f"contact.{key}", v, f"a positive number below {half:g}, half the shorter side of "
+                           f"domain.box = {list(self.domain.box)} (a short-range cut-off, of the order of mesh.h = "
+                           f"{self.mesh.h:g}; a longer one reaches a wall from anywhere in the box)", SceneError)
 
     def _check_geometry(self):
         """Bodies inside the box and not overlapping each other (shapely, vectorised)."""
@@ -772,7 +841,8 @@ class Scene:
         if self.fluid is None or body.shape not in ("disk", "ellipse"):
             return 32
         r = body.radius if body.shape == "disk" else max(body.a, body.b)
-        return max(16, 2 * int(math.ceil(math.pi * r / self.mesh.h)))
+        half = math.pi * r / self.mesh.h  # inf for an absurdly small h: capped (the plan refuses such a mesh)
+        return MAX_SEGMENTS if half >= MAX_SEGMENTS // 2 else max(16, 2 * int(math.ceil(half)))
 
     # -- TOML out ----------------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -802,6 +872,7 @@ class Scene:
         """The effects this scene needs and why, see :class:`fluidem.plan.Plan`."""
         from ..plan import make_plan
 
+        self._check_specs()  # a scene built in Python and never validated: a clean error, not an AttributeError
         return make_plan(self)
 
 
