@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,7 @@ from . import names
 from .errors import InputError
 from .io import HISTORY_UNITS, PathLike, read_history, read_pvd
 
-__all__ = ["plot_run", "figures", "require_matplotlib", "view_windows", "UNIT_SYSTEMS"]
+__all__ = ["plot_run", "figures", "require_matplotlib", "view_windows", "UNIT_SYSTEMS", "PlotWarning"]
 
 #: the unit names of each unit system of ``names.choices("units")`` (labels only: nothing is converted)
 UNIT_SYSTEMS = {"SI": {"length": "m", "time": "s", "mass": "kg", "force": "N"},
@@ -104,10 +105,88 @@ def view_windows(box, focus=None, max_aspect: float = MAX_ASPECT) -> tuple[list,
     return [(float(a), float(a + w), y0, y1)], True
 
 
-def _outlines(vtu):
+class PlotWarning(UserWarning):
+    """Something in a run directory the figures work around (a half-written last row of a CSV file)."""
+
+
+def _read_vtu(path):
+    """A VTU file of a run directory as a ``meshio.Mesh``.
+
+    ``meshio.read`` prints and exits the interpreter on a file it cannot read; this raises
+    :class:`fluidem.errors.InputError` naming the file instead (missing, truncated or damaged).
+    """
+    import zlib
+
     import meshio
 
-    m = meshio.read(vtu)
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: missing; expected the VTU file that the run's .pvd index lists (run the scene "
+                         "again to write it)")
+    try:
+        return meshio.vtu.read(str(path))
+    except (meshio.ReadError, ValueError, KeyError, IndexError, EOFError, zlib.error) as exc:
+        why = " ".join(str(exc).split())
+        raise InputError(f"{path}: not a complete VTU file ({why + '; ' if why else ''}{path.stat().st_size} "
+                         "bytes): truncated or damaged, e.g. by a run stopped while writing it; expected the file as "
+                         "'fluidem run' writes it (run the scene again to rewrite it)") from None
+
+
+def _row_problem(line: str, n: int) -> str | None:
+    """What is wrong with one data row of a CSV file of ``n`` numeric columns, or None."""
+    parts = line.strip().split(",")
+    if len(parts) != n:
+        return f"{len(parts)} values, expected {n}"
+    for p in parts:
+        try:
+            float(p)
+        except ValueError:
+            return f"{p!r} is not a number"
+    return None
+
+
+def _repaired_table(path: Path) -> tuple[list, np.ndarray]:
+    """(header, data (n_rows, n_cols)) of a numeric CSV file that ``np.loadtxt`` refused.
+
+    A half-written last row (a run still writing, or stopped mid-row) is dropped with a
+    :class:`PlotWarning`; any other bad row raises :class:`fluidem.errors.InputError` naming
+    the file, the line and what is wrong.
+    """
+    with open(path) as f:
+        rows = [(k, ln) for k, ln in enumerate(f, 1) if ln.strip() and not ln.startswith("#")]
+    if not rows:
+        raise InputError(f"{path}: empty; expected a header line of column names and rows of numbers")
+    header = rows[0][1].strip().split(",")
+    rows = rows[1:]
+    bad = [(k, why) for k, ln in rows if (why := _row_problem(ln, len(header))) is not None]  # only when damaged
+    if not bad:  # pragma: no cover - np.loadtxt refused a file every row of which parses
+        raise InputError(f"{path}: cannot be read as a table of numbers; expected {len(header)} comma-separated "
+                         "numbers per row")
+    k, why = bad[0]
+    if len(bad) > 1 or k != rows[-1][0]:
+        raise InputError(f"{path}, line {k}: {why}; expected {len(header)} comma-separated numbers per row "
+                         f"({', '.join(header)}): the file is damaged (only a half-written last line is skipped)")
+    warnings.warn(f"{path}: its last line {k} is half-written ({why}; a run still writing, or stopped mid-row): "
+                  "drawn without it", PlotWarning, stacklevel=3)
+    rows = rows[:-1]
+    data = np.loadtxt([ln for _, ln in rows], delimiter=",", ndmin=2) if rows else np.zeros((0, len(header)))
+    return header, data
+
+
+def _read_history(out_dir: Path) -> dict:
+    """:func:`fluidem.io.read_history` of ``out_dir``, but a half-written last row is dropped with a
+    :class:`PlotWarning` and a damaged file is an :class:`~fluidem.errors.InputError` naming it."""
+    path = out_dir / "history.csv"
+    try:
+        return read_history(path)
+    except (ValueError, IndexError):  # a row np.loadtxt cannot read, or an empty file
+        header, data = _repaired_table(path)
+    return {name: (data[:, k].astype(int) if name in ("step", "id", "contacts") else data[:, k])
+            for k, name in enumerate(header)}
+
+
+def _outlines(vtu):
+    m = _read_vtu(vtu)
     out = []
     for block in m.cells:
         for conn in block.data:
@@ -178,8 +257,11 @@ def _read_quality(out_dir: Path) -> dict | None:
     lines = path.read_text().splitlines()
     if len(lines) < 2:
         return None
-    data = np.loadtxt(lines[1:], delimiter=",", ndmin=2)
-    return {k: data[:, i] for i, k in enumerate(lines[0].split(","))}
+    try:
+        header, data = lines[0].split(","), np.loadtxt(lines[1:], delimiter=",", ndmin=2)
+    except ValueError:  # a half-written last row (dropped with a warning) or a damaged file
+        header, data = _repaired_table(path)
+    return {k: data[:, i] for i, k in enumerate(header)}
 
 
 def figures(out_dir: PathLike, units: str | None = None) -> dict:
@@ -213,7 +295,6 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
-    import meshio
 
     out_dir = Path(out_dir)
     if not (out_dir / "history.csv").exists():
@@ -223,12 +304,12 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
     if units is None and scene is not None:
         units = scene.units
     u = lambda dim: _unit(dim, units)  # noqa: E731
-    h = read_history(out_dir)
+    h = _read_history(out_dir)
     bodies_series = read_pvd(out_dir / "bodies.pvd") if (out_dir / "bodies.pvd").exists() else []
     fields = read_pvd(out_dir / "fields.pvd") if (out_dir / "fields.pvd").exists() else []
     box = scene.domain.box if scene is not None else None
     if box is None and fields:
-        p = meshio.read(fields[-1][1]).points
+        p = _read_vtu(fields[-1][1]).points
         box = (p[:, 0].min(), p[:, 0].max(), p[:, 1].min(), p[:, 1].max())
     focus = None
     if len(h["t"]):
@@ -281,7 +362,7 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
         import matplotlib.tri as mtri
 
         t_f, f_last = fields[-1]
-        m = meshio.read(f_last)
+        m = _read_vtu(f_last)
         pts, tri = m.points[:, :2], m.cells_dict["triangle"]
         T = mtri.Triangulation(pts[:, 0], pts[:, 1], tri)
         holes, edges = _holes(pts, tri)

@@ -14,6 +14,7 @@ from fluidem import Scene, Simulation
 from fluidem.cli import main
 from fluidem.errors import InputError, SceneError
 from fluidem.scene import BodySpec, MeshSpec
+from tiny_scene import tiny_channel
 
 
 def _err(capsys):
@@ -152,6 +153,58 @@ def test_a_segment_count_has_an_upper_bound():
         Scene.from_dict(d)
     d["bodies"][0]["segments"] = 100_000
     assert len(Scene.from_dict(d).world_outlines()[0]) == 100_000
+
+
+# -- fluidem plot on a damaged run directory -------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """A two-step fluid run (fields at every step) to damage in copies."""
+    d = tmp_path_factory.mktemp("plot")
+    (d / "tiny.toml").write_text(tiny_channel(output="every = 1"))
+    Simulation(Scene.from_toml(d / "tiny.toml")).run(out_dir=d / "run")
+    return d / "run"
+
+
+def _copy(run, tmp_path):
+    import shutil
+
+    return shutil.copytree(run, tmp_path / "run")
+
+
+def test_plot_drops_a_half_written_last_history_row_with_a_warning(tiny_run, tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    run = _copy(tiny_run, tmp_path)
+    text = (run / "history.csv").read_text()
+    (run / "history.csv").write_text(text[:-20])  # the last row cut mid-number
+    assert main(["plot", str(run)]) == 0
+    out = capsys.readouterr()
+    assert out.err.strip() == (f"fluidem: warning: {run / 'history.csv'}: its last line 4 is half-written (12 "
+                               "values, expected 13; a run still writing, or stopped mid-row): drawn without it")
+    assert "history.png" in out.out
+
+
+def test_plot_names_a_damaged_history_row(tiny_run, tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    run = _copy(tiny_run, tmp_path)
+    lines = (run / "history.csv").read_text().splitlines(keepends=True)
+    lines[1] = "0,0,0,0.3,zz,0,0,0,0,0,0,0,0\n"
+    (run / "history.csv").write_text("".join(lines))
+    assert main(["plot", str(run)]) == 2
+    assert _err(capsys) == (f"fluidem: error: {run / 'history.csv'}, line 2: 'zz' is not a number; expected 13 "
+                            "comma-separated numbers per row (step, t, id, x, y, angle, vx, vy, omega, fx, fy, torque, "
+                            "contacts): the file is damaged (only a half-written last line is skipped)")
+
+
+def test_plot_names_a_truncated_vtu_file(tiny_run, tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    run = _copy(tiny_run, tmp_path)
+    vtu = run / "fields" / "fields_0000002.vtu"
+    vtu.write_bytes(vtu.read_bytes()[:3000])
+    assert main(["plot", str(run)]) == 2
+    assert _err(capsys) == (f"fluidem: error: {vtu}: not a complete VTU file (3000 bytes): truncated or damaged, "
+                            "e.g. by a run stopped while writing it; expected the file as 'fluidem run' writes it "
+                            "(run the scene again to rewrite it)")
 
 
 # -- the Python API ---------------------------------------------------------------------------------------
