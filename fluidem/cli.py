@@ -224,6 +224,8 @@ def _add_sweep_command(sub) -> None:
     sw.add_argument("--reference", type=float, metavar="VALUE",
                     help="plot the relative error of --quantity against this value")
     sw.add_argument("--no-plot", action="store_true", help="write no sweep.png")
+    sw.add_argument("--overwrite", action="store_true", help="run every variant again, also over another scene's "
+                    "sweep (or a run) in DIR, which is refused otherwise")
     sw.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
@@ -235,7 +237,7 @@ def _sweep_main(args) -> int:
     vary = parse_vary(args.vary)
     table = sweep(scene, vary, out_dir=args.out or f"sweep-{scene.name}", scheduler=args.scheduler,
                   workers=args.workers, n_steps=args.steps, quantity=args.quantity, reference=args.reference,
-                  progress=not args.quiet, plot=not args.no_plot)
+                  progress=not args.quiet, plot=not args.no_plot, overwrite=args.overwrite)
     for path in table.files:
         print(path)
     return 0 if all(r["status"] == "complete" for r in table) else 3

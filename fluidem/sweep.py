@@ -18,7 +18,11 @@ worker process with one BLAS thread.  A single simulation never spans processes.
   load of each body); ``DIR/sweep.png`` a plot of one quantity against wall time.
 * Resume: a variant whose directory holds a ``run.json`` with status ``complete`` for the same
   scene (or ``stopped`` at the sweep's ``n_steps``) is not run again (its row is read back); any
-  other variant is run from scratch.
+  other variant is run from scratch.  A directory that holds another scene's sweep (or a
+  variant run for a different scene, or a run) is refused unless ``overwrite``, which runs
+  every variant again.
+* Variant directory names are at most :data:`MAX_NAME_BYTES` bytes (a file system's limit per
+  path component); a longer one is refused before anything runs.
 * Progress: one line per finished variant on stderr.
 
 Example (a sketch; runs on a LocalCluster of two workers)::
@@ -43,10 +47,14 @@ from pathlib import Path
 from .errors import InputError
 from .validate import fail
 
-__all__ = ["sweep", "variants", "parse_vary", "set_key", "SweepResult", "require_dask", "THREAD_ENV"]
+__all__ = ["sweep", "variants", "parse_vary", "set_key", "SweepResult", "require_dask", "THREAD_ENV",
+           "MAX_NAME_BYTES"]
 
 #: environment of every worker process: one BLAS/OpenMP thread (the parallelism is one variant per process)
 THREAD_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+#: longest variant directory name, bytes (UTF-8): the limit of common file systems per path component
+MAX_NAME_BYTES = 255
 
 #: body columns in sweep.csv for at most this many bodies (sweep.json has them all)
 CSV_BODIES = 4
@@ -266,6 +274,47 @@ def _finished(out_dir: Path, sc, n_steps: int | None = None) -> dict | None:
             "worker": stored.get("worker", ""), "summary": summary, "run_status": "complete"}
 
 
+def _check_names(names: list, vary: dict) -> None:
+    """Distinct variant directory names of at most :data:`MAX_NAME_BYTES` bytes, else InputError."""
+    if len(set(names)) < len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        raise fail("vary", vary, f"values that give distinct directory names ({dup!r} twice: values differing "
+                   "only in characters other than letters, digits and ._=,+-)")
+    long = next((n for n in names if len(n.encode()) > MAX_NAME_BYTES), None)
+    if long is not None:
+        raise fail("sweep variant", long, f"a directory name of at most {MAX_NAME_BYTES} bytes, the file system's "
+                   f"limit per path component (this one has {len(long.encode())}): vary fewer keys or give shorter "
+                   "values (long values such as arrays belong in the scene file)")
+
+
+def _foreign(out: Path, scene_name: str, todo: list, names: list) -> str | None:
+    """What in the sweep directory ``out`` a sweep of ``scene_name`` would replace without being its
+    own: a run's output, another scene's sweep, or a variant run for a different scene; None if nothing."""
+    from .io import read_run_record
+    from .simulation import scene_key
+
+    if not out.is_dir():
+        return None
+    rec = read_run_record(out)
+    if rec:
+        return (f"the output of a run (scene {rec.get('scene')!r}, {rec.get('status', 'unknown')} at step "
+                f"{rec.get('step')})")
+    try:
+        meta = json.loads((out / "sweep.json").read_text())["meta"]
+    except (OSError, ValueError, KeyError, TypeError):
+        meta = {}
+    if isinstance(meta, dict) and meta.get("scene", scene_name) != scene_name:
+        vary = meta.get("vary")
+        over = f" over {', '.join(vary)}" if isinstance(vary, dict) else ""
+        return f"the sweep of another scene ({meta.get('scene')!r}{over})"
+    for name, (_, sc) in zip(names, todo):
+        rec = read_run_record(out / name)
+        if rec and rec.get("scene_key") != scene_key(sc.to_dict()):
+            return (f"variant {name!r} run for a different scene (scene {rec.get('scene')!r} with other values, "
+                    f"{rec.get('status', 'unknown')} at step {rec.get('step')})")
+    return None
+
+
 # -- the sweep ----------------------------------------------------------------------------------------
 class SweepResult(list):
     """The sweep's table: one dict per variant (list order: the variants' order) with ``variant``
@@ -307,7 +356,7 @@ def _client(scheduler, workers):
 
 def sweep(scene, vary: dict[str, list], out_dir="sweep", scheduler=None, workers: int | None = None,
           n_steps: int | None = None, quantity: str | None = None, reference: float | None = None,
-          progress=True, plot: bool = True) -> SweepResult:
+          progress=True, plot: bool = True, overwrite: bool = False) -> SweepResult:
     """Run every combination of ``vary`` as one task on dask.distributed; write the table and a plot.
 
     Parameters
@@ -335,15 +384,33 @@ def sweep(scene, vary: dict[str, list], out_dir="sweep", scheduler=None, workers
         One line per finished variant (stderr, or the given stream).
     plot : bool
         Write ``sweep.png`` (needs matplotlib; skipped with a note without it).
+    overwrite : bool
+        Run every variant again, also in a directory that holds another scene's sweep (or a run),
+        which is refused otherwise.
 
     Returns
     -------
     SweepResult
         The table (also in ``sweep.csv`` / ``sweep.json``).
+
+    Raises
+    ------
+    fluidem.errors.InputError
+        Before anything runs: a bad key or value (the scene's own error), a variant directory name
+        longer than :data:`MAX_NAME_BYTES`, or (without ``overwrite``) ``out_dir`` holding another
+        scene's sweep or a run.
     """
+    from .io import OutputDirError
+
     require_dask()
     todo = variants(scene, vary)
+    names = [_slug(v) for v, _ in todo]
+    _check_names(names, vary)
     out = Path(out_dir)
+    other = None if overwrite else _foreign(out, todo[0][1].name, todo, names)
+    if other is not None:
+        raise OutputDirError(f"sweep directory {str(out)!r} holds {other}; give --overwrite (overwrite=True) to run "
+                             "every variant again over it, or another --out")
     out.mkdir(parents=True, exist_ok=True)
     stream = sys.stderr if progress is True else (progress or None)
 
@@ -351,14 +418,9 @@ def sweep(scene, vary: dict[str, list], out_dir="sweep", scheduler=None, workers
         if stream is not None:
             print(f"sweep: {msg}", file=stream, flush=True)
 
-    names = [_slug(v) for v, _ in todo]
-    if len(set(names)) < len(names):
-        dup = next(n for n in names if names.count(n) > 1)
-        raise fail("vary", vary, f"values that give distinct directory names ({dup!r} twice: values differing "
-                   "only in characters other than letters, digits and ._=,+-)")
     rows: dict[int, tuple[dict, bool]] = {}
     for i, (values, sc) in enumerate(todo):
-        done = _finished(out / names[i], sc, n_steps)
+        done = None if overwrite else _finished(out / names[i], sc, n_steps)
         if done is not None:
             rows[i] = (done, True)
     pending = [i for i in range(len(todo)) if i not in rows]

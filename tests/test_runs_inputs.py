@@ -7,6 +7,7 @@ variant names too long for a file system and sweeps into another scene's sweep d
 scenes built in Python with a missing table.
 """
 
+import json
 
 import pytest
 
@@ -205,6 +206,69 @@ def test_plot_names_a_truncated_vtu_file(tiny_run, tmp_path, capsys):
     assert _err(capsys) == (f"fluidem: error: {vtu}: not a complete VTU file (3000 bytes): truncated or damaged, "
                             "e.g. by a run stopped while writing it; expected the file as 'fluidem run' writes it "
                             "(run the scene again to rewrite it)")
+
+
+# -- sweeps -----------------------------------------------------------------------------------------------
+
+DRY = {"domain": {"box": [0.0, 1.0, 0.0, 1.0]}, "gravity": [0.0, -1.0],
+       "bodies": [{"shape": "disk", "radius": 0.05, "position": [0.5, 0.5]}], "time": {"dt": 0.01, "t_end": 0.02}}
+
+
+def test_a_sweep_variant_name_too_long_for_a_file_system_is_refused_before_anything_runs(tmp_path):
+    pytest.importorskip("distributed")
+    from fluidem.sweep import sweep
+
+    name = "b" * 250
+    with pytest.raises(InputError, match=(
+            rf"^sweep variant = 'bodies.0.name={name}': expected a directory name of at most 255 bytes, the file "
+            r"system's limit per path component \(this one has 264\): vary fewer keys or give shorter values \(long "
+            r"values such as arrays belong in the scene file\)$")):
+        sweep(Scene.from_dict(DRY), {"bodies.0.name": [name, "b"]}, out_dir=tmp_path / "out", progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_sweep_into_another_scenes_sweep_is_refused_unless_overwrite(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    from fluidem.sweep import sweep
+
+    vary = {"bodies.0.radius": [0.05]}
+    a = Scene.from_dict(dict(DRY, name="a"))
+    b = Scene.from_dict(dict(DRY, name="b", gravity=[0.0, -2.0]))
+    out = tmp_path / "out"
+
+    def run(scene, **kw):
+        with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as c:
+            return sweep(scene, vary, out_dir=out, scheduler=c, progress=False, plot=False, **kw)
+
+    run(a)
+    record = out / "bodies.0.radius=0.05" / "run.json"
+    before = record.read_text()
+    with pytest.raises(InputError, match=(
+            rf"^sweep directory '{out}' holds the sweep of another scene \('a' over bodies.0.radius\); give "
+            r"--overwrite \(overwrite=True\) to run every variant again over it, or another --out$")):
+        run(b)
+    assert record.read_text() == before
+    meta = json.loads((out / "sweep.json").read_text())
+    meta["meta"]["scene"] = "b"  # the same name, but the variant was run for a different scene
+    (out / "sweep.json").write_text(json.dumps(meta))
+    with pytest.raises(InputError, match=r"holds variant 'bodies.0.radius=0.05' run for a different scene \(scene "
+                                         r"'a' with other values, complete at step 2\)"):
+        run(b)
+    meta["meta"]["scene"] = "a"
+    (out / "sweep.json").write_text(json.dumps(meta))
+    assert run(a)[0]["resumed"]  # its own sweep resumes
+    table = run(b, overwrite=True)
+    assert not table[0]["resumed"] and json.loads(record.read_text())["scene"] == "b"
+
+
+def test_a_sweep_into_a_run_directory_is_refused(tmp_path, capsys):
+    pytest.importorskip("distributed")
+    (tmp_path / "s.toml").write_text(tiny_channel())
+    Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=tmp_path / "run", n_steps=1)
+    assert main(["sweep", str(tmp_path / "s.toml"), "--vary", "mesh.h=0.1", "--out", str(tmp_path / "run")]) == 2
+    assert _err(capsys) == (f"fluidem: error: sweep directory '{tmp_path / 'run'}' holds the output of a run (scene "
+                            "'tiny-channel', stopped at step 1); give --overwrite (overwrite=True) to run every "
+                            "variant again over it, or another --out")
 
 
 # -- the Python API ---------------------------------------------------------------------------------------
