@@ -67,7 +67,7 @@ NAME_KINDS = {
 _BODY = {
     "shape": ("name", "—", "outline shape; each shape takes its own size keys"),
     "radius": ("number > 0", "length", "radius of a `disk` (required for a disk)"),
-    "segments": ("integer ≥ 3", "—", "outline vertices of a `disk` or `ellipse` (in a fluid a disk is meshed "
+    "segments": ("integer 3 to 100000", "—", "outline vertices of a `disk` or `ellipse` (in a fluid a disk is meshed "
                  "as a curved circle and this sets its outline nodes)", "32 dry; about 2πr/h (even, ≥ 16) in a fluid"),
     "vertices": ("[[x0, y0], [x1, y1], ...]", "length", "`polygon` vertices in body coordinates, counter-clockwise, "
                  "convex, ≥ 3; shifted so that their area centroid is the origin"),
@@ -112,11 +112,13 @@ KEY_DOCS = {
     "fluid.body_force": ("[fx, fy]", "length/time²", "body force per unit mass (a mean pressure gradient G in a "
                          "periodic channel is `-G / density`)"),
     "fluid.element": ("name", "—", "velocity/pressure element pair"),
-    "fluid.convection": ("name", "—", "convection term of the unsteady solver"),
+    "fluid.convection": ("name", "—", "convection term of the unsteady solver (free bodies with coupling "
+                         "`implicit`: `semi-implicit` only)"),
     "fluid.solver": ("name", "—", "linear solver"),
     "fluid.coupling": ("name", "—", "how free bodies and the fluid are coupled"),
     "fluid.ale_form": ("name", "—", "moving meshes: the ALE form (conservative keeps the momentum exactly)"),
-    "domain.box": ("[xmin, xmax, ymin, ymax]", "length", "the rectangular domain"),
+    "domain.box": ("[xmin, xmax, ymin, ymax]", "length", "the rectangular domain; coordinates of magnitude at most "
+                   "1e50, sides at least 1e-50 long"),
     "domain.bottom": ("name or table", "—", "side y = ymin: a side type, or a table (below)"),
     "domain.right": ("name or table", "—", "side x = xmax: a side type, or a table (below)"),
     "domain.top": ("name or table", "—", "side y = ymax: a side type, or a table (below)"),
@@ -147,9 +149,10 @@ KEY_DOCS = {
     "contact.mu": ("number ≥ 0", "—", "Coulomb friction coefficient"),
     "contact.gamma": ("number ≥ 0", "—", "normal damping coefficient"),
     "contact.enabled": ("true or false", "—", "`false` switches contacts off whatever the geometry"),
-    "contact.repulsion_range": ("number > 0", "length", "fluid scenes: cut-off distance ρ of the short-range "
-                                "repulsion between outlines (and from walls), Glowinski et al. 2001; default "
-                                "0.01 `mesh.h`: a backstop well below the gaps whose film the mesh resolves"),
+    "contact.repulsion_range": ("number > 0, below half the box's shorter side", "length",
+                                "fluid scenes: cut-off distance ρ of the short-range repulsion between outlines "
+                                "(and from walls), Glowinski et al. 2001; default 0.01 `mesh.h`: a backstop well "
+                                "below the gaps whose film the mesh resolves"),
     "contact.repulsion_force": ("number ≥ 0", "force (per unit depth)", "fluid scenes: force scale c of the "
                                 "repulsion, (c/ε)((ρ − g)/ρ)² at gap g; default the largest buoyant weight "
                                 "of a free body; 0 switches it off"),
@@ -159,8 +162,8 @@ KEY_DOCS = {
     "contact.lubrication": ("true or false", "—", "fluid scenes with inertia: the 2D squeeze-film force "
                             "3√2π μ V (a*/g)^(3/2), less its value at the cut-off, in the contact sub-steps (a* the "
                             "reduced radius of the equal-area disks; the coupled step cannot follow the film in time)"),
-    "contact.lubrication_range": ("number > 0", "length", "cut-off g_c of the lubrication correction; default "
-                                  "`mesh.h`"),
+    "contact.lubrication_range": ("number > 0, below half the box's shorter side", "length",
+                                  "cut-off g_c of the lubrication correction; default `mesh.h`"),
     "contact.lubrication_resolved_gap": ("number ≥ 0", "length", "resolved-film length δ_r of the mesh: add only the "
                                          "part 3√2π μ a*^(3/2) (g^(−3/2) − (g² + δ_r²)^(−3/4)) the mesh misses "
                                          "quasi-statically (measured: Taylor–Hood 0.025 h, P3/P2 0.015 h, "
