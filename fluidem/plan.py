@@ -580,6 +580,10 @@ def make_plan(scene: Scene) -> Plan:
                                 "into the backstop and bounces (measured: a disk of density ratio 10 draining onto "
                                 "a floor bounces off it at half its fall speed); expected coupling = 'implicit' "
                                 "where bodies meet")
+    elif scene.contact is None and nb + nw:  # a dry scene moves bodies in closed form then: nothing stops them
+        warnings.append(f"no [contact] table: {nb} body pair(s) and {nw} body–wall pair(s) can meet before t_end = "
+                        f"{scene.time.t_end:g}, and without contacts bodies pass through each other and through the "
+                        "walls; expected a [contact] table (E, mu, gamma) for bodies that meet")
     defaulted = getattr(scene, "defaulted", ())
     if "time" in defaulted:
         notes.append(f"no [time] table: default dt = {scene.time.dt:g}, t_end = {scene.time.t_end:g}")

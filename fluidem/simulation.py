@@ -577,6 +577,8 @@ class Simulation:
         if out_dir is not None and (not isinstance(out_dir, (str, os.PathLike)) or not str(out_dir).strip()):
             raise InputError(f"out_dir = {out_dir!r}: expected the path of a directory (str or Path), 'scene' for "
                              "[output] dir, or None to write nothing")
+        if progress is False:
+            progress = None
         if progress is not None and not callable(progress):
             raise InputError(f"progress = {progress!r}: expected None or a callable progress(step, n_steps, t, cost)")
         if verbose is not False and verbose is not None:
@@ -596,6 +598,14 @@ class Simulation:
                 raise InputError(f"n_steps (--steps) = {n_steps}: the scene has {self.plan.n_steps} steps to "
                                  f"time.t_end = {sc.time.t_end:g}; expected at most {self.plan.n_steps} (raise "
                                  "time.t_end to run longer)")
+        if out_dir is not None and self.flow is not None and sc.output.fields and sc.output.xdmf:
+            from .io import require_h5py  # before anything is written, the folder included
+
+            require_h5py("output.xdmf = true")
+            if self.plan.mesh == "moving":
+                raise InputError("output.xdmf = true: an XDMF time series holds one mesh, and this scene's mesh "
+                                 "moves; set it to false (the VTU series fields_full.pvd has every step, "
+                                 "fluidem.io.read_fields reads it)")
         lock = None if out_dir is None else RunLock(out_dir).acquire()  # one writer, from before the first read
         try:
             return self._run(out_dir, restart if restart is not True else out_dir, progress, n_steps, overwrite,
@@ -618,14 +628,6 @@ class Simulation:
                 self._check_owner(out_dir)  # a checkpoint from elsewhere: the folder must be this scene's
         N = self.plan.n_steps if n_steps is None else n_steps
         xdmf = out_dir is not None and self.flow is not None and sc.output.fields and sc.output.xdmf
-        if xdmf:  # before anything is written
-            from .io import require_h5py
-
-            require_h5py("output.xdmf = true")
-            if self.plan.mesh == "moving":
-                raise InputError("output.xdmf = true: an XDMF time series holds one mesh, and this scene's mesh "
-                                 "moves; set it to false (the VTU series fields_full.pvd has every step, "
-                                 "fluidem.io.read_fields reads it)")
         writer = None
         if out_dir is not None:
             prepare_output_dir(out_dir, "restart" if restarting else ("overwrite" if overwrite else "new"))

@@ -154,3 +154,17 @@ def test_a_scene_dict_runs():
                       "domain": {"box": [-1, 1, -1, 2]}, "time": {"dt": 0.1, "t_end": 0.2}})
     assert isinstance(sim.scene, Scene) and sim.run(out_dir=None).steps == 2
     assert sim.bodies.positions[0, 1] == pytest.approx(1 - 10 * 0.2**2 / 2, rel=1e-14)  # free fall, closed form
+
+
+def test_a_dry_scene_without_contacts_whose_body_reaches_the_floor_is_warned(tmp_path, capsys):
+    from test_runs_output import DRY as TEMPLATE
+
+    falls = tmp_path / "falls.toml"
+    falls.write_text(TEMPLATE.format(t_end=1.0, every=50))  # from y = 0.5 it falls 4.9 in 1 s: through the floor
+    assert main(["plan", str(falls)]) == 0
+    out = capsys.readouterr()
+    assert ("no [contact] table: 0 body pair(s) and 1 body–wall pair(s) can meet before t_end = 1, and without "
+            "contacts bodies pass through each other and through the walls") in out.out + out.err
+    stays = tmp_path / "stays.toml"
+    stays.write_text(TEMPLATE.format(t_end=0.12, every=1))  # falls 0.07: never reaches the floor, no warning
+    assert Scene.from_toml(stays).plan().warnings == []
