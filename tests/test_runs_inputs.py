@@ -1,4 +1,4 @@
-"""Inputs that cannot work are refused in one line before anything runs (issue 26, items 3 and 7).
+"""Inputs that cannot work are refused in one line before anything runs.
 
 Flows with a net boundary flux and no outflow side (the plan), explicit or Newton convection
 with implicitly coupled free bodies, contact cut-offs longer than the box allows, absurd mesh
@@ -15,16 +15,8 @@ from fluidem import Scene, Simulation
 from fluidem.cli import main
 from fluidem.errors import InputError, SceneError
 from fluidem.scene import BodySpec, MeshSpec
+from test_runs_errors import _err
 from tiny_scene import tiny_channel
-
-
-def _err(capsys):
-    """The one ``fluidem: error:`` line on stderr (and no traceback)."""
-    err = capsys.readouterr().err
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("fluidem: error: "), err
-    assert "Traceback" not in err
-    return lines[0]
 
 
 def _fluid(**domain):
