@@ -463,7 +463,8 @@ class Simulation:
                         "beside it; history loads are dynamic too",
             **({} if totals is None else {"cost": {"seconds": dict(totals.parts), "counts": dict(totals.counts),
                                                    "note": "wall seconds per part summed over this run's steps"}}),
-            **({} if summary is None else {"summary": summary})})
+            **({} if summary is None else {"summary": summary}),
+            **({} if self.dem_limit() is None else {"dem_sub_step": self.dem_limit()})})
 
     def _check_owner(self, out_dir) -> None:
         """Refuse to continue, in ``out_dir``, a run of another scene."""
@@ -529,6 +530,23 @@ class Simulation:
         if isinstance(self.bodies, DEMBodies):
             out["contacts"] = len(self.bodies.dem.contacts.i)
         return out
+
+    def _dem(self):
+        """The DEM that moves the bodies (dry scenes) or sub-steps their contacts in a fluid, or None."""
+        if isinstance(self.bodies, DEMBodies):
+            return self.bodies.dem
+        contacts = getattr(self.flow, "contacts", None)
+        return getattr(contacts, "dem", None)
+
+    def dem_limit(self) -> dict | None:
+        """The DEM's largest stable sub-step and what sets it: ``{"dt_max": time, "set_by": text}``
+        (the contact law's E or the repulsion's stiffness at contact, with the lightest free body),
+        or None for a scene without a DEM."""
+        d = self._dem()
+        if d is None:
+            return None
+        dt = float(d.dt_max)
+        return {"dt_max": dt if np.isfinite(dt) else None, "set_by": getattr(d, "dt_max_set_by", "")}
 
     # -- running ---------------------------------------------------------------------------------
     def run(self, out_dir="scene", restart=None, progress=None, n_steps: int | None = None,
@@ -745,6 +763,8 @@ class Simulation:
                 self._stop(writer, out_dir, N, stop, snap, keep, totals, wall0)
         if isinstance(self.bodies, DEMBodies):
             self.counters["dem_substeps"] = self.bodies.substeps
+        elif getattr(self.flow, "contacts", None) is not None:
+            self.counters["dem_substeps"] = self.flow.contacts.substeps
         return RunResult(self.step_index, self.t, None if out_dir is None else str(out_dir),
                          time.perf_counter() - wall0, self.flow.dofs if self.flow else 0, totals,
                          ("curved" if self.flow.curved else "polygonal") if self.flow else "")
@@ -812,7 +832,10 @@ class Simulation:
 
 
 def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str:
-    """One line for a step: ``step k/N  t = ...  linear <method> it <n> res <r>  CFL <c>  <cost split>``.
+    """One line for a step: ``step k/N  t = ...  linear <method> it <n> res <r>  CFL <c>  <cost split>``;
+    with contacts in a fluid also ``DEM <n> sub-steps in <p> passes`` (the sub-stepped passes over
+    the step, each of ``ceil(dt / dt_max)`` sub-steps: :meth:`Simulation.dem_limit` says what sets
+    ``dt_max``).
 
     ``info`` as from :meth:`Simulation.step_info`; fields it lacks are left out."""
     parts = [f"step {info['step']}/{n_steps}  t = {info['t']:.6g}"]
@@ -827,6 +850,8 @@ def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str
         parts.append(f"CFL {info['cfl']:.3g}")
     if "contacts" in info:
         parts.append(f"contacts {info['contacts']}")
+    if cost is not None and cost.counts.get("dem_passes"):
+        parts.append(f"DEM {cost.counts['dem_substeps']} sub-steps in {cost.counts['dem_passes']} passes")
     if cost is not None:
         parts.append(str(cost))
     return "  ".join(parts)

@@ -45,3 +45,36 @@ def test_run_verbose_flag_replaces_the_bar_with_lines_on_a_dry_scene(tmp_path, c
     assert [ln.split()[1] for ln in lines] == ["1/3", "2/3", "3/3"]
     assert all(re.search(r"  contacts \d+  bodies [\d.]+ \+ .* ms$", ln) for ln in lines), lines
     assert "[#" not in err and "ETA" not in err  # no progress bar beside them
+
+
+def _settling_on_the_floor(**contact):
+    """A free disk 0.03 above the floor (within reach of it from the first step), contacts on."""
+    return {"gravity": [0, -9.81], "fluid": {"viscosity": 0.05, "element": "th"},
+            "domain": {"box": [0.0, 1.0, 0.0, 1.0]},
+            "bodies": [{"shape": "disk", "radius": 0.1, "segments": 16, "position": [0.5, 0.13], "density": 2.0}],
+            "contact": {"E": 1e4, "mu": 0.3, "gamma": 0.3, **contact}, "mesh": {"h": 0.05},
+            "time": {"dt": 0.02, "t_end": 0.04}}
+
+
+def test_the_contact_sub_steps_of_a_fluid_step_are_counted_and_what_sets_them_is_named(tmp_path):
+    import json
+    import math
+
+    out, verbose = tmp_path / "o", io.StringIO()
+    sim = Simulation(Scene.from_dict(_settling_on_the_floor()))
+    sim.run(out_dir=out, verbose=verbose)
+    rec = json.loads((out / "run.json").read_text())
+    limit, counts = rec["dem_sub_step"], rec["cost"]["counts"]
+    # the default repulsion at contact, 2c/(ερ) with c the buoyant weight, ρ = h/100, ε = h/(100ρ) = 0.01:
+    # 2 * 0.308 / (0.01 * 5e-4) = 1.2e5, twelve times contact.E
+    assert limit["set_by"].startswith("the repulsion at contact 2c/(ερ) (contact.repulsion_epsilon): stiffness "
+                                      "1.2e+05 force/length with the lightest free body 0")
+    per_pass = math.ceil(0.02 / limit["dt_max"] - 1e-9)  # every pass takes the same sub-steps: 73 here
+    assert counts["dem_passes"] >= 2 and counts["dem_substeps"] == per_pass * counts["dem_passes"]
+    assert sim.counters["dem_substeps"] == counts["dem_substeps"]
+    per_step = re.findall(r"DEM (\d+) sub-steps in (\d+) passes", verbose.getvalue())
+    assert len(per_step) == 2 and sum(int(n) for n, _ in per_step) == counts["dem_substeps"]
+    soft = Simulation(Scene.from_dict(_settling_on_the_floor(repulsion_epsilon=0.2)))  # 2c/(ερ) = 6.2e3 < E
+    soft.run(out_dir=None)
+    assert soft.dem_limit()["set_by"].startswith("contact.E: stiffness 1e+04 force/length")
+    assert soft.dem_limit()["dt_max"] > 3 * limit["dt_max"]  # √12: the sub-steps are set by the stiffer law

@@ -196,8 +196,10 @@ class FreeBodyFlow(MovingMeshFlow):
             load = None if self.contacts is None else self.contacts.load_function(self.t, dt, self.poses,
                                                                                    self.body_velocities)
             dem_s = 0.0 if self.contacts is None else self.contacts.seconds
+            passes = self._dem_work()
             self.coupled.step(self._weight, contact=load, contact_guess=self.coupled.last_contact_load)
             dem_s = 0.0 if self.contacts is None else self.contacts.seconds - dem_s
+            self._count_dem_work(passes, cost)
             tm = self.coupled.last_cost
             cost.add("assembly", tm.assembly)
             cost.add("solve", tm.solve)
@@ -217,6 +219,18 @@ class FreeBodyFlow(MovingMeshFlow):
             self.x = self.stepper.state.x
         self._finish(cost)
 
+    def _dem_work(self) -> tuple:
+        """DEM sub-steps and passes taken so far by the contacts (zeros without them)."""
+        c = self.contacts
+        return (0, 0) if c is None else (c.substeps, c.dem_calls)
+
+    def _count_dem_work(self, before: tuple, cost: CostSplit) -> None:
+        """Count the step's DEM sub-steps (``dem_substeps``) and sub-stepped passes (``dem_passes``)."""
+        sub, calls = self._dem_work()
+        if calls > before[1]:
+            cost.count("dem_substeps", sub - before[0])
+            cost.count("dem_passes", calls - before[1])
+
     def _staggered_step(self, dt):
         """``coupling = "explicit"``: bodies moved by the last step's fluid loads, then the fluid."""
         from ..fluid.space import RigidMotion, VelocityBC
@@ -235,11 +249,13 @@ class FreeBodyFlow(MovingMeshFlow):
             V_new = (2 * dt * load / m + 4 * V - self._V_prev) / 3
         if self.contacts is not None:  # the contacts' mean load over the step, added to the body update
             t1 = time.perf_counter()
+            passes = self._dem_work()
             load = self.contacts.load_function(self.t, dt, self.poses, self.body_velocities)
             if load is not None:
                 c = 1.0 if self._V_prev is None else 2.0 / 3.0  # the load's weight in the BDF1/BDF2 update
                 V_new = V_new + c * dt * load(V_new, np.zeros_like(V_new)) / m
             cost.add("dem", time.perf_counter() - t1)
+            self._count_dem_work(passes, cost)
         X_new = self._bdf_pose(X, V_new, dt)
         P, Vp = self._prescribed(self.t + dt)
         self._mesh_poses = P.copy()

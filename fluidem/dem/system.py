@@ -223,13 +223,18 @@ class DEM:
     def _compute_dt_max(self) -> float:
         if not self.free.any():
             self._lightest = None
+            self.dt_max_set_by = "no free body"
             return np.inf
         k = int(np.flatnonzero(self.free)[np.argmin(self.mass[self.free])])
         self._lightest = k
-        stiffness = self.model.E
-        if self.repulsion is not None:  # the stiffer of the contact law and the repulsion at contact
-            stiffness = max(stiffness, self.repulsion.max_stiffness)
-        return 0.1 * np.pi * np.sqrt(self.mass[k] / stiffness)
+        stiffness, by = self.model.E, "contact.E"
+        if self.repulsion is not None and self.repulsion.max_stiffness > stiffness:
+            # the stiffer of the contact law and the repulsion at contact
+            stiffness, by = self.repulsion.max_stiffness, "the repulsion at contact 2c/(ερ) (contact.repulsion_epsilon)"
+        dt = 0.1 * np.pi * np.sqrt(self.mass[k] / stiffness)
+        self.dt_max_set_by = (f"{by}: stiffness {stiffness:.3g} force/length with the lightest free body {k} (mass "
+                              f"{self.mass[k]:.3g}), 0.1π√(m/k) = {dt:.3g}")
+        return dt
 
     @property
     def walls(self):
