@@ -38,7 +38,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from .scene import Scene
 
 __all__ = ["Plan", "Effect", "make_plan", "moving_mesh_available", "contact_candidates", "prescribed_collisions",
-           "mesh_estimate", "machine_memory", "boundary_fluxes", "FLUX_TOLERANCE"]
+           "mesh_estimate", "machine_memory", "boundary_fluxes", "FLUX_TOLERANCE", "contact_sub_steps",
+           "MAX_CONTACT_SUBSTEPS", "REFUSED_CONTACT_SUBSTEPS"]
 
 @dataclass
 class Effect:
@@ -321,6 +322,68 @@ def _flux_refusal(scene: Scene) -> str | None:
     return None
 
 
+#: DEM sub-steps per pass over one step above which the plan warns, and above which it refuses
+#: (such a step would not end in any useful time)
+MAX_CONTACT_SUBSTEPS, REFUSED_CONTACT_SUBSTEPS = 10_000, 1_000_000
+
+
+def contact_sub_steps(scene: Scene) -> tuple[float, float, str] | None:
+    """DEM sub-steps per pass over one step ``time.dt`` of ``scene``: ``(n, dt_max, set_by)``.
+
+    ``n = ceil(dt / dt_max)`` with the DEM's bound ``dt_max = 0.1 π √(m / k)`` (Matuttis & Chen
+    2014, ch. 7; :class:`fluidem.dem.DEM`): ``m`` the lightest free body's DEM mass (ρ_s A dry,
+    (ρ_s + ρ_f) A in a fluid), ``k`` the stiffer of ``contact.E`` and, for free bodies in an
+    inertial fluid, the repulsion's stiffness at contact 2c/(ερ)
+    (:func:`fluidem.coupling.contacts.repulsion_for`).  ``set_by`` names the parameter; ``n``
+    is ``inf`` beyond floating point.  None without contacts or free bodies, and for Stokes
+    bodies (their repulsion is implicit in the mobility solve: no sub-steps).
+
+    Examples
+    --------
+    >>> from fluidem.scene import Scene
+    >>> s = Scene.from_dict({"gravity": [0, -9.81], "domain": {"box": [0, 1, 0, 1]},
+    ...     "bodies": [{"shape": "rectangle", "width": 0.1, "height": 0.1, "position": [0.5, 0.5], "density": 1.0}],
+    ...     "contact": {"E": 1e4}, "time": {"dt": 0.01, "t_end": 0.1}})
+    >>> n, dt_max, by = contact_sub_steps(s)   # m = 0.01: dt_max = 0.1π√(1e-6) = 3.14e-4
+    >>> n, round(dt_max, 7), by
+    (32.0, 0.0003142, 'contact.E = 10000')
+    """
+    c, fl = scene.contact, scene.fluid
+    free = [b for b in scene.bodies if b.motion == "free"]
+    if c is None or not c.enabled or not free or (fl is not None and fl.model == "stokes"):
+        return None
+    from .geometry import polygon_area
+
+    areas = np.array([abs(polygon_area(b.local_vertices(scene.default_segments(b)))) for b in free])
+    dens = np.array([b.density for b in free], float)
+    mass = float(((dens + (fl.density if fl is not None else 0.0)) * areas).min())
+    k, by = c.E, f"contact.E = {c.E:g}"
+    if fl is not None:
+        from .coupling.contacts import repulsion_for
+
+        rep = repulsion_for(scene, areas, dens)
+        if rep.max_stiffness > k:
+            k, by = rep.max_stiffness, (f"the repulsion's stiffness at contact 2c/(ερ) = {rep.max_stiffness:.3g} "
+                                        "(contact.repulsion_epsilon, repulsion_force, repulsion_range)")
+    with np.errstate(all="ignore"):
+        dt_max = float(0.1 * np.pi * np.sqrt(mass / k))
+        n = scene.time.dt / dt_max
+    return (float(np.ceil(n - 1e-9)) if np.isfinite(n) and n < 1e15 else float("inf")), dt_max, by
+
+
+def _sub_step_check(scene: Scene) -> tuple[str | None, str | None]:
+    """``(warning, refusal)`` for a scene whose contacts take too many DEM sub-steps a step."""
+    sub = contact_sub_steps(scene)
+    if sub is None or sub[0] <= MAX_CONTACT_SUBSTEPS:
+        return None, None
+    n, dt_max, by = sub
+    text = (f"contacts take {n:.3g} DEM sub-steps per pass over each step of time.dt = {scene.time.dt:g} (dt_max = "
+            f"{dt_max:.3g}, set by {by}, with the lightest free body); expected at most {MAX_CONTACT_SUBSTEPS}: "
+            "lower that stiffness (a smaller E or repulsion_force, a larger repulsion_epsilon or repulsion_range), "
+            "or time.dt")
+    return (None, text) if n > REFUSED_CONTACT_SUBSTEPS else (text, None)
+
+
 #: Density ratio below which ``coupling = "explicit"`` is warned about: a disk settling in a
 #: channel blew up at 1.01 and ran stably at 1.5 (tests/coupling/test_free_flow.py).
 EXPLICIT_COUPLING_MIN_RATIO = 1.5
@@ -580,7 +643,11 @@ def make_plan(scene: Scene) -> Plan:
                                 "into the backstop and bounces (measured: a disk of density ratio 10 draining onto "
                                 "a floor bounces off it at half its fall speed); expected coupling = 'implicit' "
                                 "where bodies meet")
-    elif scene.contact is None and nb + nw:  # a dry scene moves bodies in closed form then: nothing stops them
+    if c_on:
+        warn, refuse = _sub_step_check(scene)
+        warnings += [warn] if warn else []
+        unsupported += [refuse] if refuse else []
+    if fl is None and scene.contact is None and nb + nw:  # a dry scene moves bodies in closed form: nothing stops them
         warnings.append(f"no [contact] table: {nb} body pair(s) and {nw} body–wall pair(s) can meet before t_end = "
                         f"{scene.time.t_end:g}, and without contacts bodies pass through each other and through the "
                         "walls; expected a [contact] table (E, mu, gamma) for bodies that meet")

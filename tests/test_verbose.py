@@ -4,6 +4,7 @@ import io
 import re
 
 import numpy as np
+import pytest
 
 from fluidem import Scene, Simulation
 from fluidem.cli import main
@@ -78,3 +79,31 @@ def test_the_contact_sub_steps_of_a_fluid_step_are_counted_and_what_sets_them_is
     soft.run(out_dir=None)
     assert soft.dem_limit()["set_by"].startswith("contact.E: stiffness 1e+04 force/length")
     assert soft.dem_limit()["dt_max"] > 3 * limit["dt_max"]  # √12: the sub-steps are set by the stiffer law
+
+
+def test_the_plan_predicts_the_sub_steps_and_refuses_contacts_that_would_never_finish_a_step(tmp_path, capsys):
+    from fluidem.plan import contact_sub_steps
+
+    scene = Scene.from_dict(_settling_on_the_floor())
+    n, dt_max, by = contact_sub_steps(scene)
+    sim = Simulation(scene)
+    assert dt_max == pytest.approx(sim.dem_limit()["dt_max"], rel=1e-12) and n == 73  # what the run takes
+    assert by.startswith("the repulsion's stiffness at contact 2c/(ερ) = 1.2e+05")  # 2 * 0.300 / (0.01 * 5e-4)
+    quiet = Scene.from_dict(_settling_on_the_floor(E=1e8))  # dt_max 9.52e-6: 2 101 sub-steps a pass
+    assert contact_sub_steps(quiet)[0] == 2101 and not quiet.plan().warnings
+    warned = Scene.from_dict(_settling_on_the_floor(E=1e10))  # 21 007: warned, still runs
+    assert warned.plan().warnings == [
+        "contacts take 2.1e+04 DEM sub-steps per pass over each step of time.dt = 0.02 (dt_max = 9.52e-07, set by "
+        "contact.E = 1e+10, with the lightest free body); expected at most 10000: lower that stiffness (a smaller E "
+        "or repulsion_force, a larger repulsion_epsilon or repulsion_range), or time.dt"]
+    assert not warned.plan().unsupported
+    for contact, by in (({"E": 1e300}, "contact.E = 1e+300"),
+                        ({"repulsion_epsilon": 1e-200}, "the repulsion's stiffness at contact 2c/(ερ) = 1.2e+203"),
+                        ({"repulsion_force": 1e300}, "the repulsion's stiffness at contact 2c/(ερ) = 4e+305")):
+        p = tmp_path / "s.toml"
+        Scene.from_dict(_settling_on_the_floor(**contact)).to_toml(p)
+        assert main(["plan", str(p)]) == 2  # refused: such a step would never end (it hung, deaf to SIGTERM)
+        out = capsys.readouterr()
+        said = out.out + out.err
+        assert "contacts take inf DEM sub-steps per pass over each step of time.dt = 0.02 (dt_max = " in said
+        assert f"set by {by}" in said
