@@ -330,8 +330,8 @@ MAX_CONTACT_SUBSTEPS, REFUSED_CONTACT_SUBSTEPS = 10_000, 1_000_000
 def contact_sub_steps(scene: Scene) -> tuple[float, float, str] | None:
     """DEM sub-steps per pass over one step ``time.dt`` of ``scene``: ``(n, dt_max, set_by)``.
 
-    ``n = ceil(dt / dt_max)`` with the DEM's bound ``dt_max = 0.1 π √(m / k)`` (Matuttis & Chen
-    2014, ch. 7; :class:`fluidem.dem.DEM`): ``m`` the lightest free body's DEM mass (ρ_s A dry,
+    ``n = ceil(dt / dt_max)`` with the DEM's bound ``dt_max = 0.1 π √(m / k)``
+    (:func:`fluidem.dem.system.stable_sub_step`): ``m`` the lightest free body's DEM mass (ρ_s A dry,
     (ρ_s + ρ_f) A in a fluid), ``k`` the stiffer of ``contact.E`` and, for free bodies in an
     inertial fluid, the repulsion's stiffness at contact 2c/(ερ)
     (:func:`fluidem.coupling.contacts.repulsion_for`).  ``set_by`` names the parameter; ``n``
@@ -346,27 +346,25 @@ def contact_sub_steps(scene: Scene) -> tuple[float, float, str] | None:
     ...     "contact": {"E": 1e4}, "time": {"dt": 0.01, "t_end": 0.1}})
     >>> n, dt_max, by = contact_sub_steps(s)   # m = 0.01: dt_max = 0.1π√(1e-6) = 3.14e-4
     >>> n, round(dt_max, 7), by
-    (32.0, 0.0003142, 'contact.E = 10000')
+    (32.0, 0.0003142, 'contact.E = 1e+04 force/length')
     """
     c, fl = scene.contact, scene.fluid
     free = [b for b in scene.bodies if b.motion == "free"]
     if c is None or not c.enabled or not free or (fl is not None and fl.model == "stokes"):
         return None
+    from .dem.system import stable_sub_step
     from .geometry import polygon_area
 
     areas = np.array([abs(polygon_area(b.local_vertices(scene.default_segments(b)))) for b in free])
     dens = np.array([b.density for b in free], float)
     mass = float(((dens + (fl.density if fl is not None else 0.0)) * areas).min())
-    k, by = c.E, f"contact.E = {c.E:g}"
+    rep = None
     if fl is not None:
         from .coupling.contacts import repulsion_for
 
         rep = repulsion_for(scene, areas, dens)
-        if rep.max_stiffness > k:
-            k, by = rep.max_stiffness, (f"the repulsion's stiffness at contact 2c/(ερ) = {rep.max_stiffness:.3g} "
-                                        "(contact.repulsion_epsilon, repulsion_force, repulsion_range)")
+    dt_max, by = stable_sub_step(mass, c.E, rep)
     with np.errstate(all="ignore"):
-        dt_max = float(0.1 * np.pi * np.sqrt(mass / k))
         n = scene.time.dt / dt_max
     return (float(np.ceil(n - 1e-9)) if np.isfinite(n) and n < 1e15 else float("inf")), dt_max, by
 

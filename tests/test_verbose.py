@@ -68,8 +68,9 @@ def test_the_contact_sub_steps_of_a_fluid_step_are_counted_and_what_sets_them_is
     limit, counts = rec["dem_sub_step"], rec["cost"]["counts"]
     # the default repulsion at contact, 2c/(ερ) with c the buoyant weight, ρ = h/100, ε = h/(100ρ) = 0.01:
     # 2 * 0.308 / (0.01 * 5e-4) = 1.2e5, twelve times contact.E
-    assert limit["set_by"].startswith("the repulsion at contact 2c/(ερ) (contact.repulsion_epsilon): stiffness "
-                                      "1.2e+05 force/length with the lightest free body 0")
+    assert limit["set_by"].startswith("the repulsion's stiffness at contact 2c/(ερ) = 1.2e+05 force/length "
+                                      "(contact.repulsion_epsilon, repulsion_force, repulsion_range) with the "
+                                      "lightest free body 0")
     per_pass = math.ceil(0.02 / limit["dt_max"] - 1e-9)  # every pass takes the same sub-steps: 73 here
     assert counts["dem_passes"] >= 2 and counts["dem_substeps"] == per_pass * counts["dem_passes"]
     assert sim.counters["dem_substeps"] == counts["dem_substeps"]
@@ -77,7 +78,7 @@ def test_the_contact_sub_steps_of_a_fluid_step_are_counted_and_what_sets_them_is
     assert len(per_step) == 2 and sum(int(n) for n, _ in per_step) == counts["dem_substeps"]
     soft = Simulation(Scene.from_dict(_settling_on_the_floor(repulsion_epsilon=0.2)))  # 2c/(ερ) = 6.2e3 < E
     soft.run(out_dir=None)
-    assert soft.dem_limit()["set_by"].startswith("contact.E: stiffness 1e+04 force/length")
+    assert soft.dem_limit()["set_by"].startswith("contact.E = 1e+04 force/length with the lightest free body 0")
     assert soft.dem_limit()["dt_max"] > 3 * limit["dt_max"]  # √12: the sub-steps are set by the stiffer law
 
 
@@ -94,10 +95,10 @@ def test_the_plan_predicts_the_sub_steps_and_refuses_contacts_that_would_never_f
     warned = Scene.from_dict(_settling_on_the_floor(E=1e10))  # 21 007: warned, still runs
     assert warned.plan().warnings == [
         "contacts take 2.1e+04 DEM sub-steps per pass over each step of time.dt = 0.02 (dt_max = 9.52e-07, set by "
-        "contact.E = 1e+10, with the lightest free body); expected at most 10000: lower that stiffness (a smaller E "
-        "or repulsion_force, a larger repulsion_epsilon or repulsion_range), or time.dt"]
+        "contact.E = 1e+10 force/length, with the lightest free body); expected at most 10000: lower that stiffness "
+        "(a smaller E or repulsion_force, a larger repulsion_epsilon or repulsion_range), or time.dt"]
     assert not warned.plan().unsupported
-    for contact, by in (({"E": 1e300}, "contact.E = 1e+300"),
+    for contact, by in (({"E": 1e300}, "contact.E = 1e+300 force/length"),
                         ({"repulsion_epsilon": 1e-200}, "the repulsion's stiffness at contact 2c/(ερ) = 1.2e+203"),
                         ({"repulsion_force": 1e300}, "the repulsion's stiffness at contact 2c/(ερ) = 4e+305")):
         p = tmp_path / "s.toml"

@@ -67,6 +67,28 @@ def _pad_vertices(bodies) -> tuple[np.ndarray, np.ndarray]:
     return V, nv
 
 
+
+def stable_sub_step(mass: float, E: float, repulsion=None) -> tuple[float, str]:
+    """The DEM's largest stable sub-step ``0.1 π √(m / k)`` (Matuttis & Chen 2014, ch. 7) and what sets it.
+
+    ``m`` the lightest free body's mass, ``k`` the stiffer of the contact law's ``E`` and the
+    repulsion's stiffness at contact 2c/(ερ) (:attr:`fluidem.dem.repulsion.Repulsion.max_stiffness`).
+    Returns ``(dt_max, set_by)``, ``set_by`` naming that stiffness and the parameters that set it.
+
+    Examples
+    --------
+    >>> dt, by = stable_sub_step(0.01, 1e4)
+    >>> round(dt, 7), by
+    (0.0003142, 'contact.E = 1e+04 force/length')
+    """
+    k, by = E, f"contact.E = {E:.3g} force/length"
+    if repulsion is not None and repulsion.max_stiffness > k:
+        k = repulsion.max_stiffness
+        by = (f"the repulsion's stiffness at contact 2c/(ερ) = {k:.3g} force/length (contact.repulsion_epsilon, "
+              "repulsion_force, repulsion_range)")
+    with np.errstate(all="ignore"):  # an absurd stiffness: 0, which the plan refuses
+        return float(0.1 * np.pi * np.sqrt(mass / k)), by
+
 class DEM:
     """Polygonal discrete element simulation.
 
@@ -227,13 +249,8 @@ class DEM:
             return np.inf
         k = int(np.flatnonzero(self.free)[np.argmin(self.mass[self.free])])
         self._lightest = k
-        stiffness, by = self.model.E, "contact.E"
-        if self.repulsion is not None and self.repulsion.max_stiffness > stiffness:
-            # the stiffer of the contact law and the repulsion at contact
-            stiffness, by = self.repulsion.max_stiffness, "the repulsion at contact 2c/(ερ) (contact.repulsion_epsilon)"
-        dt = 0.1 * np.pi * np.sqrt(self.mass[k] / stiffness)
-        self.dt_max_set_by = (f"{by}: stiffness {stiffness:.3g} force/length with the lightest free body {k} (mass "
-                              f"{self.mass[k]:.3g}), 0.1π√(m/k) = {dt:.3g}")
+        dt, by = stable_sub_step(self.mass[k], self.model.E, self.repulsion)
+        self.dt_max_set_by = f"{by} with the lightest free body {k} (mass {self.mass[k]:.3g}), 0.1π√(m/k) = {dt:.3g}"
         return dt
 
     @property
