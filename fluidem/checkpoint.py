@@ -320,6 +320,10 @@ def _state_of(o):
     return st if isinstance(st, dict) else {}
 
 
+#: numpy dtype kinds that hold the same kind of number
+_NUMBER_KIND = {"f": "float", "i": "integer", "u": "integer", "b": "boolean", "c": "complex"}
+
+
 def _kind(v) -> str:
     if isinstance(v, (bool, np.bool_)):
         return "a boolean"
@@ -371,10 +375,9 @@ def mismatches(value, template, where: str = "state", exact_shape=None, limit: i
             out.append(f"{at}: {kv} (expected {kt})")
             return
         if isinstance(t, np.ndarray):
-            kinds = {"f": "float", "i": "integer", "u": "integer", "b": "boolean", "c": "complex"}
-            if v.ndim != t.ndim or kinds.get(v.dtype.kind, v.dtype.kind) != kinds.get(t.dtype.kind, t.dtype.kind):
-                out.append(f"{at}: an array of shape {v.shape} (expected {t.ndim} dimensions of "
-                           f"{kinds.get(t.dtype.kind, t.dtype.kind)})")
+            number = _NUMBER_KIND.get(t.dtype.kind, t.dtype.kind)
+            if v.ndim != t.ndim or _NUMBER_KIND.get(v.dtype.kind, v.dtype.kind) != number:
+                out.append(f"{at}: an array of shape {v.shape} (expected {t.ndim} dimensions of {number})")
             elif v.shape != t.shape and exact_shape is not None and exact_shape(at, t.shape):
                 out.append(f"{at}: an array of shape {v.shape} (expected {t.shape})")
             return

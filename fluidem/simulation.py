@@ -247,15 +247,18 @@ class Simulation:
         from .io import latest_checkpoint, load_checkpoint
 
         path = Path(checkpoint)
+        # what every checkpoint is checked against: the state of the scene as built, taken before any
+        # checkpoint (which may fail half-way) is applied
+        template = {"bodies": self.bodies.get_state(), "flow": self.flow.get_state() if self.flow else None}
         if not path.is_dir():
-            self._apply_checkpoint(path, load_checkpoint(path, allow_pickle=allow_pickle))
+            self._apply_checkpoint(path, load_checkpoint(path, allow_pickle=allow_pickle), template)
             return path
         files = checkpoint_files(path) or [latest_checkpoint(path)]
         bodies, counters = self.bodies, dict(self.counters)
         skipped = []
         for f in files:
             try:
-                self._apply_checkpoint(f, load_checkpoint(f))
+                self._apply_checkpoint(f, load_checkpoint(f), template)
             except CheckpointError as exc:
                 skipped.append(str(exc))
                 self.bodies, self.counters = bodies, dict(counters)  # the next one applies to the scene's own
@@ -266,8 +269,9 @@ class Simulation:
             return f
         raise CheckpointError(f"no valid checkpoint in {str(path / 'checkpoints')!r}: " + "; ".join(skipped))
 
-    def _apply_checkpoint(self, path: Path, data: dict) -> None:
-        """Set the run's state from a loaded checkpoint of this scene (see :meth:`restore`)."""
+    def _apply_checkpoint(self, path: Path, data: dict, template: dict) -> None:
+        """Set the run's state from a loaded checkpoint of this scene, checked against ``template``
+        (the fresh state: bodies and flow; see :meth:`restore`)."""
         from .checkpoint import CheckpointError, mismatches
 
         sc = self.scene
@@ -296,9 +300,8 @@ class Simulation:
                 (n in shape or n_free in shape) and not any(v in at for v in _VARIABLE_STATE)
 
         state = {k: data.get(k) for k in ("bodies", "flow")}
-        template = {"bodies": self.bodies.get_state(), "flow": self.flow.get_state() if self.flow else None}
         if isinstance(self.bodies, DEMBodies) != ("dem" in (state["bodies"] or {})):
-            template["bodies"] = None  # a longer t_end switched contacts on (or off): converted below
+            template = {**template, "bodies": None}  # a longer t_end switched contacts on (or off): converted below
         bad = mismatches(state, template, exact_shape=per_body)
         if bad:
             raise CheckpointError(f"checkpoint {str(path)!r} does not fit the scene: " + "; ".join(bad))
@@ -341,7 +344,7 @@ class Simulation:
         parts = [("positions", b.positions, (n, 2)), ("angles", b.angles, (n,)),
                  ("velocities", b.velocities, (n, 2)), ("omegas", b.omegas, (n,))]
         if self.flow is not None:
-            parts.append(("flow", self.flow.x, (self.flow.dofs,)))
+            parts.append(("flow", self.flow.x, (int(self.flow.dofs),)))
         for name, a, shape in parts:
             a = np.asarray(a)
             if a.shape != shape or a.dtype.kind != "f" or not np.isfinite(a).all():
@@ -452,7 +455,7 @@ class Simulation:
         from . import __version__
         from .io import HISTORY_UNITS, write_run_record
 
-        sc = self.scene
+        sc, dem = self.scene, self.dem_limit()
         write_run_record(out_dir, {
             "format": "fluidem-run-1", "scene": sc.name, "scene_key": scene_key(sc.to_dict()),
             "source": sc.source, "fluidem": __version__, "status": status, "step": self.step_index, "t": self.t,
@@ -464,7 +467,7 @@ class Simulation:
             **({} if totals is None else {"cost": {"seconds": dict(totals.parts), "counts": dict(totals.counts),
                                                    "note": "wall seconds per part summed over this run's steps"}}),
             **({} if summary is None else {"summary": summary}),
-            **({} if self.dem_limit() is None else {"dem_sub_step": self.dem_limit()})})
+            **({} if dem is None else {"dem_sub_step": dem})})
 
     def _check_owner(self, out_dir) -> None:
         """Refuse to continue, in ``out_dir``, a run of another scene."""

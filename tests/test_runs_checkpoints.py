@@ -151,9 +151,11 @@ def test_a_flow_vector_of_another_size_is_damaged(tmp_path):
     out = tmp_path / "o"
     Simulation(scene).run(out_dir=out, n_steps=2)
     path = _edit_newest(out, lambda s: s["flow"].update(x=s["flow"]["x"][:-3].copy()))
-    with pytest.raises(CheckpointError, match=r"does not fit the scene: flow of shape \((\d+),\) \(expected finite "
-                                              r"numbers of shape \(\1\+3,\)|does not fit the scene: flow of shape"):
-        Simulation(scene).run(out_dir=out, restart=path)
+    sim = Simulation(scene)
+    n = sim.flow.dofs
+    with pytest.raises(CheckpointError, match=rf"does not fit the scene: flow of shape \({n - 3},\) \(expected finite "
+                                              rf"numbers of shape \({n},\)\)$"):
+        sim.run(out_dir=out, restart=path)
 
 
 @pytest.fixture(autouse=True)
