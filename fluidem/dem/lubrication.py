@@ -61,7 +61,8 @@ import numpy as np
 from .. import validate
 from .repulsion import _accumulate, approach_geometry, pair_gaps, wall_approaches
 
-__all__ = ["Lubrication", "lubrication_forces", "equal_area_radius"]
+__all__ = ["Lubrication", "equal_area_radius", "generalised_normals", "implicit_damping", "lubrication_forces",
+           "lubrication_pairs"]
 
 #: 3√2 π: the prefactor of the 2D squeeze-film force, F/(μV) = 3√2 π (a/δ)^(3/2).
 SQUEEZE_FILM = 3.0 * np.sqrt(2.0) * np.pi
@@ -156,6 +157,147 @@ def _point_velocity(vel, pos, k, point):
     r = point - pos[k]
     w = vel[k, 2]
     return vel[k, :2] + np.column_stack([-w * r[:, 1], w * r[:, 0]])
+
+
+def lubrication_pairs(model: Lubrication, W: np.ndarray, pos: np.ndarray, i: np.ndarray, j: np.ndarray,
+                      overlapping: np.ndarray, radius: np.ndarray, walls=None, movable: np.ndarray | None = None,
+                      gaps=None):
+    """The pairs and body–wall pairs within the cut-off and their damping coefficients (module docstring).
+
+    Parameters
+    ----------
+    model : Lubrication
+    W : (N, K, 2) float
+        Padded world outlines, length.
+    pos : (N, 2) float
+        Centres of mass, length.
+    i, j : (P,) int
+        Candidate pairs.
+    overlapping : (P,) bool
+        Pairs that overlap (the coefficient at ``min_gap``, along the centre line).
+    radius : (N,) float
+        Each body's lubrication radius (:func:`equal_area_radius`), length.
+    walls, movable
+        As in :func:`fluidem.dem.repulsion.repulsion_forces`.
+    gaps : tuple or None
+        ``pair_gaps(W, i, j, ...)`` already computed with a reach ≥ ``model.range``.
+
+    Returns
+    -------
+    a, b : (M,) int
+        The two bodies; ``b = -1`` for a wall.
+    c : (M,) float
+        Damping coefficient c(g), force per normal speed (uncapped).
+    point : (M, 2) float
+        Where the film acts, length.
+    normal : (M, 2) float
+        Unit vector from ``b`` (or the wall) towards ``a``.
+    """
+    rows = []
+    rho = model.range
+    if len(i):
+        p, q, d = gaps if gaps is not None else pair_gaps(W, i, j)
+        gap = d.min(axis=1)
+        near = (gap < rho) | overlapping
+        if near.any():
+            ii, jj, ov = i[near], j[near], overlapping[near]
+            point, normal = approach_geometry(p[near], q[near], d[near], rho, pos[ii] - pos[jj], ov)
+            a_star = radius[ii] * radius[jj] / (radius[ii] + radius[jj])
+            c = model.coefficient(np.where(ov, -np.inf, gap[near]), a_star)
+            rows.append((ii, jj, c, point, normal))
+    if walls is not None:
+        for k, gap, point, normal in wall_approaches(W, walls, rho, movable):
+            rows.append((k, np.full(len(k), -1), model.coefficient(gap, radius[k]), point, normal))
+    if not rows:
+        return (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))
+    return tuple(np.concatenate(col) for col in zip(*rows))
+
+
+def generalised_normals(pos: np.ndarray, body: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """(M, 3) generalised normal ``(n, r × n)`` of each pair's end on ``body``, ``r = point − x_body``.
+
+    The rate of the gap of a pair is ``−(g_aᵀ V_a − g_bᵀ V_b)`` for the velocities ``V = (U_x, U_y, ω)`` of its
+    two bodies, and a normal force ``f n`` on ``a`` (``−f n`` on ``b``) is the generalised load ``f g_a``
+    (``−f g_b``): force and torque about the centre of mass.
+    """
+    r = point - pos[body]
+    return np.column_stack([normal, r[:, 0] * normal[:, 1] - r[:, 1] * normal[:, 0]])
+
+
+def implicit_damping(pairs, pos: np.ndarray, velocity: np.ndarray, mass: np.ndarray, inertia: np.ndarray,
+                     free: np.ndarray, dt: float) -> np.ndarray:
+    """Velocities after the film's damping over ``dt`` by backward Euler, (N, 3).
+
+    The damping force of all pairs is ``F = −C V``, ``C = Σ c G Gᵀ`` with ``G`` the pair's generalised
+    normals (:func:`generalised_normals`, ``+g_a`` at ``a`` and ``−g_b`` at ``b``); backward Euler on
+    ``M dV/dt = −C V`` solves
+
+        (M_ff + Δt C_ff) V_f = M_ff V*_f − Δt C_fk V_k                       (implicit Euler)
+
+    for the free bodies ``f``, the others' velocities ``V_k`` given (prescribed, fixed, walls).  It is
+    stable at any ``c Δt / m``, dissipates (``Vᵀ C V ≥ 0``), keeps the momentum of a pair of free bodies and
+    never reverses an approach of one body to a wall (``V ← V/(1 + cΔt/m)``), where the explicit damper
+    needs ``cΔt/m* < 2`` with the generalised reduced mass of the pair, rotation included.
+
+    Parameters
+    ----------
+    pairs : tuple
+        ``(a, b, c, point, normal)`` of :func:`lubrication_pairs`.
+    pos : (N, 2) float
+        Centres of mass, length.
+    velocity : (N, 3) float
+        ``V*`` before the damping (U_x, U_y, ω).
+    mass, inertia : (N,) float
+        Masses and moments of inertia of the bodies.
+    free : (N,) bool
+    dt : float
+        Time.
+    """
+    a, b, c, point, normal = pairs
+    V = np.array(velocity, float)
+    act = c > 0
+    if not act.any() or dt <= 0:
+        return V
+    a, b, c, point, normal = a[act], b[act], c[act], point[act], normal[act]
+    wall = b < 0
+    bb = np.where(wall, a, b)
+    ga = generalised_normals(pos, a, point, normal)
+    gb = np.where(wall[:, None], 0.0, -generalised_normals(pos, bb, point, normal))
+    # the bodies the film touches, numbered compactly: unknowns of the free ones, given the others
+    body, slot = np.unique(np.concatenate([a, bb]), return_inverse=True)
+    sa, sb = slot[: len(a)], slot[len(a):]
+    nt = len(body)
+    isfree = free[body]
+    if not isfree.any():
+        return V
+    dof3 = np.arange(3)
+    rows, cols, vals = [], [], []
+    for s1, g1 in ((sa, ga), (sb, gb)):
+        for s2, g2 in ((sa, ga), (sb, gb)):
+            rows.append((3 * s1[:, None, None] + dof3[None, :, None]).repeat(3, axis=2).ravel())
+            cols.append((3 * s2[:, None, None] + dof3[None, None, :]).repeat(3, axis=1).ravel())
+            vals.append((c[:, None, None] * g1[:, :, None] * g2[:, None, :]).ravel())
+    rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    fd = (3 * np.flatnonzero(isfree)[:, None] + dof3).ravel()
+    kd = (3 * np.flatnonzero(~isfree)[:, None] + dof3).ravel()
+    v = V[body].ravel()
+    Mf = np.column_stack([mass[body], mass[body], inertia[body]]).ravel()[fd]
+    if nt <= 64:  # a few clusters: dense is cheaper than building a sparse matrix
+        C = np.zeros((3 * nt, 3 * nt))
+        np.add.at(C, (rows, cols), vals)
+        A = dt * C[np.ix_(fd, fd)]
+        A[np.diag_indices_from(A)] += Mf
+        rhs = Mf * v[fd] - (dt * (C[np.ix_(fd, kd)] @ v[kd]) if len(kd) else 0.0)
+        v[fd] = np.linalg.solve(A, rhs)
+    else:
+        import scipy.sparse as sp
+        import scipy.sparse.linalg as spla
+
+        C = sp.csr_matrix((vals, (rows, cols)), shape=(3 * nt, 3 * nt))
+        rhs = Mf * v[fd] - (dt * (C[fd][:, kd] @ v[kd]) if len(kd) else 0.0)
+        v[fd] = spla.spsolve((sp.diags(Mf) + dt * C[fd][:, fd]).tocsc(), rhs)
+    V[body] = v.reshape(nt, 3)
+    return V
 
 
 def lubrication_forces(model: Lubrication, W: np.ndarray, pos: np.ndarray, vel: np.ndarray, i: np.ndarray,

@@ -37,7 +37,7 @@ from .bodies import Body, _box, _pair
 from .contact import (Contacts, ContactModel, contact_forces, grid_pairs, polygon_overlaps,
                       wall_overlaps)
 from .integrate import GEAR_ORDERS, Gear
-from .lubrication import Lubrication, equal_area_radius, lubrication_forces
+from .lubrication import Lubrication, equal_area_radius, implicit_damping, lubrication_pairs
 from .repulsion import Repulsion, pair_gaps, repulsion_forces, repulsion_pairs
 
 __all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS"]
@@ -191,6 +191,10 @@ class DEM:
                                 "None or a fluidem.dem.lubrication.Lubrication")
         self.lubrication = lubrication
         self.lubrication_pairs = 0  # likewise within the lubrication range
+        #: the smallest gap between outlines (or outline and wall) within :attr:`near_range` met by the
+        #: steps since it was last set to ``inf`` (length; ``-inf`` after an overlap)
+        self.closest_gap_seen = np.inf
+        self._lub = (np.zeros(0, np.int64),) * 2 + (np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))
         self.cost = _new_cost()
         self.bodies: list[Body] = []
         self._setup(bodies)
@@ -379,10 +383,10 @@ class DEM:
                         f"{A[k] / ref[k]:.3g} of the body area; allowed: overlap_tolerance = "
                         f"{self.overlap_tolerance:g}")
 
-    def _evaluate(self, x, v, dt, cap_dt=None):
+    def _evaluate(self, x, v, dt):
         """Contacts and total forces/torques at state (x, v); advances spring history by dt.
 
-        ``cap_dt`` (default ``dt``) is the step that caps the lubrication's coefficient at m*/Δt.
+        The lubrication is not among the forces: its pairs are kept for :meth:`_damp`.
         """
         W = self.world_vertices(x)
         ovs = self._overlaps(x, W)
@@ -415,17 +419,16 @@ class DEM:
                 touching = np.isin(ri * n + rj, np.minimum(C.i, C.j)[body] * n + np.maximum(C.i, C.j)[body])
             active = self.lubrication is not None or self.repulsion.force > 0  # a zero force scale measures nothing
             gaps = pair_gaps(W, ri, rj, pos, self.radii, self.near_range) if len(ri) and active else None
+            self.closest_gap_seen = min(self.closest_gap_seen, self._closest_gap(W, gaps))
             if self.repulsion is not None:
                 Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, W, pos, ri, rj, touching, self.walls,
                                                                 self.movable, self.radii, gaps=gaps)
                 forces = forces + Fr
                 torques = torques + Tr
-            if self.lubrication is not None:
-                Fl, Tl, self.lubrication_pairs = lubrication_forces(
-                    self.lubrication, W, pos, v, ri, rj, touching, self.lubrication_radius, self.mass, self.free,
-                    dt if cap_dt is None else cap_dt, self.walls, self.movable, gaps=gaps)
-                forces = forces + Fl
-                torques = torques + Tl
+            if self.lubrication is not None:  # applied implicitly after the step (:meth:`_damp`)
+                self._lub = lubrication_pairs(self.lubrication, W, pos, ri, rj, touching, self.lubrication_radius,
+                                              self.walls, self.movable, gaps=gaps)
+                self.lubrication_pairs = len(self._lub[0])
         order = np.argsort(C.key, kind="stable")
         self._hist = {"key": C.key[order], "xi": C.xi[order], "area": C.area[order],
                       "g": (self.model.E * C.area / (C.length * C.chord))[order],
@@ -435,16 +438,17 @@ class DEM:
         self.torques = torques
         self.cost.add("forces", time.perf_counter() - t0)
         self.cost.count("contacts", len(C))
+        if len(C):
+            self.closest_gap_seen = -np.inf
         return forces, torques
 
-    def _initial_forces(self, dt=None):
-        # accelerations at the current state; no spring increment, the lubrication capped with the
-        # coming step ``dt`` (default dt_max): uncapped, a stiff film would reverse the first step
+    def _initial_forces(self):
+        # accelerations at the current state; no spring increment, no lubrication (implicit, :meth:`_damp`)
         self._fresh = False
         x = self.gear.X[0]
         if len(self._prescribed):
             self._apply_prescribed(self.time, x, self.gear.X[1])
-        F, T = self._evaluate(x, self.gear.X[1], 0.0, cap_dt=self._dt_max if dt is None else dt)
+        F, T = self._evaluate(x, self.gear.X[1], 0.0)
         self.cost.count("contacts", -len(self.contacts))
         a = np.where(self._mask, self._acc(F, T), 0.0)
         self.gear.set(a=a)
@@ -480,10 +484,14 @@ class DEM:
                 f"DEM.step(dt=...) = {dt:.4g}: exceeds the stability bound dt_max = 0.1π√(m/E) = "
                 f"{self._dt_max:.4g} set by body {k} (mass {self.mass[k]:.4g}, E = {self.model.E:.4g}); "
                 f"expected dt <= {self._dt_max:.4g}, or DEM.advance() to sub-step")
+        self._step(dt)
+
+    def _step(self, dt: float) -> None:
+        """:meth:`step` without the check of ``dt`` (the caller vouches for its stability)."""
         if self._fresh:
             # accelerations at t0 with the external forces the caller may have set since
             # construction (the predictor uses them)
-            self._initial_forces(dt)
+            self._initial_forces()
         t0 = time.perf_counter()
         x, v = self.gear.predict(dt, self._mask)
         x, v = x.copy(), v.copy()
@@ -500,9 +508,29 @@ class DEM:
             m = np.zeros((self.n, 3), bool)
             m[self._prescribed] = True
             self.gear.set(x=x, v=v, a=np.zeros_like(x), mask=m)
+        if self.lubrication is not None:
+            self._damp(dt)
         self.time += dt
         self.cost.add("integrate", time.perf_counter() - t0)
         self.cost.count("steps")
+
+    def _damp(self, dt: float) -> None:
+        """The lubrication of the step, implicitly (backward Euler, :func:`fluidem.dem.lubrication.implicit_damping`):
+        the film's damping acts on the velocities the step ends with, so no ``cΔt/m`` bound applies and the
+        film's force does not depend on the sub-step.  Its force joins :attr:`forces` and :attr:`torques`."""
+        pairs = self._lub
+        if not len(pairs[0]):
+            return
+        x = self.gear.X[0]
+        v0 = self.gear.X[1]
+        v1 = implicit_damping(pairs, x[:, :2], v0, self.mass, self.inertia, self.free, dt)
+        moved = np.repeat(self.free[:, None], 3, axis=1) & (v1 != v0)
+        if not moved.any():
+            return
+        dv = np.where(moved, v1 - v0, 0.0)
+        self.gear.set(v=v1, mask=moved)
+        self.forces = self.forces + self.mass[:, None] * dv[:, :2] / dt
+        self.torques = self.torques + self.inertia * dv[:, 2] / dt
 
     def run(self, t_end: float, dt: float, callback=None, every: int = 1) -> None:
         """Step with ``dt`` until ``time ≥ t_end − dt/2``; ``callback(sim)`` after every ``every`` steps."""
@@ -517,17 +545,50 @@ class DEM:
             if callback is not None and (k + 1) % every == 0:
                 callback(self)
 
-    def advance(self, duration: float, dt: float | None = None) -> int:
+    def advance(self, duration: float, dt: float | None = None, *, n: int | None = None) -> int:
         """Advance by ``duration`` (time units) in equal sub-steps no larger than ``dt`` (default :attr:`dt_max`).
+
+        ``n`` instead takes exactly ``n`` equal sub-steps, also longer than :attr:`dt_max`: for a caller
+        that knows the stiffness in play is lower than the bound assumes (no overlap can form, the
+        repulsion far from contact: :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`).
 
         Returns the number of sub-steps taken.
         """
         duration = validate.positive("DEM.advance(duration=...)", duration)
-        h = self._dt_max if dt is None else min(validate.positive("DEM.advance(dt=...)", dt), self._dt_max)
-        n = max(int(np.ceil(duration / h - 1e-9)), 1)
+        if n is not None:
+            n = validate.integer("DEM.advance(n=...)", n, lo=1)
+        else:
+            h = self._dt_max if dt is None else min(validate.positive("DEM.advance(dt=...)", dt), self._dt_max)
+            n = max(int(np.ceil(duration / h - 1e-9)), 1)
         for _ in range(n):
-            self.step(duration / n)
+            self._step(duration / n)
         return n
+
+    def _closest_gap(self, W, gaps) -> float:
+        """Smallest gap of the pairs measured (``gaps`` of :func:`pair_gaps`, or None) and of the movable
+        bodies to the walls, length (``inf`` for none)."""
+        g = float(gaps[2].min()) if gaps is not None and gaps[2].size else np.inf
+        if self.walls is not None:
+            Wm = W[self.movable]
+            if len(Wm):
+                x0, x1, y0, y1 = self.walls
+                lo, hi = Wm.min(axis=(0, 1)), Wm.max(axis=(0, 1))
+                g = min(g, lo[0] - x0, x1 - hi[0], lo[1] - y0, y1 - hi[1])
+        return g
+
+    def closest_gap(self, poses: np.ndarray | None = None) -> float:
+        """The smallest gap between outlines whose bounding circles are within :attr:`near_range` of
+        each other, and of movable outlines to the walls, at ``poses`` (N, 3) (default the current
+        ones); length, ``inf`` for none, negative for an overlap with a wall, 0 for one between bodies."""
+        x = self.gear.X[0] if poses is None else np.asarray(poses, float).reshape(self.n, 3)
+        W = self.world_vertices(x)
+        pos = x[:, :2]
+        ri, rj = self._neighbours(pos, self.near_range)
+        gaps = pair_gaps(W, ri, rj, pos, self.radii, max(self.near_range, 1e-300)) if len(ri) else None
+        g = self._closest_gap(W, gaps)
+        if len(ri) and g > 0 and len(polygon_overlaps(W, self._nv, pos, ri, rj)["i"]):
+            g = 0.0
+        return g
 
     def repulsion_geometry(self, poses: np.ndarray):
         """The short-range repulsion's pairs within range at ``poses`` (N, 3), walls included.

@@ -105,24 +105,28 @@ def test_outside_the_range_and_sliding_along_a_wall_nothing_acts():
     np.testing.assert_array_equal(sim.velocities, [[3.0, 0.0], [0.0, -1.0]])
 
 
-def test_the_capped_damper_never_reverses_the_approach():
-    """With a regularisation gap (1e-9) so small that only the cap bounds c(g), the coefficient
-    capped at m/Δt gives the mid-step velocity update v ← (1 − k) v with k = 1 (stable for k < 2): the
-    approach stops within two sub-steps (measured speeds 1, 1/4, then 0 to round-off) and never changes
-    sign.  Released at gap 0.001 at speed 1, Δt = dt_max; the uncapped k would be 3.8 at the stop."""
+def test_the_implicit_damper_never_reverses_the_approach_at_any_sub_step():
+    """With a regularisation gap (1e-9) so small that nothing bounds c(g), k = cΔt/m reaches 8–10 per
+    sub-step at Δt = dt_max, where an explicit damper (v ← (1 − k) v) reverses and grows for k > 2.  Backward
+    Euler divides the speed by 1 + k with k at the step's end: measured ratios v_{n+1}(1 + k)/v_n = 1 to
+    2e-16, k = 7.97, 10.0, 10.2, ...; the speed falls to round-off (< 1e-12 from the 13th sub-step) and never
+    changes sign.  Released at gap 0.001 at speed 1."""
     body = Body.polygon(DISK, density=1.0, velocity=(0.0, -1.0))
     body.position = np.array([0.5, 0.001 - DISK[:, 1].min()])
     sim = _dem([body], walls=(-np.inf, np.inf, 0.0, np.inf), min_gap=1e-9)
     dt = sim.dt_max
-    v = [1.0]
+    v, k = [1.0], []
     for _ in range(200):
         sim.step(dt)
         v.append(-sim.velocities[0, 1])
-    v = np.array(v)
+        c = sim.lubrication.coefficient(np.array([_gap_to_floor(sim)]), equal_area_radius(sim.area))[0]
+        k.append(c * dt / sim.mass[0])
+    v, k = np.array(v), np.array(k)
     assert (v >= -1e-12).all() and (np.diff(v) <= 1e-15).all()
-    assert np.abs(v[3:]).max() < 1e-12                     # stopped; measured 1.2e-17
-    c = sim.lubrication.coefficient(np.array([_gap_to_floor(sim)]), equal_area_radius(sim.area))[0]
-    assert c * dt / sim.mass[0] > 2.0  # the cap was in play (measured 3.8)
+    assert k[0] > 2.0                                      # an explicit damper would reverse: measured 7.97
+    ratio = v[1:6] * (1.0 + k[:5]) / v[:5]
+    np.testing.assert_allclose(ratio, 1.0, rtol=1e-12)     # backward Euler; measured 1 to 2e-16
+    assert np.abs(v[13:]).max() < 1e-12                    # stopped; measured 3.1e-13 at the 13th
 
 
 def test_lubrication_checks_its_parameters():
