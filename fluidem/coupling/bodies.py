@@ -119,6 +119,13 @@ class FlowBodies(KinematicBodies):
     def omegas(self):
         return self.flow.body_velocities[:, 2].copy()
 
+    def loads(self):
+        """No loads besides the fluid's; contact counts (n,): the other bodies and walls within the
+        short-range repulsion's range of each (:meth:`fluidem.coupling.contacts.FluidContacts.contact_counts`)."""
+        F, T, cnt = super().loads()
+        c = None if self.flow is None else self.flow.contacts
+        return F, T, (cnt if c is None else c.contact_counts(self.flow.poses))
+
 
 class DEMBodies:
     """Bodies moved by :class:`fluidem.dem.DEM` (sub-steps of at most ``dt_max`` inside a scene step)."""

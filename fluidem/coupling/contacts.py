@@ -164,6 +164,8 @@ class FluidContacts:
         self.dem.inertia[self.free] *= dens / (dens + rho_f)
         self.substeps = 0
         self.dem_calls = 0
+        self.redone = 0  # passes redone at the DEM's bound (sub_steps)
+        self.last_sub_steps, self.last_set_by = 0, ""
         self.seconds = 0.0  # wall time in the DEM
 
     def within_reach(self, poses: np.ndarray, travel: float) -> bool:
@@ -228,16 +230,118 @@ class FluidContacts:
         V0 = velocities[f]
         m = np.column_stack([d.mass[f], d.mass[f], d.inertia[f]])
         a = (V_c - V0) / dt - F / m
-        d.set_motion(poses, velocities, time=t)
-        d.external_force = np.zeros((d.n, 2))
-        d.external_torque = np.zeros(d.n)
-        d.external_force[f] = m[:, :2] * a[:, :2]
-        d.external_torque[f] = m[:, 2] * a[:, 2]
-        self.substeps += d.advance(dt)
-        self.dem_calls += 1
+        springs = d.spring_history
+        n, floor, by = self.sub_steps(dt, poses, velocities, V_c)
+        for attempt in range(2):
+            d.set_motion(poses, velocities, time=t)
+            d.external_force = np.zeros((d.n, 2))
+            d.external_torque = np.zeros(d.n)
+            d.external_force[f] = m[:, :2] * a[:, :2]
+            d.external_torque[f] = m[:, 2] * a[:, 2]
+            d.closest_gap_seen = np.inf
+            self.substeps += d.advance(dt, n=n)
+            self.dem_calls += 1
+            if attempt or d.closest_gap_seen >= floor:
+                break
+            # a gap closed below the floor the sub-step assumed: the pass again at the DEM's own bound
+            self.redone += 1
+            d.spring_history = springs
+            n, by = max(int(np.ceil(dt / d.dt_max - 1e-9)), 1), "the DEM's bound (a pass redone)"
+        self.last_sub_steps, self.last_set_by = n, by
         V_end = np.column_stack([d.velocities, d.omegas])[f]
         self.seconds += time.perf_counter() - t_start
         return m * (V_end - V0 - dt * a) / dt
+
+    def sub_steps(self, dt: float, poses: np.ndarray, velocities: np.ndarray, V_c: np.ndarray):
+        """Sub-steps of a pass over [t, t + dt] from the stiffness in play, the gap floor it assumes and why.
+
+        The explicit sub-step must resolve only the stiff forces that can act during the pass.  Every
+        outline moves at most ``s_k = |U_k| + |ω_k| R_k`` (the larger of the step's start and the solve's
+        end velocities; ``R_k`` its bounding radius), so the gap of a pair can close by at most
+        ``1.5 Δt (s_i + s_j)`` (50 % margin), that to a wall by ``1.5 Δt s_k``; the closest gap over the
+        pass stays above the *floor*, the least of ``gap − closing`` over the pairs (``s_i + s_j`` with the
+        relative translation ``|U_i − U_j|`` instead of the sum of the speeds, and the speed normal to a
+        wall, so that a pile moving as a whole closes nothing):
+
+        * below 0 the contact law ``E`` and the repulsion at contact can act: the DEM's own bound
+          :attr:`fluidem.dem.DEM.dt_max` (Matuttis & Chen 2014, ch. 7);
+        * inside the repulsion's range its stiffness there, 2c s_r/(ερ) with s_r = (ρ − floor)/ρ
+          (:meth:`fluidem.dem.repulsion.Repulsion.stiffness`), sets 0.1π√(m/k);
+        * above it nothing stiff acts (the lubrication is implicit, :func:`fluidem.dem.lubrication.implicit_damping`).
+
+        To follow the film and the onset of the repulsion, no sub-step closes the gap of a pair by more
+        than a quarter of the larger of its gap and ρ.  :meth:`mean_load` checks the floor against the
+        closest gap the pass met and redoes a pass that broke it at the DEM's own bound.
+
+        Returns
+        -------
+        n : int
+            Sub-steps, at least 1 and at most ``ceil(dt / dt_max)``.
+        floor : float
+            The gap floor (length).
+        set_by : str
+            What sets ``n``.
+        """
+        from scipy.spatial import cKDTree
+
+        from ..dem.repulsion import pair_gaps
+
+        d = self.dem
+        n_max = max(int(np.ceil(dt / d.dt_max - 1e-9)), 1)
+        x = np.asarray(poses, float)
+        V1 = np.array(velocities, float)
+        V1[self.free] = V_c
+        V0 = np.where((d.motion == "fixed")[:, None], 0.0, np.asarray(velocities, float))
+        V1 = np.where((d.motion == "fixed")[:, None], 0.0, V1)
+        turn = np.maximum(np.abs(V0[:, 2]), np.abs(V1[:, 2])) * self.radii  # fastest outline point's turn
+        speed = np.maximum(np.hypot(V0[:, 0], V0[:, 1]), np.hypot(V1[:, 0], V1[:, 1])) + turn
+        near = d.near_range
+        rng = self.repulsion.range if self.repulsion.force > 0 else 0.0
+        W = d.world_vertices(x)
+        gaps, closing = [], []
+        pos = x[:, :2]
+        if len(x) > 1:
+            reach = near + 3.0 * dt * float(speed.max())
+            pairs = cKDTree(pos).query_pairs(2.0 * float(self.radii.max()) + reach, output_type="ndarray")
+            if len(pairs):
+                i, j = pairs[:, 0], pairs[:, 1]
+                rel = np.maximum(np.hypot(*(V0[i, :2] - V0[j, :2]).T), np.hypot(*(V1[i, :2] - V1[j, :2]).T))
+                cl = 1.5 * dt * (rel + turn[i] + turn[j])
+                keep = (np.linalg.norm(pos[i] - pos[j], axis=1) < self.radii[i] + self.radii[j] + near + cl) & \
+                    (d.movable[i] | d.movable[j])
+                i, j, cl = i[keep], j[keep], cl[keep]
+                if len(i):
+                    g = pair_gaps(W, i, j, pos, self.radii, near + float(cl.max()))[2].min(axis=1)
+                    gaps.append(g)
+                    closing.append(cl)
+        x0, x1, y0, y1 = self.walls
+        mv = np.flatnonzero(d.movable)
+        lo, hi = W[mv].min(axis=1), W[mv].max(axis=1)
+        for gw, axis in ((lo[:, 0] - x0, 0), (x1 - hi[:, 0], 0), (lo[:, 1] - y0, 1), (y1 - hi[:, 1], 1)):
+            ok = np.isfinite(gw)
+            normal_speed = np.maximum(np.abs(V0[mv, axis]), np.abs(V1[mv, axis])) + turn[mv]
+            gaps.append(gw[ok])
+            closing.append(1.5 * dt * normal_speed[ok])
+        g = np.concatenate(gaps) if gaps else np.zeros(0)
+        cl = np.concatenate(closing) if closing else np.zeros(0)
+        reach_p = g < near + cl
+        if not reach_p.any():
+            return 1, -np.inf, "no gap within the short-range models' reach"
+        g, cl = g[reach_p], cl[reach_p]
+        floor = float((g - cl).min())
+        if floor <= 0.0:
+            return n_max, -np.inf, "a gap that may close in the pass (contact law and repulsion at contact)"
+        n = max(int(np.ceil((cl / (0.25 * np.maximum(g, max(rng, 1e-300)))).max() - 1e-9)), 1)
+        by = "the gaps' change (a quarter of a gap per sub-step)"
+        if floor < rng:
+            m = float(d.mass[d.free].min())
+            k = float(self.repulsion.stiffness(np.array([floor]))[0])
+            n_k = int(np.ceil(dt / (0.1 * np.pi * np.sqrt(m / k)) - 1e-9)) if k > 0 else 1
+            if n_k > n:
+                n, by = n_k, f"the repulsion's stiffness at the gap floor {floor:.3g}: {k:.3g} force/length"
+        if n >= n_max:
+            return n_max, -np.inf, "the DEM's bound"
+        return n, floor, by
 
     def repulsion_linearised(self, poses: np.ndarray):
         """The repulsion on the free bodies at ``poses`` and its derivative in their poses.
@@ -291,9 +395,20 @@ class FluidContacts:
         K = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * nf, 3 * nf))
         return F, K
 
+    def contact_counts(self, poses: np.ndarray) -> np.ndarray:
+        """(n_bodies,) int: how many bodies and walls are within the repulsion's range of each body at
+        ``poses`` (n_bodies, 3), overlaps included: the contacts through which a contact force acts.  A
+        body resting on another in a fluid sits inside that range (at ``ρ (1 − √ε)`` under a load equal
+        to the repulsion's force scale), not on an overlap."""
+        a, b, *_ = self.dem.repulsion_geometry(poses)
+        cnt = np.bincount(a, minlength=len(poses))
+        return cnt + np.bincount(b[b >= 0], minlength=len(poses))
+
     def get_state(self) -> dict:
-        return {"springs": self.dem.spring_history, "substeps": self.substeps, "dem_calls": self.dem_calls}
+        return {"springs": self.dem.spring_history, "substeps": self.substeps, "dem_calls": self.dem_calls,
+                "redone": self.redone}
 
     def set_state(self, s: dict) -> None:
         self.dem.spring_history = s["springs"]
         self.substeps, self.dem_calls = s["substeps"], s["dem_calls"]
+        self.redone = s.get("redone", 0)  # checkpoints written before it was counted

@@ -73,6 +73,8 @@ class FreeBodyStepper:
         self.contact_tolerance = 1e-3
         self.contact_iterations = 8
         self.last_contact_iterations = 0
+        #: whether the last step's contact load settled within ``contact_iterations`` (else the last iterate is used)
+        self.last_contact_converged = True
         self.last_contact_load = np.zeros((nb, 3))
         self.solver = solver or fluid.problem.direct_solver()
         #: the next factorisation must not reuse an LU of another numbering (a re-triangulation)
@@ -177,6 +179,7 @@ class FreeBodyStepper:
         e = np.zeros_like(z)
         tol = self.contact_tolerance * max(scale, 1e-300)
         approx = None
+        self.last_contact_converged = False
         for _ in range(self.contact_iterations):
             F_new = contact(sysm.split(z)[1], F)
             if F_new is None:
@@ -184,6 +187,7 @@ class FreeBodyStepper:
             dF = F_new - F
             F = F_new
             if np.abs(dF).max() <= tol:
+                self.last_contact_converged = True
                 break
             t0 = time.perf_counter()
             if approx is None:

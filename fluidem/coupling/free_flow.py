@@ -206,6 +206,8 @@ class FreeBodyFlow(MovingMeshFlow):
             if load is not None:
                 cost.add("dem", dem_s)
                 cost.count("contact_solves", self.coupled.last_contact_iterations)
+                if not self.coupled.last_contact_converged:
+                    cost.count("contact_unsettled")
             cost.add("coupling", time.perf_counter() - t0 - tm.assembly - tm.solve - dem_s)
             V_new = self.coupled.V
             X_corr = self._bdf_pose(X, V_new, dt)
@@ -222,14 +224,17 @@ class FreeBodyFlow(MovingMeshFlow):
     def _dem_work(self) -> tuple:
         """DEM sub-steps and passes taken so far by the contacts (zeros without them)."""
         c = self.contacts
-        return (0, 0) if c is None else (c.substeps, c.dem_calls)
+        return (0, 0, 0) if c is None else (c.substeps, c.dem_calls, c.redone)
 
     def _count_dem_work(self, before: tuple, cost: CostSplit) -> None:
-        """Count the step's DEM sub-steps (``dem_substeps``) and sub-stepped passes (``dem_passes``)."""
-        sub, calls = self._dem_work()
+        """Count the step's DEM sub-steps (``dem_substeps``), sub-stepped passes (``dem_passes``) and the
+        passes redone at the DEM's bound (``dem_passes_redone``, :meth:`FluidContacts.sub_steps`)."""
+        sub, calls, redone = self._dem_work()
         if calls > before[1]:
             cost.count("dem_substeps", sub - before[0])
             cost.count("dem_passes", calls - before[1])
+            if redone > before[2]:
+                cost.count("dem_passes_redone", redone - before[2])
 
     def _staggered_step(self, dt):
         """``coupling = "explicit"``: bodies moved by the last step's fluid loads, then the fluid."""
