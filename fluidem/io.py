@@ -23,7 +23,8 @@ Layout of an output directory::
                            header, :mod:`fluidem.checkpoint`; loading never executes code)
     scene.toml             the scene as run
     run.json               which scene the folder belongs to, and how far the run got: status
-                           running | complete | interrupted | failed, last step and time
+                           running | complete | interrupted | failed, last step and time; a complete
+                           run of a Couette cell adds ``rheology`` (:mod:`fluidem.rheology`)
 
 An output directory belongs to one run at a time:
 
