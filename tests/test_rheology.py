@@ -62,6 +62,23 @@ def test_couette_cell_with_walls_moving_both_ways_and_a_window(tmp_path):
     assert abs(rh["mu_eff_over_mu"] - 1.0) < 1e-12  # measured 2.2e-16
 
 
+def test_couette_cell_across_x(tmp_path):
+    """Walls left and right, periodic in y, the right wall moving at −U along y: shear rate −U / L,
+    and still μ_eff / μ = 1 (measured: 1 + 6.2e-15); the fluid drags the left wall along −y (fy < 0)."""
+    s = Scene.from_dict({"fluid": {"model": "stokes", "viscosity": NU, "density": RHO, "element": "th"},
+                         "domain": {"box": [0.0, L, 0.0, H], "bottom": "periodic", "top": "periodic",
+                                    "right": {"type": "moving-wall", "velocity": [0.0, -U]}},
+                         "mesh": {"h": 0.25}, "time": {"dt": 0.1, "t_end": 0.2}, "output": {"fields": False}})
+    assert any("between left and right (left at rest; right at -3 along y), gap 2: shear rate -1.5" in n
+               for n in s.plan().notes)
+    rec, sides = _run(s, tmp_path / "v")
+    rh = rec["rheology"]
+    assert rh["walls"] == ["left", "right"] and rh["shear_rate"] == -U / L and rh["wall_length"] == H
+    assert abs(rh["mu_eff_over_mu"] - 1.0) < 1e-12  # measured 6.2e-15
+    left = sides["fy"][sides["side"] == "left"]
+    assert np.all(np.abs(left / (-MU * U / L * H) - 1.0) < 1e-12)  # measured 5.7e-15
+
+
 def test_poiseuille_channel_walls_each_carry_half_the_body_force(tmp_path):
     """A periodic channel driven by fluid.body_force f between walls at rest: the momentum balance
     gives each wall half of ρ f L H (measured: to 7.4e-16 relative, the parabola is in the P2 space),
