@@ -18,7 +18,8 @@ wall (top or right) at ``U_hi`` along s, and the gap H between them,
   the mean of the samples in the averaging window (every recorded step with t₀ ≤ t ≤ t₁).
   Default window: the second half of the run, [t_end / 2, t_end]; ``output.rheology_window``
   sets it.  For dilute disks μ_eff / μ = 1 + 2 φ (Einstein's 2D coefficient, φ the area
-  fraction; Brady 1984); walls at a finite gap change the coefficient (``tests/test_rheology.py``).
+  fraction; Brady 1983); walls at a finite gap raise it by about 3.9 (a/H)² for one disk of radius a
+  on the centre line of a square cell (``tests/test_rheology.py``).
 
 The samples of a run are correlated in time, so their standard error is not σ/√n: it is
 estimated by blocking (Flyvbjerg & Petersen 1989, J. Chem. Phys. 91, 461): the series is
