@@ -4,6 +4,9 @@ Layout of an output directory::
 
     history.csv            one row per recorded step and body:
                            step, t, id, x, y, angle, vx, vy, omega, fx, fy, torque, contacts
+    sides.csv              fluid scenes with walls, moving walls or inflow sides: one row per recorded
+                           step (from step 1) and such side: step, t, side, fx, fy, the force of the
+                           fluid on the side (:class:`fluidem.fluid.forces.SideLoads`)
     fields.pvd             ParaView index of fields/fields_<step>.vtu (fluid scenes)
     fields/                velocity (point data, (n, 3)), |u|, pressure (point data; element
                            averages at vertices for a discontinuous pressure), vertex values only
@@ -20,7 +23,8 @@ Layout of an output directory::
                            header, :mod:`fluidem.checkpoint`; loading never executes code)
     scene.toml             the scene as run
     run.json               which scene the folder belongs to, and how far the run got: status
-                           running | complete | interrupted | failed, last step and time
+                           running | complete | interrupted | failed, last step and time; a complete
+                           run of a Couette cell adds ``rheology`` (:mod:`fluidem.rheology`)
 
 An output directory belongs to one run at a time:
 
@@ -87,7 +91,8 @@ from .checkpoint import save as _save_npz
 from .errors import InputError
 from .validate import fail
 
-__all__ = ["OutputWriter", "read_history", "read_pvd", "latest_checkpoint", "load_checkpoint", "load_latest_checkpoint",
+__all__ = ["OutputWriter", "read_history", "read_sides", "SIDES_COLUMNS",
+           "read_pvd", "latest_checkpoint", "load_checkpoint", "load_latest_checkpoint",
            "fluid_point_data", "full_order_fields", "read_fields", "field_series", "write_xdmf", "prepare_output_dir",
            "read_run_record", "write_run_record", "HISTORY_COLUMNS", "HISTORY_UNITS", "OUTPUT_ENTRIES",
            "OutputDirError", "RunLock", "LOCK_FILE"]
@@ -95,6 +100,8 @@ __all__ = ["OutputWriter", "read_history", "read_pvd", "latest_checkpoint", "loa
 PathLike = Union[str, os.PathLike]
 
 HISTORY_COLUMNS = ("step", "t", "id", "x", "y", "angle", "vx", "vy", "omega", "fx", "fy", "torque", "contacts")
+#: columns of sides.csv (``side`` is the side's name: bottom, right, top, left)
+SIDES_COLUMNS = ("step", "t", "side", "fx", "fy")
 CHECKPOINT_VERSION = 2  # 1: pickles (read only with allow_pickle=True); 2: npz + JSON (fluidem.checkpoint)
 
 #: unit of each history column, in the scene's own unit system (see the module docstring)
@@ -103,9 +110,9 @@ HISTORY_UNITS = {"step": "1", "t": "time", "id": "1", "x": "length", "y": "lengt
                  "fy": "force/depth", "torque": "force*length/depth", "contacts": "1"}
 
 #: what a run writes into its output directory (and what overwriting it removes)
-OUTPUT_ENTRIES = ("history.csv", "events.log", "mesh_quality.csv", "fields.pvd", "fields_full.pvd", "bodies.pvd",
-                  "fields", "fields_full", "fields.xdmf", "fields.h5", "fields_full.xdmf", "fields_full.h5", "bodies",
-                  "checkpoints", "plots", "scene.toml", "run.json")
+OUTPUT_ENTRIES = ("history.csv", "sides.csv", "events.log", "mesh_quality.csv", "fields.pvd", "fields_full.pvd",
+                  "bodies.pvd", "fields", "fields_full", "fields.xdmf", "fields.h5", "fields_full.xdmf",
+                  "fields_full.h5", "bodies", "checkpoints", "plots", "scene.toml", "run.json")
 
 
 class OutputDirError(InputError):
@@ -495,10 +502,12 @@ class OutputWriter:
         if restart_step is None:
             self._hist = open(hist, "w", newline="")
             self._hist.write(_history_header())
-            for f in ("events.log", "mesh_quality.csv"):
+            for f in ("events.log", "mesh_quality.csv", "sides.csv"):
                 (self.dir / f).unlink(missing_ok=True)
         else:
             self._truncate_history(hist, restart_step)
+            if (self.dir / "sides.csv").exists():
+                self._truncate_history(self.dir / "sides.csv", restart_step, SIDES_COLUMNS)
             self._hist = open(hist, "a", newline="")
             ev = self.dir / "events.log"
             if ev.exists():
@@ -510,17 +519,18 @@ class OutputWriter:
                 if pvd.exists():
                     self._series[name] = [(s, t, f) for s, t, f in read_pvd(pvd, with_steps=True) if s <= restart_step]
         self._events = open(self.dir / "events.log", "a")
+        self._sides = None  # opened at the first row: a run without such sides writes no sides.csv
 
     @staticmethod
-    def _truncate_history(path: Path, step: int):
+    def _truncate_history(path: Path, step: int, columns: tuple = HISTORY_COLUMNS):
         if not path.exists():
             with open(path, "w") as f:
-                f.write(_history_header())
+                f.write(",".join(columns) + "\n")
             return
         with open(path) as f:
             lines = f.readlines()
         keep = [ln for ln in lines if ln.startswith("#") or not ln[:1].isdigit()]  # comments and the column line
-        keep += [ln for ln in lines if ln[:1].isdigit() and ln.strip().count(",") == len(HISTORY_COLUMNS) - 1
+        keep += [ln for ln in lines if ln[:1].isdigit() and ln.strip().count(",") == len(columns) - 1
                  and int(ln.split(",", 1)[0]) <= step]  # rows up to the step (a half-written last row dropped)
         with open(path, "w") as f:
             f.writelines(keep)
@@ -560,6 +570,31 @@ class OutputWriter:
         np.savetxt(buf, table, fmt=["%d", "%.17g", "%d"] + ["%.17g"] * 9 + ["%d"], delimiter=",")
         self._hist.write(buf.getvalue())
         self._hist.flush()
+
+    def sides(self, step: int, t: float, names, force: ArrayLike) -> None:
+        """Append one row per side to sides.csv (created with its column line at the first call).
+
+        Parameters
+        ----------
+        step : int
+        t : float
+            Time.
+        names : sequence of str
+            Side names (bottom, right, top, left).
+        force : (n_sides, 2) float
+            Force of the fluid on each side, per unit depth (force/depth, dynamic like the body loads).
+        """
+        if not len(names):
+            return
+        if self._sides is None:
+            path = self.dir / "sides.csv"
+            new = not path.exists()
+            self._sides = open(path, "a", newline="")
+            if new:
+                self._sides.write(",".join(SIDES_COLUMNS) + "\n")
+        F = np.asarray(force, dtype=float).reshape(-1, 2)
+        self._sides.write("".join(f"{step},{t:.17g},{n},{fx:.17g},{fy:.17g}\n" for n, (fx, fy) in zip(names, F)))
+        self._sides.flush()
 
     # -- series -------------------------------------------------------------------------------
     def _add(self, name: str, step: int, t: float, mesh) -> Path:
@@ -663,9 +698,9 @@ class OutputWriter:
         return path
 
     def close(self) -> None:
-        """Close history.csv and events.log (idempotent)."""
-        for f in (self._hist, self._events):
-            if not f.closed:
+        """Close history.csv, sides.csv and events.log (idempotent)."""
+        for f in (self._hist, self._events, self._sides):
+            if f is not None and not f.closed:
                 f.close()
 
 
@@ -686,6 +721,29 @@ def read_history(path: PathLike) -> dict[str, np.ndarray]:
     for k, name in enumerate(header):
         col = data[:, k] if data.size else np.zeros(0)
         out[name] = col.astype(int) if name in ("step", "id", "contacts") else col
+    return out
+
+
+def read_sides(path: PathLike) -> dict[str, np.ndarray]:
+    """sides.csv (or the one in a run directory) as a dict of column name -> (n_rows,) array.
+
+    Columns are :data:`SIDES_COLUMNS`: ``step`` int, ``side`` str, ``t``, ``fx``, ``fy`` float
+    (force/depth: the force of the fluid on the side).  Empty arrays when the run wrote none.
+    """
+    path = Path(path)
+    if path.is_dir():
+        path = path / "sides.csv"
+    out = {"step": np.zeros(0, int), "t": np.zeros(0), "side": np.zeros(0, str), "fx": np.zeros(0), "fy": np.zeros(0)}
+    if not path.exists():
+        return out
+    with open(path) as f:
+        rows = [ln.strip().split(",") for ln in f if ln[:1].isdigit()]
+    rows = [r for r in rows if len(r) == len(SIDES_COLUMNS)]
+    if rows:
+        cols = list(zip(*rows))
+        out = {"step": np.array(cols[0], dtype=int), "t": np.array(cols[1], dtype=float),
+               "side": np.array(cols[2], dtype=str), "fx": np.array(cols[3], dtype=float),
+               "fy": np.array(cols[4], dtype=float)}
     return out
 
 

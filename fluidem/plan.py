@@ -649,6 +649,11 @@ def make_plan(scene: Scene) -> Plan:
         warnings.append(f"no [contact] table: {nb} body pair(s) and {nw} body–wall pair(s) can meet before t_end = "
                         f"{scene.time.t_end:g}, and without contacts bodies pass through each other and through the "
                         "walls; expected a [contact] table (E, mu, gamma) for bodies that meet")
+    from .rheology import plan_note
+
+    rheo = plan_note(scene)
+    if rheo:
+        notes.append(rheo)
     defaulted = getattr(scene, "defaulted", ())
     if "time" in defaulted:
         notes.append(f"no [time] table: default dt = {scene.time.dt:g}, t_end = {scene.time.t_end:g}")

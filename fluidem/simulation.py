@@ -368,11 +368,29 @@ class Simulation:
         pos, ang, vel, om = b.positions, b.angles, b.velocities, b.omegas
         if self.step_index % sc.output.history_every == 0 or last:
             writer.history(self.step_index, self.t, pos, ang, vel, om, F, T, cnt)
+            t_loads += self._record_sides(writer)
         # what run.json reports if a later step fails: this step, the last good one
         self._recorded = (self.step_index, self.t, pos, ang, vel, om, np.array(F, float), np.array(T, float))
         if fields:
             self._write_fields(writer)
         return t_loads
+
+    def _record_sides(self, writer) -> float:
+        """The force of the fluid on every wall, moving wall and inflow side into sides.csv (from step 1:
+        at step 0 the flow is only its initial data).  Returns the seconds it took."""
+        if self.flow is None or self.step_index == 0:
+            return 0.0
+        names = [s for s in ("bottom", "right", "top", "left")
+                 if self.scene.domain.side(s).type in ("wall", "moving-wall", "inflow")]
+        if not names:
+            return 0.0
+        from .fluid.forces import side_loads
+
+        t0 = time.perf_counter()
+        F = side_loads(self.flow.space, self.flow.residual(), names, rho=self.scene.fluid.density)
+        seconds = time.perf_counter() - t0
+        writer.sides(self.step_index, self.t, names, F)
+        return seconds
 
     def _write_fields(self, writer) -> None:
         """Body outlines and (fluid scenes) the fields of the current state into the series."""
@@ -467,7 +485,19 @@ class Simulation:
             **({} if totals is None else {"cost": {"seconds": dict(totals.parts), "counts": dict(totals.counts),
                                                    "note": "wall seconds per part summed over this run's steps"}}),
             **({} if summary is None else {"summary": summary}),
-            **({} if dem is None else {"dem_sub_step": dem})})
+            **({} if dem is None else {"dem_sub_step": dem}),
+            **self._rheology_record(out_dir, status)})
+
+    def _rheology_record(self, out_dir, status: str) -> dict:
+        """``{"rheology": ...}`` for a complete run of a shear cell (:func:`fluidem.rheology.rheology`
+        over its sides.csv, restarts included), else ``{}``."""
+        from .rheology import rheology, shear_cell
+
+        if status != "complete" or shear_cell(self.scene)[0] is None:
+            return {}
+        from .io import read_sides
+
+        return {"rheology": rheology(self.scene, read_sides(out_dir))}
 
     def _check_owner(self, out_dir) -> None:
         """Refuse to continue, in ``out_dir``, a run of another scene."""

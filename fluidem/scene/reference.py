@@ -195,6 +195,9 @@ KEY_DOCS = {
                     "series (`fields_full.xdmf` + `.h5`, for ParaView and meshio); needs a mesh built once and "
                     "h5py (`pip install \"fluidem[xdmf]\"`)"),
     "output.checkpoint_seconds": ("number ≥ 0", "s (wall clock)", "a checkpoint at least this often (0: off)"),
+    "output.rheology_window": ("[t0, t1]", "time", "a Couette cell (walls across a periodic box, one moving): the "
+                               "times over which run.json's `rheology` averages the effective viscosity; "
+                               "0 ≤ t0 < t1 ≤ t_end", "the second half of the run"),
 }
 
 #: a complete scene written from this reference alone: a rotating cylinder in a channel at Re = 40

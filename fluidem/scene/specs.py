@@ -524,7 +524,11 @@ class OutputSpec:
 
     Checkpoints: every ``checkpoint_every`` steps (0: only at the end; not given: about ten a
     run, the newest three kept) and in any case every ``checkpoint_seconds`` of wall-clock
-    time (default 600; 0: off), and at the end."""
+    time (default 600; 0: off), and at the end.
+
+    ``rheology_window = [t0, t1]``: the times over which a Couette cell's effective viscosity
+    is averaged (:mod:`fluidem.rheology`; default: the second half of the run), within
+    ``[0, time.t_end]``."""
 
     dir: str = "out"
     every: int = 10
@@ -534,9 +538,10 @@ class OutputSpec:
     checkpoint_seconds: float = 600.0
     full_order: bool = True
     xdmf: bool = False
+    rheology_window: tuple | None = None
 
     KEYS = ("dir", "every", "history_every", "checkpoint_every", "fields", "checkpoint_seconds", "full_order",
-            "xdmf")
+            "xdmf", "rheology_window")
 
     def validate(self, where="output"):
         if not isinstance(self.dir, str) or not self.dir:
@@ -550,6 +555,12 @@ class OutputSpec:
         self.fields = boolean(f"{where}.fields", self.fields, error=SceneError)
         self.full_order = boolean(f"{where}.full_order", self.full_order, error=SceneError)
         self.xdmf = boolean(f"{where}.xdmf", self.xdmf, error=SceneError)
+        if self.rheology_window is not None:
+            try:
+                self.rheology_window = pair(f"{where}.rheology_window", self.rheology_window, error=SceneError)
+            except SceneError:
+                raise fail(f"{where}.rheology_window", self.rheology_window, "[t0, t1], two finite times within the "
+                           "run", SceneError) from None
 
 
 _TABLES = {"fluid": FluidSpec, "domain": DomainSpec, "contact": ContactSpec, "mesh": MeshSpec, "time": TimeSpec,
@@ -713,6 +724,7 @@ class Scene:
                 self.defaulted.append("mesh.h")
         self.mesh.validate("mesh")
         self._check_free_body_convection()
+        self._check_rheology_window()
         self._check_cutoffs()
         self._check_geometry()
         return self
@@ -751,6 +763,13 @@ class Scene:
                              f"{self.bodies[i].name!r}) and fluid.coupling = 'implicit': the coupled fluid-body step "
                              "takes convection 'semi-implicit' only; expected fluid.convection = 'semi-implicit', or "
                              "fluid.coupling = 'explicit' (the staggered step, which takes every convection)")
+
+    def _check_rheology_window(self):
+        """``output.rheology_window`` lies within the run: 0 ≤ t0 < t1 ≤ t_end."""
+        w = self.output.rheology_window
+        if w is not None and not (0.0 <= w[0] < w[1] <= self.time.t_end * (1 + 1e-12)):
+            raise fail("output.rheology_window", list(w), f"[t0, t1] with 0 <= t0 < t1 <= time.t_end = "
+                       f"{self.time.t_end:g} (times within the run)", SceneError)
 
     def _check_cutoffs(self):
         """Contact cut-offs (``repulsion_range``, ``lubrication_range``) shorter than half the box's
