@@ -84,7 +84,7 @@ def test_free_disk_array_settles_at_the_sangani_acrivos_velocity(phi, tol):
     assert abs(V[0]) < 6e-5 * abs(V[1]) and abs(V[2]) * a < 1.5e-4 * abs(V[1])
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=30)
 @pytest.mark.parametrize("phi", [0.05, 0.1, 0.2, 0.3])
 @pytest.mark.parametrize("element", ["th", "p2b"])
 def test_free_disk_array_sangani_acrivos_fine(phi, element):
@@ -220,3 +220,27 @@ def test_unbalanced_doubly_periodic_cell_is_an_error_naming_the_net_force():
     with pytest.raises(SolverError, match=r"doubly periodic Stokes cell of free bodies has a net force of 0.0314 "
                                           r".*fluid.zero_net_flux = true"):
         _flow(_scene([_disk(0.1)]))
+
+
+@pytest.mark.slow(seconds=17)
+def test_zero_flux_with_the_repulsion_between_touching_disks(tmp_path):
+    """Stokes repulsion (its Newton iterations re-solve the mobility problem with the same
+    conditions; 16 s): a heavy disk above a light one, within the repulsion's range; the pair
+    moves together (velocities measured 2.5 % apart), the internal forces cancel, G |Ω| = Σ W
+    (measured 4.4e-16 relative) and the flux through the bottom stays zero (P2+bubble, measured
+    1.2e-16 of U)."""
+    from fluidem.simulation import Simulation
+
+    bodies = [_disk(0.1, (0.5, 0.3), density=1.5, segments=48), _disk(0.1, (0.5, 0.52), density=3.0, segments=48)]
+    d = _scene(bodies, "p2b", h=0.04, zero_net_flux=True).to_dict()
+    d["contact"] = {"E": 1e4, "repulsion_range": 0.03}
+    d["time"] = {"dt": 0.5, "t_end": 1.5}
+    sim = Simulation(Scene.from_dict(d))
+    sim.run(out_dir=tmp_path)
+    fl = sim.flow
+    assert fl._contact_step and fl.last_contact_iterations >= 1
+    W = (0.5 + 2.0) * -polygon_area(sim.scene.world_outlines()[0])
+    assert abs(fl.mean_gradient[1] / W - 1.0) < 1e-12
+    V = fl.body_velocities[:, 1]
+    assert abs(V[0] / V[1] - 1.0) < 0.05  # together (the lighter one alone would settle 3x slower)
+    assert abs(_side_flux(fl, "bottom")) < 5e-15 * np.abs(V).max()
