@@ -26,8 +26,8 @@ only when the cell's net force is zero: eᵀ(r + C g) = 0 gives
 
     G |Ω| = Σ_k (ρ_s − ρ_f)_k A_k g_grav          (|Ω| = L_x L_y, fluid and bodies)
 
-—the mean gradient carries the buoyant weight of the whole suspension (Batchelor 1972 §2:
-the "backflow" pressure gradient) — and the flux condition fixes the null-space component.  A
+—the mean gradient carries the buoyant weight of the whole suspension (the "backflow"
+pressure gradient of Batchelor 1972) — and the flux condition fixes the null-space component.  A
 gradient applied to the fluid alone would have to be Σ W / |Ω_f| to balance the weight, and the
 hydrodynamic drag on each body is then the whole weight W instead of (1 − φ) W: the bodies
 settle 1/(1 − φ) too fast (φ = Σ A_k / |Ω|).

@@ -768,8 +768,10 @@ class Scene:
         no body force along a periodic axis (the mean gradient there is the flux condition's
         multiplier: it would cancel it)."""
         fl = self.fluid
-        if fl is None or not fl.zero_net_flux:
+        if fl is None:
             return
+        if not fl.zero_net_flux:
+            return self._check_periodic_balance()
         key = "fluid.zero_net_flux = true"
         if fl.model != "stokes":
             raise SceneError(f"{key} with fluid.model = {fl.model!r}: allowed with fluid.model = 'stokes' only "
@@ -795,6 +797,31 @@ class Scene:
                              f"{'xy'[along[0]]} is solved for to keep the flux zero and would cancel a body force "
                              f"there; allowed: body_force component 0 along the periodic axes "
                              f"({', '.join('xy'[c] for c in range(2) if periodic[c])})")
+
+    def _check_periodic_balance(self):
+        """Stokes free bodies alone in a doubly periodic cell without ``fluid.zero_net_flux``: the
+        cell's net force, Σ (ρ_s − ρ_f) A g + ρ f |Ω_f| (areas of the outline polygons), must vanish,
+        or the Stokes flow has no solution (:mod:`fluidem.coupling.mean_gradient`)."""
+        fl = self.fluid
+        if fl.model != "stokes" or not self.bodies or any(b.motion != "free" for b in self.bodies) or \
+                any(self.domain.side(s).type != "periodic" for s in ("left", "bottom")):
+            return
+        from ..geometry import polygon_area
+
+        x0, x1, y0, y1 = self.domain.box
+        area = np.array([polygon_area(p) for p in self.world_outlines()])
+        rho = np.array([b.density for b in self.bodies])
+        weight = ((rho - fl.density) * area).sum() * np.asarray(self.gravity)
+        push = fl.density * np.asarray(fl.body_force) * ((x1 - x0) * (y1 - y0) - area.sum())
+        net = weight + push
+        scale = np.abs(weight).sum() + np.abs(push).sum()
+        if np.abs(net).max() > 1e-8 * scale:
+            raise SceneError(f"the doubly periodic cell of free bodies has a net force of [{net[0]:.4g}, {net[1]:.4g}] "
+                             f"(buoyant weight [{weight[0]:.4g}, {weight[1]:.4g}] + fluid.body_force "
+                             f"{list(fl.body_force)} on the fluid) and so no Stokes flow; expected "
+                             "fluid.zero_net_flux = true (the mean pressure gradient on fluid and bodies), or a "
+                             "body_force that balances the weight on the fluid alone (bodies then settle "
+                             "1/(1 - φ) too fast)")
 
     def _check_cutoffs(self):
         """Contact cut-offs (``repulsion_range``, ``lubrication_range``) shorter than half the box's
