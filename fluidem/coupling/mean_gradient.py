@@ -12,8 +12,8 @@ the body force −G per unit volume (``fluid.body_force`` = −G/ρ) and on each
 force of the pressure G·x on the volume the body occupies.  It is the multiplier of the flux
 constraint, so the Stokes mobility problem with it is the bordered system
 
-    [K  C] [δ]   [r]
-    [Cᵀ 0] [g] = [b]
+    [K  −C] [δ]   [r]
+    [Cᵀ  0] [g] = [b]
 
 on the coupled unknowns z = z₀ − δ (fluid DOFs and body velocities,
 :class:`~fluidem.coupling.rigid_system.RigidBodySystem`), with C_d = Tᵀ (M e_d) + A_k on the rows
@@ -38,9 +38,10 @@ the frame of zero volume flux.
 
 :class:`ZeroFluxSolver` wraps the solver of the mobility problem so that every
 ``factorize`` / ``solve`` pair (one per Newton iteration of the repulsion too) solves the
-bordered system by the Schur complement: m + 1 back-substitutions per factorisation and one per
-solve, no dense row in the LU.  With a null space the matrix is first made regular by pinning
-one nodal velocity DOF per component (row and column replaced by the identity).
+bordered system by the Schur complement: m back-substitutions per factorisation (m the number
+of constrained axes) and one per solve, no dense row in the LU.  With a null space the matrix is
+first made regular by pinning one nodal velocity DOF per component (row and column replaced by
+the identity).
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ import scipy.sparse as sp
 
 from ..errors import SolverError
 
-__all__ = ["ZeroFluxSolver", "FLUX_BALANCE_TOLERANCE"]
+__all__ = ["ZeroFluxSolver", "flux_conditions", "flux_solver", "FLUX_BALANCE_TOLERANCE"]
 
 #: relative net force (of the total weight) above which a doubly periodic cell without
 #: ``fluid.zero_net_flux`` is refused: its Stokes flow has no solution
@@ -83,6 +84,17 @@ class ZeroFluxSolver:
         b: set before each solve to the flux of the z₀ that the solve corrects (z = z₀ − δ).
     last_multiplier : (a,) float
         g of the last solve (kinematic mean gradient G/ρ along the axes), zeros without a multiplier.
+
+    Examples
+    --------
+    K = diag(1, 2, 3) with the "flux" δ₁ + δ₂ + δ₃ held at zero: δ = K⁻¹(r + g C), g = −6/11.
+
+    >>> import numpy as np, scipy.sparse as sp
+    >>> from fluidem.fluid.solvers import DirectSolver
+    >>> s = ZeroFluxSolver(DirectSolver(), np.ones((3, 1)), multiplier=True)
+    >>> d = s.factorize(sp.diags([1.0, 2.0, 3.0]).tocsr()).solve(np.array([1.0, 0.0, 0.0]))
+    >>> np.round(11 * d, 12).tolist(), round(11 * float(s.last_multiplier[0]), 12)
+    ([5.0, -3.0, -2.0], -6.0)
     """
 
     def __init__(self, inner, flux: np.ndarray, multiplier: bool, null: np.ndarray | None = None,
@@ -165,7 +177,7 @@ def flux_conditions(scene) -> tuple[tuple[int, ...], bool, bool]:
     axes = tuple(a for a, (s0, _) in enumerate((("left", "right"), ("bottom", "top")))
                  if sides.side(s0).type == "periodic")
     null = len(axes) == 2 and all(b.motion == "free" for b in scene.bodies)
-    multiplier = bool(getattr(scene.fluid, "zero_net_flux", False))
+    multiplier = bool(scene.fluid.zero_net_flux)
     if not (null or multiplier):
         return (), False, False
     return axes, multiplier, null
