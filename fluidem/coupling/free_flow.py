@@ -45,6 +45,7 @@ import numpy as np
 from ..cost import CostSplit
 from .contacts import FluidContacts
 from .free_bodies import FreeBodyStepper
+from .mean_gradient import flux_conditions, flux_solver
 from .moving_flow import MovingMeshFlow
 from .rigid_system import RigidBodySystem
 
@@ -112,6 +113,11 @@ class FreeBodyFlow(MovingMeshFlow):
         if sim.plan.on("contacts") and len(self.free):
             self.contacts = FluidContacts(scene, self.free, [b.local_vertices(scene.default_segments(b)) for b in B],
                                           self.path)
+        #: Stokes in a periodic cell: the zero-flux conditions (:mod:`fluidem.coupling.mean_gradient`)
+        #: and the mean pressure gradient G (2,) of the last solve, force/length³ (dynamic; zero
+        #: without ``fluid.zero_net_flux``): on the fluid −G, on each free body −G A_k
+        self._flux = flux_conditions(scene) if self.stokes else ((), False, False)
+        self.mean_gradient = np.zeros(2)
         if self.stokes:
             self.coupled = None
             self._solve_mobility(0.0)
@@ -303,6 +309,9 @@ class FreeBodyFlow(MovingMeshFlow):
         """Stokes: the velocities of the free bodies at which fluid forces balance the external loads."""
         t0 = time.perf_counter()
         pr, sysm = self.problem, self.system
+        axes, multiplier, null = self._flux
+        if multiplier:  # the residual without the mean gradient: the solve finds all of it
+            pr.set_body_force(self.scene.fluid.body_force)
         x = pr.initial_vector(t)
         z = sysm.gather(x, np.zeros((len(self.free), 3)))
         x = sysm.prolong(z, x)
@@ -311,6 +320,8 @@ class FreeBodyFlow(MovingMeshFlow):
         K = sysm.matrix(pr.A_data, np.zeros(3 * len(self.free)))
         t1 = time.perf_counter()
         solver = self._mobility_solver(rebuilt)
+        if axes:
+            solver = flux_solver(self, solver, x, z, axes, multiplier, null)
         dt = self.scene.time.dt
         c = self.contacts
         self._contact_step = c is not None and c.within_reach(
@@ -323,6 +334,10 @@ class FreeBodyFlow(MovingMeshFlow):
             z = z - solver.solve(rz)
         t2 = time.perf_counter()
         self.x = sysm.prolong(z, x)
+        if multiplier:  # G = ρ g on the axes: the fluid's body force −G/ρ from now on (loads, output)
+            self.mean_gradient = np.zeros(2)
+            self.mean_gradient[list(axes)] = self.rho * solver.last_multiplier
+            pr.set_body_force(np.asarray(self.scene.fluid.body_force) - self.mean_gradient / self.rho)
         pr.normalise_pressure(self.x)
         P, Vp = self._prescribed(t)
         self.body_velocities = Vp.copy()

@@ -266,12 +266,22 @@ class FlowProblem:
         if self._divergence is None:
             self._divergence = DivergencePattern(va, pb)
         self.B = self._divergence.matrix(pb)
-        if np.any(self.body_force):
-            w = va.psi_dx.sum(axis=2)  # (nel, ns): ∫ ψ_s
-            self._f = sum(np.bincount(va.dofs_c[c].ravel(), weights=self.body_force[c] * w.ravel(), minlength=va.n)
-                          for c in range(2))
-        else:
-            self._f = np.zeros(va.n)
+        self._f = self._refilled_body_force()
+
+    def _refilled_body_force(self) -> np.ndarray:
+        """The body-force vector ∫ f · φ_i from the assembler's current basis values (n_u,)."""
+        va = self.assembler
+        if not np.any(self.body_force):
+            return np.zeros(va.n)
+        w = va.psi_dx.sum(axis=2)  # (nel, ns): ∫ ψ_s
+        return sum(np.bincount(va.dofs_c[c].ravel(), weights=self.body_force[c] * w.ravel(), minlength=va.n)
+                   for c in range(2))
+
+    def set_body_force(self, body_force) -> None:
+        """Change the body force per unit mass (2,), length/time², on the current mesh (e.g. a mean
+        pressure gradient G found by a solve: ``body_force = −G/ρ``); the operators stay."""
+        self.body_force = np.array(body_force, dtype=float).reshape(2)
+        self._f = self._refilled_body_force() if self._divergence is not None else self._body_force_vector()
 
     # -- boundary data -------------------------------------------------------------------
     def _collect_dirichlet_dofs(self):

@@ -117,6 +117,12 @@ KEY_DOCS = {
     "fluid.solver": ("name", "—", "linear solver"),
     "fluid.coupling": ("name", "—", "how free bodies and the fluid are coupled"),
     "fluid.ale_form": ("name", "—", "moving meshes: the ALE form (conservative keeps the momentum exactly)"),
+    "fluid.zero_net_flux": ("true or false", "—", "periodic sedimentation (Stokes, free bodies, gravity through "
+                            "periodic sides): the mean pressure gradient G that keeps the volume flux through the "
+                            "periodic sides zero is solved for and acts on the fluid and on every body (−G per unit "
+                            "volume of each); in a doubly periodic cell G·L_x L_y = Σ (ρ_s − ρ_f) A g.  Carrying "
+                            "the weight by a `body_force` on the fluid alone makes the bodies settle 1/(1 − φ) too "
+                            "fast (φ the area fraction of bodies).  Not with a `body_force` along a periodic axis"),
     "domain.box": ("[xmin, xmax, ymin, ymax]", "length", "the rectangular domain; coordinates of magnitude at most "
                    "1e50, sides at least 1e-50 long"),
     "domain.bottom": ("name or table", "—", "side y = ymin: a side type, or a table (below)"),

@@ -79,6 +79,13 @@ class FluidSpec:
         (:mod:`fluidem.coupling.free_bodies`); ``"explicit"`` moves the bodies by the fluid
         forces of the last step and then solves the fluid (staggered), unstable when the
         fluid's added mass exceeds the body mass (density ratio ≲ 1 for a disk).
+    zero_net_flux : bool
+        Periodic sedimentation (Stokes, free bodies, gravity through a periodic pair): the mean
+        pressure gradient G that keeps the volume flux through the periodic sides zero acts on
+        the fluid (−G per unit volume) *and* on every body (−G A, the pressure's force on its
+        volume) and is solved for with the flow (:mod:`fluidem.coupling.mean_gradient`); in a
+        doubly periodic cell of free bodies G |Ω| = Σ (ρ_s − ρ_f) A g.  Carrying the weight by a
+        ``body_force`` on the fluid alone makes the bodies settle 1/(1 − φ) too fast.
     """
 
     density: float = 1.0
@@ -90,8 +97,10 @@ class FluidSpec:
     solver: str = "auto"
     coupling: str = "implicit"
     ale_form: str = "non-conservative"
+    zero_net_flux: bool = False
 
-    KEYS = ("density", "viscosity", "model", "body_force", "element", "convection", "solver", "coupling", "ale_form")
+    KEYS = ("density", "viscosity", "model", "body_force", "element", "convection", "solver", "coupling", "ale_form",
+            "zero_net_flux")
 
     def validate(self, where="fluid"):
         """Check and convert every value (names made canonical); ``SceneError`` names the first bad one."""
@@ -104,6 +113,7 @@ class FluidSpec:
         self.solver = names.lookup("solver", self.solver, f"{where}.solver", SceneError)
         self.coupling = names.lookup("coupling", self.coupling, f"{where}.coupling", SceneError)
         self.ale_form = names.lookup("ALE form", self.ale_form, f"{where}.ale_form", SceneError)
+        self.zero_net_flux = boolean(f"{where}.zero_net_flux", self.zero_net_flux, error=SceneError)
         if self.ale_form == "conservative" and self.convection != "semi-implicit":
             raise SceneError(f"{where}.ale_form = 'conservative' with {where}.convection = {self.convection!r}: "
                              "the conservative form needs convection = 'semi-implicit'")
@@ -725,6 +735,7 @@ class Scene:
         self.mesh.validate("mesh")
         self._check_free_body_convection()
         self._check_rheology_window()
+        self._check_zero_net_flux()
         self._check_cutoffs()
         self._check_geometry()
         return self
@@ -770,6 +781,65 @@ class Scene:
         if w is not None and not (0.0 <= w[0] < w[1] <= self.time.t_end * (1 + 1e-12)):
             raise fail("output.rheology_window", list(w), f"[t0, t1] with 0 <= t0 < t1 <= time.t_end = "
                        f"{self.time.t_end:g} (times within the run)", SceneError)
+    def _check_zero_net_flux(self):
+        """``fluid.zero_net_flux = true``: Stokes, free bodies, gravity only through periodic pairs, and
+        no body force along a periodic axis (the mean gradient there is the flux condition's
+        multiplier: it would cancel it)."""
+        fl = self.fluid
+        if fl is None:
+            return
+        if not fl.zero_net_flux:
+            return self._check_periodic_balance()
+        key = "fluid.zero_net_flux = true"
+        if fl.model != "stokes":
+            raise SceneError(f"{key} with fluid.model = {fl.model!r}: allowed with fluid.model = 'stokes' only "
+                             "(periodic sedimentation in quasi-steady Stokes flow)")
+        if not any(b.motion == "free" for b in self.bodies):
+            raise SceneError(f"{key} without free bodies: allowed with at least one body of motion = 'free' (the "
+                             "mean pressure gradient carries their buoyant weight)")
+        periodic = [self.domain.side(s0).type == "periodic" for s0 in ("left", "bottom")]
+        pairs = ("left/right", "bottom/top")
+        if not any(periodic):
+            raise SceneError(f"{key} without periodic sides: allowed with the sides gravity points through "
+                             "periodic (domain.bottom and domain.top = 'periodic' for gravity along y)")
+        g = self.gravity
+        if not any(g) or any(g[c] and not periodic[c] for c in range(2)):
+            allowed = " and ".join("xy"[c] for c in range(2) if periodic[c])
+            raise SceneError(f"{key} with gravity = {list(g)}: allowed: gravity non-zero and along the periodic "
+                             f"axis {allowed} only (the sides it points through, "
+                             f"{' and '.join(pairs[c] for c in range(2) if periodic[c])}, a periodic pair)")
+        bf = fl.body_force
+        along = [c for c in range(2) if periodic[c] and bf[c]]
+        if along:
+            raise SceneError(f"fluid.body_force = {list(bf)} with {key}: the mean pressure gradient along "
+                             f"{'xy'[along[0]]} is solved for to keep the flux zero and would cancel a body force "
+                             f"there; allowed: body_force component 0 along the periodic axes "
+                             f"({', '.join('xy'[c] for c in range(2) if periodic[c])})")
+
+    def _check_periodic_balance(self):
+        """Stokes free bodies alone in a doubly periodic cell without ``fluid.zero_net_flux``: the
+        cell's net force, Σ (ρ_s − ρ_f) A g + ρ f |Ω_f| (areas of the outline polygons), must vanish,
+        or the Stokes flow has no solution (:mod:`fluidem.coupling.mean_gradient`)."""
+        fl = self.fluid
+        if fl.model != "stokes" or not self.bodies or any(b.motion != "free" for b in self.bodies) or \
+                any(self.domain.side(s).type != "periodic" for s in ("left", "bottom")):
+            return
+        from ..geometry import polygon_area
+
+        x0, x1, y0, y1 = self.domain.box
+        area = np.array([polygon_area(p) for p in self.world_outlines()])
+        rho = np.array([b.density for b in self.bodies])
+        weight = ((rho - fl.density) * area).sum() * np.asarray(self.gravity)
+        push = fl.density * np.asarray(fl.body_force) * ((x1 - x0) * (y1 - y0) - area.sum())
+        net = weight + push
+        scale = np.abs(weight).sum() + np.abs(push).sum()
+        if np.abs(net).max() > 1e-8 * scale:
+            raise SceneError(f"the doubly periodic cell of free bodies has a net force of [{net[0]:.4g}, {net[1]:.4g}] "
+                             f"(buoyant weight [{weight[0]:.4g}, {weight[1]:.4g}] + fluid.body_force "
+                             f"{list(fl.body_force)} on the fluid) and so no Stokes flow; expected "
+                             "fluid.zero_net_flux = true (the mean pressure gradient on fluid and bodies), or a "
+                             "body_force that balances the weight on the fluid alone (bodies then settle "
+                             "1/(1 - φ) too fast)")
 
     def _check_cutoffs(self):
         """Contact cut-offs (``repulsion_range``, ``lubrication_range``) shorter than half the box's
