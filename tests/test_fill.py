@@ -224,6 +224,9 @@ def test_python_bad_values_name_the_argument():
         fill((1, 0, 0, 1), n=3, radius=0.1)
     with pytest.raises(InputError, match=r"^shapes = 'ellipse': expected one of 'disk', 'rectangle'"):
         fill(BOX, n=3, radius=0.1, shapes=["disk", "ellipse"])
+    with pytest.raises(InputError, match=r"^n = 1, area_fraction = 0.7: equal bodies of radius 0.472 \(a square's "
+                       r"bounding diameter 1.183\) do not fit"):
+        fill(BOX, n=1, area_fraction=0.7, shapes="square")
     with pytest.raises(InputError, match=r"^shapes weight of 'disk' = -1: expected a positive"):
         fill(BOX, n=3, radius=0.1, shapes={"disk": -1})
     assert set(SHAPES) >= {"disk", "rectangle", "triangle", "hexagon"}

@@ -393,6 +393,11 @@ def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, a
     room = min(Lx - 2 * gaps["x"], Ly - 2 * gaps["y"])
     if 2.0 * R_factor * r_hi > room:
         big = max(weights, key=lambda s: _bounding_factor(s, aspect))
+        if radius is None:
+            raise InputError(f"{lab['n']} = {n}, {lab['area_fraction']} = {area_fraction:g}: equal bodies of radius "
+                             f"{r_hi:.4g} (a {big}'s bounding diameter {2 * R_factor * r_hi:.4g}) do not fit in the "
+                             f"room {room:.4g} the region {Lx:.4g} x {Ly:.4g} leaves inside its side gaps; expected "
+                             f"more bodies or a smaller fraction")
         raise fail(lab["radius"], radius if radius is not None else r_hi,
                    f"a radius up to {0.5 * room / R_factor:.4g}: a {big} of radius {r_hi:.4g} has a bounding "
                    f"diameter {2 * R_factor * r_hi:.4g}, more than the room {room:.4g} the region "
