@@ -1,7 +1,8 @@
 """Command line: ``fluidem bench NAME``, ``fluidem cases``.  ``python -m fluidem`` is the same.
 
 Scenes: ``fluidem run SCENE``, ``fluidem plan SCENE``, ``fluidem examples [--show NAME]``,
-``fluidem new NAME DIR``, ``fluidem reference``, ``fluidem plot DIR``; parameter sweeps:
+``fluidem new NAME DIR``, ``fluidem reference``, ``fluidem plot DIR``; random bodies for a scene's
+CSV body table: ``fluidem fill OUT.csv --box ... --fraction PHI`` (:mod:`fluidem.scene.fill`); parameter sweeps:
 ``fluidem sweep SCENE --vary KEY=V1,V2 [--vary ...]`` (:mod:`fluidem.sweep`).
 
 Every name an option takes (cases, element pairs, convection schemes, solvers, example
@@ -140,6 +141,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("cases", help="list the built-in cases", description="List the built-in benchmark cases.")
     _add_scene_commands(sub)
+    _add_fill_command(sub)
     _add_sweep_command(sub)
     for command in sub.choices.values():  # --debug after the command too; absent there, the top level's counts
         _add_debug(command, default=argparse.SUPPRESS)
@@ -198,6 +200,75 @@ def _add_scene_commands(sub) -> None:
     pt.add_argument("--units", **_named("units"), help="name the units in the labels (the scene must be in "
                     "that system; nothing is converted); default: the scene's units, else dimensions, e.g. "
                     "[length]")
+
+
+def _add_fill_command(sub) -> None:
+    from .scene.fill import DEFAULT_ATTEMPTS, SHAPES
+
+    fl = sub.add_parser("fill", help="write a CSV body table of random non-overlapping bodies (a suspension)",
+                        description="Fill a box with random non-overlapping bodies by random sequential addition "
+                                    "and write them as the CSV body table of a scene ([bodies_table] file = OUT). "
+                                    "Give --n or --fraction; sizes are equal-area radii (a body of radius r has "
+                                    "the area pi r^2 whatever its shape). Random sequential addition jams near "
+                                    "area fraction 0.5 (docs/suspensions.md).")
+    fl.add_argument("out", metavar="OUT.csv", help="CSV file to write (refused if it exists, unless --overwrite)")
+    fl.add_argument("--box", type=float, nargs=4, required=True, metavar=("XMIN", "XMAX", "YMIN", "YMAX"),
+                    help="the region to fill (a scene's domain.box or part of it)")
+    fl.add_argument("--n", type=int, metavar="N", help="number of bodies")
+    fl.add_argument("--fraction", type=float, metavar="PHI", help="area fraction of the box the bodies cover, in "
+                    "(0, 1); with --n and no --radius: N equal bodies of the radius that covers it")
+    fl.add_argument("--radius", type=float, nargs="+", metavar="R", help="equal-area radius, or a range R_MIN "
+                    "R_MAX drawn uniformly")
+    fl.add_argument("--shapes", default="disk", metavar="NAME[:W],...",
+                    help="shapes drawn, comma-separated, each with an optional relative weight: "
+                         + ", ".join(SHAPES) + " or N-gon (e.g. disk:2,hexagon,7-gon); default disk")
+    fl.add_argument("--aspect", type=float, default=2.0, help="width / height of the rectangles (default 2)")
+    fl.add_argument("--density", type=float, metavar="RHO", help="areal density of every body (a density column; "
+                    "default: none, the scene's [bodies_table] density applies)")
+    fl.add_argument("--seed", type=int, default=0, help="random seed (default 0): the same options give the same "
+                    "bodies")
+    fl.add_argument("--min-gap", type=float, dest="min_gap", metavar="G",
+                    help="smallest distance between outlines (default 0.1 x the mean radius)")
+    fl.add_argument("--side-gap", type=float, dest="side_gap", metavar="G",
+                    help="smallest distance from an outline to a side of the box (default: --min-gap)")
+    fl.add_argument("--periodic", default="", metavar="AXES", help="periodic axes of the box: x, y or xy (bodies "
+                    "keep at least half --min-gap from those sides too: none may cross them)")
+    fl.add_argument("--segments", type=int, metavar="N", help="outline vertices of the disks (default: the "
+                    "scene's choice, a curved circle in a fluid scene)")
+    fl.add_argument("--attempts", type=int, default=DEFAULT_ATTEMPTS, metavar="N",
+                    help=f"candidate places tried for one body before giving up (default {DEFAULT_ATTEMPTS})")
+    fl.add_argument("--overwrite", action="store_true", help="replace OUT.csv if it exists")
+
+
+def _fill_main(args) -> int:
+    from pathlib import Path
+
+    from .errors import InputError
+    from .scene.fill import fill
+
+    out = Path(args.out)
+    if out.exists() and not args.overwrite:  # before the work
+        raise InputError(f"{str(out)!r} exists already; expected a new file name (or --overwrite)")
+    shapes = {}
+    for item in args.shapes.split(","):
+        name, _, w = item.strip().partition(":")
+        try:
+            shapes[name] = shapes.get(name, 0.0) + (float(w) if w else 1.0)
+        except ValueError:
+            raise InputError(f"--shapes weight of {name!r} = {w!r}: expected a positive number (NAME:W)") from None
+    labels = {"region": "--box", "n": "--n", "area_fraction": "--fraction", "shapes": "--shapes",
+              "radius": "--radius", "aspect": "--aspect", "seed": "--seed", "min_gap": "--min-gap",
+              "side_gap": "--side-gap", "periodic": "--periodic", "segments": "--segments", "attempts": "--attempts"}
+    if args.density is not None and not args.density > 0:
+        raise InputError(f"--density = {args.density!r}: expected a positive finite number")
+    radius = None if args.radius is None else (args.radius[0] if len(args.radius) == 1 else args.radius)
+    packing = fill(args.box, n=args.n, area_fraction=args.fraction, shapes=shapes, radius=radius, aspect=args.aspect,
+                   seed=args.seed, min_gap=args.min_gap, side_gap=args.side_gap, periodic=args.periodic,
+                   segments=args.segments, attempts=args.attempts, labels=labels)
+    packing.to_csv(out, density=args.density, overwrite=args.overwrite)
+    print(f"{out}: {packing}")
+    print(f'in a scene: [bodies_table] file = "{out.name}" (next to the scene file)')
+    return 0
 
 
 def _add_sweep_command(sub) -> None:
@@ -415,6 +486,8 @@ def _dispatch(args, parser) -> int:
         return _bench_main(args, parser)
     if args.command == "sweep":
         return _sweep_main(args)
+    if args.command == "fill":
+        return _fill_main(args)
     return 1
 
 

@@ -121,6 +121,8 @@ REGISTRY: dict[str, Kind] = {
                          "terminal velocity",
         "jeffery-orbit": "a free ellipse (aspect ratio 2) turning in a Stokes shear cell, half a Jeffery period",
         "dkt": "drafting, kissing and tumbling of two disks settling in a channel (Glowinski et al. 2001)",
+        "suspension": "105 disks, rectangles, triangles and hexagons settling into a bed in a closed box of fluid "
+                      "(a 'fluidem fill' body table)",
     }),
     "schur": Kind("Schur-complement approximation", {
         "auto": "cahouet-chabard when a time step is given, mass otherwise",

@@ -352,6 +352,9 @@ disk,0.005,,,0.10,0.05,0.0,
 rectangle,,0.008,0.004,0.12,0.05,0.3,
 polygon,,,,0.14,0.05,0.0,"0 0; 0.006 0; 0.003 0.005"
 ```
+
+`fluidem fill OUT.csv --box XMIN XMAX YMIN YMAX --fraction PHI --radius R_MIN R_MAX --shapes ...`
+writes such a table of random non-overlapping bodies (a suspension; `docs/suspensions.md`).
 """
 
 
