@@ -165,6 +165,8 @@ class FluidContacts:
         self.substeps = 0
         self.dem_calls = 0
         self.redone = 0  # passes redone at the DEM's bound (sub_steps)
+        #: below this gap a stiff force acts: the repulsion's range (0 without a repulsion: overlaps only)
+        self._stiff_range = self.repulsion.range if self.repulsion.force > 0 else 0.0
         self.last_sub_steps, self.last_set_by = 0, ""
         self.seconds = 0.0  # wall time in the DEM
 
@@ -241,7 +243,8 @@ class FluidContacts:
             d.closest_gap_seen = np.inf
             self.substeps += d.advance(dt, n=n)
             self.dem_calls += 1
-            if attempt or d.closest_gap_seen >= floor:
+            # stiffer than assumed only inside the repulsion's range (or on an overlap, -inf)
+            if attempt or d.closest_gap_seen >= min(floor, self._stiff_range):
                 break
             # a gap closed below the floor the sub-step assumed: the pass again at the DEM's own bound
             self.redone += 1
@@ -271,7 +274,8 @@ class FluidContacts:
 
         To follow the film and the onset of the repulsion, no sub-step closes the gap of a pair by more
         than a quarter of the larger of its gap and ρ.  :meth:`mean_load` checks the floor against the
-        closest gap the pass met and redoes a pass that broke it at the DEM's own bound.
+        closest gap the pass met and redoes at the DEM's own bound a pass that met a stiffer force than
+        assumed (a gap below both the floor and ρ, or an overlap).
 
         Returns
         -------

@@ -28,7 +28,53 @@ from ..fluid.problem import FlowState
 from ..fluid.solvers import AutoSolver, LaggedLUSolver
 from .body_krylov import BodyBlockKrylovSolver
 
-__all__ = ["FreeBodyStepper"]
+__all__ = ["AndersonMixing", "FreeBodyStepper"]
+
+
+class AndersonMixing:
+    """Anderson acceleration of a fixed-point iteration ``F ← G(F)`` (Anderson 1965; Walker & Ni 2011,
+    *SIAM J. Numer. Anal.* 49, 1715, Alg. AA with depth ``m``).
+
+    With the residuals ``r_k = G(F_k) − F_k`` and the differences ``ΔR``, ``ΔG`` of the last ``m``
+    residuals and images, the next iterate is ``G(F_k) − ΔG γ`` with ``γ`` the least-squares solution of
+    ``ΔR γ ≈ r_k``.  ``m = 0`` is the plain iteration.  The contact load of bodies resting on each
+    other contracts by only about 0.9 per plain iteration (the DEM's mass is far below the added mass of a
+    body in a pile); the mixing extrapolates that slow mode.
+
+    Examples
+    --------
+    A linear map contracting by 0.95: the plain iteration needs about 300 iterations to 1e-6, the mixed one 3.
+
+    >>> A = np.diag([0.95, 0.5]); b = np.array([1.0, 1.0])
+    >>> mix, F = AndersonMixing(2), np.zeros(2)
+    >>> for k in range(4):
+    ...     F = mix.next(F, A @ F + b)
+    >>> bool(np.allclose(F, np.linalg.solve(np.eye(2) - A, b)))
+    True
+    """
+
+    def __init__(self, memory: int = 3):
+        self.memory = int(memory)
+        self._F, self._G = [], []
+
+    def next(self, F: np.ndarray, G: np.ndarray) -> np.ndarray:
+        """The next iterate from the current ``F`` and its image ``G = G(F)`` (same shape)."""
+        F, G = np.asarray(F, float), np.asarray(G, float)
+        if self.memory <= 0:
+            return G
+        self._F.append(F.ravel().copy())
+        self._G.append(G.ravel().copy())
+        if len(self._F) > self.memory + 1:
+            self._F.pop(0)
+            self._G.pop(0)
+        if len(self._F) < 2:
+            return G
+        Fs, Gs = np.array(self._F), np.array(self._G)
+        R = Gs - Fs
+        dR = np.diff(R, axis=0).T
+        dG = np.diff(Gs, axis=0).T
+        gamma = np.linalg.lstsq(dR, R[-1], rcond=1e-10)[0]
+        return (G.ravel() - dG @ gamma).reshape(G.shape)
 
 
 class FreeBodyStepper:
@@ -72,6 +118,8 @@ class FreeBodyStepper:
         #: contact load iteration (see :meth:`step`): relative tolerance and most iterations
         self.contact_tolerance = 1e-3
         self.contact_iterations = 8
+        #: iterates the Anderson mixing of the contact load remembers (0: the plain fixed point)
+        self.contact_memory = 3
         self.last_contact_iterations = 0
         #: whether the last step's contact load settled within ``contact_iterations`` (else the last iterate is used)
         self.last_contact_converged = True
@@ -180,15 +228,18 @@ class FreeBodyStepper:
         tol = self.contact_tolerance * max(scale, 1e-300)
         approx = None
         self.last_contact_converged = False
+        mixing = AndersonMixing(self.contact_memory)
         for _ in range(self.contact_iterations):
             F_new = contact(sysm.split(z)[1], F)
             if F_new is None:
                 F_new = np.zeros_like(F)
-            dF = F_new - F
-            F = F_new
-            if np.abs(dF).max() <= tol:
+            if np.abs(F_new - F).max() <= tol:
+                F = F_new
                 self.last_contact_converged = True
                 break
+            F_next = mixing.next(F, F_new)
+            dF = F_next - F
+            F = F_next
             t0 = time.perf_counter()
             if approx is None:
                 approx = self.solver.as_preconditioner()

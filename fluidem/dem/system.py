@@ -116,8 +116,8 @@ class DEM:
         :mod:`fluidem.dem.repulsion`); its stiffness enters :attr:`dt_max`.
     lubrication : Lubrication or None
         The lubrication correction between outlines closer than its range (bodies in a fluid,
-        :mod:`fluidem.dem.lubrication`): a normal damping, capped so it never shortens
-        :attr:`dt_max`.
+        :mod:`fluidem.dem.lubrication`): a normal damping, applied implicitly after each
+        step, so it never shortens :attr:`dt_max`.
 
     Attributes
     ----------

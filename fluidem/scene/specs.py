@@ -781,6 +781,7 @@ class Scene:
         if w is not None and not (0.0 <= w[0] < w[1] <= self.time.t_end * (1 + 1e-12)):
             raise fail("output.rheology_window", list(w), f"[t0, t1] with 0 <= t0 < t1 <= time.t_end = "
                        f"{self.time.t_end:g} (times within the run)", SceneError)
+
     def _check_zero_net_flux(self):
         """``fluid.zero_net_flux = true``: Stokes, free bodies, gravity only through periodic pairs, and
         no body force along a periodic axis (the mean gradient there is the flux condition's

@@ -1,0 +1,90 @@
+"""Contacts of many bodies at the cost of the physics in play (fluidem.coupling.contacts.FluidContacts.sub_steps,
+fluidem.dem.lubrication.implicit_damping, fluidem.coupling.free_bodies.AndersonMixing): the sub-steps follow
+the stiffness that can act, the film's damping is implicit, and the contact counts reach history.csv."""
+
+import numpy as np
+import pytest
+
+from fluidem.coupling import contacts as fluid_contacts
+from fluidem.dem import DEM, Body, ContactModel
+from fluidem.dem.lubrication import Lubrication
+from fluidem.io import read_history
+from fluidem.simulation import Simulation
+
+from test_fluid_contacts import A, _floor_scene, _run  # same folder (pytest puts it on the path)
+
+
+def _at_the_dems_bound(self, dt, *args):
+    """FluidContacts.sub_steps as before the stiffness in play: every pass at the DEM's own bound."""
+    return max(int(np.ceil(dt / self.dem.dt_max - 1e-9)), 1), -np.inf, "the DEM's bound"
+
+
+def test_a_disk_draining_onto_the_floor_takes_the_sub_steps_in_play_and_follows_the_bounded_run(monkeypatch):
+    """A disk (ρ_s/ρ_f = 1.5, Re ≈ 1.8, h = 0.04, dt = 0.04) settling from a gap of 0.05 into the
+    lubrication film of the floor (cut-off h, the repulsion a backstop at 0.01 h): no overlap can form and
+    the repulsion is out of reach in every pass, so a pass needs only the sub-steps that follow the gap.
+    Against the same run at the DEM's bound (0.1π√(m/k) with the repulsion's stiffness at contact), measured
+    to t = 2.4: 93 sub-steps in 93 passes against 4 278, largest gap difference 5.3e-5 (0.26 % of the last
+    gap 0.0204), largest speed difference 1.12e-4 = 0.55 % of the largest speed; no pass redone."""
+    sim, r = _run(_floor_scene(h=0.04, dt=0.04, t_end=2.4, start=0.15))
+    fc = sim.flow.contacts
+    monkeypatch.setattr(fluid_contacts.FluidContacts, "sub_steps", _at_the_dems_bound)
+    ref_sim, ref = _run(_floor_scene(h=0.04, dt=0.04, t_end=2.4, start=0.15))
+    ref_fc = ref_sim.flow.contacts
+    assert fc.dem_calls == ref_fc.dem_calls > 50                    # the film acts in most steps: measured 93
+    assert fc.substeps < 0.05 * ref_fc.substeps, (fc.substeps, ref_fc.substeps)  # measured 93 against 4 278
+    assert fc.redone == 0
+    assert np.abs(r[:, 2] - ref[:, 2]).max() < 1.5e-4              # measured 5.3e-5
+    assert np.abs(r[:, 3] - ref[:, 3]).max() < 0.015 * np.abs(ref[:, 3]).max()  # measured 0.55 %
+    assert r[-1, 2] == pytest.approx(ref[-1, 2], rel=0.01)          # measured 0.26 %
+
+
+def test_a_tilted_plate_in_the_film_of_a_wall_does_not_gain_energy():
+    """A thin plate (0.2 × 0.02, tilted 0.01 rad) with its corner 0.001 above the floor, falling at 0.1 and
+    turning at 0.5 rad/s: the film acts at the corner, 0.1 from the centre, where the turn adds
+    c r²Δt/I ≈ 3 × c Δt/m to the translational share.  An explicit damper capped with the translational mass
+    alone (cΔt/m ≤ 1) has cΔt(1/m + r²/I) ≈ 4 > 2 and pumps energy (measured on the capped version: kinetic
+    plus elastic energy up to 212 × its start, 127 × the start gained in one step, ω alternating 0.5, −0.56,
+    −0.78, −0.44, −0.96).  The implicit damper only dissipates; the corners touch the floor (the contact law
+    acts in 31 steps), whose elastic energy at the predicted positions moves by at most 6.2e-4 of the start
+    in a step.  Measured over 300 steps at dt_max: energy at most its start, 0.33 of it at the end."""
+    a, L, H = 0.01, 0.2, 0.02
+    lowest = 0.5 * L * np.sin(a) + 0.5 * H * np.cos(a)  # the lowest corner below the centre
+    plate = Body.rectangle(L, H, density=1.0, angle=a, position=(0.0, lowest + 0.001), velocity=(0.0, -0.1),
+                           omega=0.5)
+    sim = DEM([plate], walls=(-np.inf, np.inf, 0.0, np.inf), gravity=(0.0, 0.0),
+              contact=ContactModel(E=1e4, mu=0.0, gamma=0.0),
+              lubrication=Lubrication(viscosity=0.01, range=0.02, min_gap=1e-5))
+    assert float(sim.world_vertices()[0, :, 1].min()) == pytest.approx(0.001, rel=1e-9)
+    E = [sim.kinetic_energy()]
+    for _ in range(300):
+        sim.step(sim.dt_max)
+        E.append(sim.kinetic_energy() + sim.elastic_energy())
+    E = np.array(E)
+    assert np.isfinite(E).all()
+    assert E.max() <= 1.0 * E[0] * (1 + 1e-12)          # measured: the start is the largest
+    assert np.diff(E).max() < 2e-3 * E[0]               # measured 6.2e-4 (the contact law's elastic energy)
+    assert E[-1] < 0.5 * E[0]                           # measured 0.33
+
+
+@pytest.mark.filterwarnings("ignore:the mesh has degenerate triangles")  # the disk 2e-4 above the floor
+def test_history_counts_the_contacts_of_bodies_in_a_fluid(tmp_path):
+    """In a fluid the repulsion keeps bodies apart: a body resting on the floor sits inside the repulsion's
+    range (at ρ(1 − √ε) under its weight), not on an overlap.  history.csv counts the bodies and walls within
+    that range (it said 0 for every body of a fluid scene): 1 for a disk whose lowest vertex is half the
+    range above the floor, 0 for one at twice the range."""
+    sc = _floor_scene(h=0.04, dt=0.04, t_end=0.04, start=0.5)
+    rng = 0.01 * sc.mesh.h  # the default repulsion range, BACKSTOP × h
+    d = sc.to_dict()
+    d["bodies"][0]["position"] = [d["bodies"][0]["position"][0], A + 0.5 * rng]
+    from fluidem.scene import Scene
+
+    sim = Simulation(Scene.from_dict(d))
+    assert sim.flow.contacts.repulsion.range == pytest.approx(rng)
+    assert sim.bodies.loads()[2].tolist() == [1]
+    sim.run(out_dir=tmp_path / "run", progress=False)
+    h = read_history(tmp_path / "run" / "history.csv")
+    assert h["contacts"].tolist() == [1, 1]  # steps 0 and 1: the film holds the disk in range
+    poses = sim.flow.poses.copy()
+    poses[0, 1] = A + 2.0 * rng
+    assert sim.flow.contacts.contact_counts(poses).tolist() == [0]
