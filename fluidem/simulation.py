@@ -79,6 +79,11 @@ MIN_ANGLE = 5.0
 StepTimes = CostSplit
 
 
+#: Failures a restart from the last checkpoint can get past: they come from the machine (a full disk,
+#: an unwritable folder, memory), not from the scene and its state, which a restart replays exactly.
+TRANSIENT_FAILURES = (OSError, MemoryError)
+
+
 @dataclass
 class RunResult:
     """Outcome of :meth:`Simulation.run`: steps taken, final time, output directory, timings.
@@ -834,8 +839,11 @@ class Simulation:
             msg = (f"step {failed_at} (t = {failed_at * sc.time.dt:.6g}) failed: {what}; the output holds steps 0 to "
                    f"{failed_at - 1}, the last good state "
                    + (f"saved (step {step}) " if step != failed_at - 1 else "") + f"is in {where}")
-            if not isinstance(exc, StateError):
+            if isinstance(exc, TRANSIENT_FAILURES):  # the machine's, not the scene's: a restart may pass
                 msg += f"; continue with: {how}"
+            elif not isinstance(exc, StateError):
+                msg += ("; the failure depends only on the scene and the state, so a --restart from the "
+                        "checkpoint repeats it: change what the message names (or time.dt) first")
             status, code = "failed", 3
         writer.event(step, t, status, _one_line(msg))
         writer.event(step, t, "end", f"{self.counters['steps']} steps this run")

@@ -118,8 +118,38 @@ def test_an_unexpected_error_inside_a_run_is_one_line(dry, tmp_path, capsys, mon
     monkeypatch.setattr(KinematicBodies, "step", boom)
     assert main(["run", str(dry), "--out", str(tmp_path / "o"), "--quiet"]) == 3
     line = _err(capsys)
-    assert "step 1 (t = 0.01) failed: index 7 is out of bounds" in line and "--restart" in line
+    assert "step 1 (t = 0.01) failed: index 7 is out of bounds" in line
+    # a failure of the scene and its state recurs on a restart: the line says so instead of advising one
+    assert "continue with" not in line and "a --restart from the checkpoint repeats it" in line
     assert np.array_equal(read_history(tmp_path / "o")["step"], [0])
+
+
+def test_a_failure_of_the_machine_advises_a_restart_that_then_passes(tmp_path):
+    """A full disk or memory (:data:`fluidem.simulation.TRANSIENT_FAILURES`) is the machine's: the message
+    says how to continue, and the restart completes the run."""
+    from fluidem.coupling.bodies import KinematicBodies
+    from fluidem.io import read_run_record
+    from fluidem.simulation import RunStopped
+
+    orig = KinematicBodies.step
+    calls = []
+
+    def full_disk(self, dt):
+        calls.append(dt)
+        if len(calls) == 3:
+            raise OSError(28, "No space left on device")
+        orig(self, dt)
+
+    scene_file = tmp_path / "s.toml"
+    scene_file.write_text(DRY)
+    scene = Scene.from_toml(scene_file)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(KinematicBodies, "step", full_disk)
+        with pytest.raises(RunStopped) as err:
+            Simulation(scene).run(out_dir=tmp_path / "o")
+    assert "continue with: fluidem run" in str(err.value) and str(err.value).endswith("--restart")
+    Simulation(scene).run(out_dir=tmp_path / "o", restart=True)
+    assert read_run_record(tmp_path / "o")["status"] == "complete"
 
 
 def test_an_unexpected_error_outside_a_run_is_one_line_and_debug_shows_it(dry, tmp_path, capsys, monkeypatch):
