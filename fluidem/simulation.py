@@ -554,7 +554,8 @@ class Simulation:
             ``factorizations`` (LU factorisations so far, if the solver counts them) and ``cfl``
             (Courant number max over elements of |u| Δt / h_e, h_e the longest edge, from the new
             velocity; None for quasi-steady Stokes); for a DEM scene ``contacts`` (contacts at the
-            end of the step, body-body and body-wall).
+            end of the step, body-body and body-wall); with contacts in a fluid ``dem_set_by`` (what
+            set the sub-steps of the step's last pass, :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`).
         """
         out = {"step": self.step_index, "t": self.t}
         if self.flow is not None:
@@ -567,6 +568,9 @@ class Simulation:
             out["cfl"] = st._cfl(st.state.u) if st is not None and st.n_steps else None
         if isinstance(self.bodies, DEMBodies):
             out["contacts"] = len(self.bodies.dem.contacts.i)
+        contacts = getattr(self.flow, "contacts", None)
+        if contacts is not None and contacts.last_set_by:
+            out["dem_set_by"] = contacts.last_set_by
         return out
 
     def _dem(self):
@@ -579,7 +583,9 @@ class Simulation:
     def dem_limit(self) -> dict | None:
         """The DEM's largest stable sub-step and what sets it: ``{"dt_max": time, "set_by": text}``
         (the contact law's E or the repulsion's stiffness at contact, with the lightest free body),
-        or None for a scene without a DEM."""
+        or None for a scene without a DEM.  In a fluid a pass takes it only where an overlap may form;
+        elsewhere the stiffness in play sets fewer sub-steps
+        (:meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`)."""
         d = self._dem()
         if d is None:
             return None
@@ -874,9 +880,10 @@ class Simulation:
 
 def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str:
     """One line for a step: ``step k/N  t = ...  linear <method> it <n> res <r>  CFL <c>  <cost split>``;
-    with contacts in a fluid also ``DEM <n> sub-steps in <p> passes`` (the sub-stepped passes over
-    the step, each of ``ceil(dt / dt_max)`` sub-steps: :meth:`Simulation.dem_limit` says what sets
-    ``dt_max``).
+    with contacts in a fluid also ``DEM <n> sub-steps in <p> passes (<what set the last pass's>)``
+    (the sub-stepped passes over the step, each of at most ``ceil(dt / dt_max)`` sub-steps:
+    :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`; :meth:`Simulation.dem_limit` says what
+    sets ``dt_max``).
 
     ``info`` as from :meth:`Simulation.step_info`; fields it lacks are left out."""
     parts = [f"step {info['step']}/{n_steps}  t = {info['t']:.6g}"]
@@ -892,7 +899,14 @@ def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str
     if "contacts" in info:
         parts.append(f"contacts {info['contacts']}")
     if cost is not None and cost.counts.get("dem_passes"):
-        parts.append(f"DEM {cost.counts['dem_substeps']} sub-steps in {cost.counts['dem_passes']} passes")
+        dem = f"DEM {cost.counts['dem_substeps']} sub-steps in {cost.counts['dem_passes']} passes"
+        if cost.counts.get("dem_passes_redone"):
+            dem += f", {cost.counts['dem_passes_redone']} redone"
+        if info.get("dem_set_by"):
+            dem += f" ({info['dem_set_by']})"
+        if cost.counts.get("contact_unsettled"):
+            dem += ", contact load unsettled"
+        parts.append(dem)
     if cost is not None:
         parts.append(str(cost))
     return "  ".join(parts)

@@ -249,7 +249,7 @@ class FluidContacts:
             # a gap closed below the floor the sub-step assumed: the pass again at the DEM's own bound
             self.redone += 1
             d.spring_history = springs
-            n, by = max(int(np.ceil(dt / d.dt_max - 1e-9)), 1), "the DEM's bound (a pass redone)"
+            n, by = max(int(np.ceil(dt / d.dt_max - 1e-9)), 1), "the DEM's bound: a pass redone"
         self.last_sub_steps, self.last_set_by = n, by
         V_end = np.column_stack([d.velocities, d.omegas])[f]
         self.seconds += time.perf_counter() - t_start
@@ -334,9 +334,9 @@ class FluidContacts:
         g, cl = g[reach_p], cl[reach_p]
         floor = float((g - cl).min())
         if floor <= 0.0:
-            return n_max, -np.inf, "a gap that may close in the pass (contact law and repulsion at contact)"
+            return n_max, -np.inf, "a gap that may close in the pass: the DEM's bound"
         n = max(int(np.ceil((cl / (0.25 * np.maximum(g, max(rng, 1e-300)))).max() - 1e-9)), 1)
-        by = "the gaps' change (a quarter of a gap per sub-step)"
+        by = "the gaps' change: a quarter of a gap per sub-step"
         if floor < rng:
             m = float(d.mass[d.free].min())
             k = float(self.repulsion.stiffness(np.array([floor]))[0])
