@@ -328,8 +328,10 @@ MAX_CONTACT_SUBSTEPS, REFUSED_CONTACT_SUBSTEPS = 10_000, 1_000_000
 
 
 def contact_sub_steps(scene: Scene) -> tuple[float, float, str] | None:
-    """DEM sub-steps per pass over one step ``time.dt`` of ``scene``: ``(n, dt_max, set_by)``.
+    """DEM sub-steps per pass over one step ``time.dt`` of ``scene`` where an overlap may form: ``(n, dt_max, set_by)``.
 
+    The most a pass takes (in a fluid, passes where no overlap can form and the repulsion is far take
+    fewer: :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`):
     ``n = ceil(dt / dt_max)`` with the DEM's bound ``dt_max = 0.1 π √(m / k)``
     (:func:`fluidem.dem.system.stable_sub_step`): ``m`` the lightest free body's DEM mass (ρ_s A dry,
     (ρ_s + ρ_f) A in a fluid), ``k`` the stiffer of ``contact.E`` and, for free bodies in an
@@ -375,7 +377,7 @@ def _sub_step_check(scene: Scene) -> tuple[str | None, str | None]:
     if sub is None or sub[0] <= MAX_CONTACT_SUBSTEPS:
         return None, None
     n, dt_max, by = sub
-    text = (f"contacts take {n:.3g} DEM sub-steps per pass over each step of time.dt = {scene.time.dt:g} (dt_max = "
+    text = (f"contacts take up to {n:.3g} DEM sub-steps per pass over each step of time.dt = {scene.time.dt:g} (dt_max = "
             f"{dt_max:.3g}, set by {by}, with the lightest free body); expected at most {MAX_CONTACT_SUBSTEPS}: "
             "lower that stiffness (a smaller E or repulsion_force, a larger repulsion_epsilon or repulsion_range), "
             "or time.dt")
