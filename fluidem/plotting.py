@@ -66,6 +66,31 @@ def _unit(dim: str, units) -> str:
     return re.sub(r"(?<![A-Za-z])(length|time|mass|force)(?![A-Za-z])", lambda m: names[m.group(1)], dim)
 
 
+#: the pressure figure's colour limits: ± this percentile of |p| over the nodes, so that the spikes next
+#: to touching bodies (a few nodes) do not wash out the rest of the field
+PRESSURE_PERCENTILE = 99.0
+
+
+def pressure_limit(p: np.ndarray) -> tuple[float, float | None]:
+    """Symmetric colour limit of a pressure field ``p`` (n,): ``(lim, max |p|)`` when |p| exceeds ``lim`` =
+    the :data:`PRESSURE_PERCENTILE` th percentile of |p| by more than 5 % somewhere (the colours are clipped
+    there), else ``(max |p|, None)``.
+
+    >>> p = np.r_[np.linspace(-1.0, 1.0, 999), 50.0]   # one spike
+    >>> lim, top = pressure_limit(p)
+    >>> round(lim, 2), top
+    (0.99, 50.0)
+    """
+    a = np.abs(np.asarray(p, float))
+    a = a[np.isfinite(a)]
+    if not len(a):
+        return 1.0, None
+    top, lim = float(a.max()), float(np.percentile(a, PRESSURE_PERCENTILE))
+    if lim <= 0.0:
+        return top or 1.0, None
+    return (lim, top) if top > 1.05 * lim else (top, None)
+
+
 def view_windows(box, focus=None, max_aspect: float = MAX_ASPECT) -> tuple[list, bool]:
     """The views ``(x0, x1, y0, y1)`` that show ``box`` readably, and whether they crop it.
 
@@ -362,6 +387,10 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
         import matplotlib.tri as mtri
 
         t_f, f_last = fields[-1]
+        t_run = float(h["t"].max()) if len(h["t"]) else t_f
+        # the fields are written every output.every steps: say when the run went on past the last of them
+        when = f"t = {t_f:.4g}" + (f" (last fields written; the run reached t = {t_run:.4g})"
+                                   if t_run > t_f + 1e-9 * max(abs(t_run), 1.0) else "")
         m = _read_vtu(f_last)
         pts, tri = m.points[:, :2], m.cells_dict["triangle"]
         T = mtri.Triangulation(pts[:, 0], pts[:, 1], tri)
@@ -372,7 +401,7 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
             (np.abs(q[..., 1] - y0) < tol) | (np.abs(q[..., 1] - y1) < tol)  # noqa: E731
         body_edges = edges[~(on_box(edges[:, 0]) & on_box(edges[:, 1]))] if len(edges) else edges
 
-        fig, axes = plane(f"mesh at t = {t_f:.4g}: {len(pts)} vertices, {len(tri)} triangles")
+        fig, axes = plane(f"mesh at {when}: {len(pts)} vertices, {len(tri)} triangles")
         for ax in axes:
             ax.triplot(T, color="0.3", linewidth=0.2)
             draw_holes(ax, holes, body_edges)
@@ -380,7 +409,7 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
 
         vel = m.point_data["velocity"]
         speed = np.hypot(vel[:, 0], vel[:, 1])
-        fig, axes = plane(f"velocity magnitude and streamlines, t = {t_f:.4g}", colorbar=True)
+        fig, axes = plane(f"velocity magnitude and streamlines, {when}", colorbar=True)
         ui, vi = mtri.LinearTriInterpolator(T, vel[:, 0]), mtri.LinearTriInterpolator(T, vel[:, 1])
         for ax, (a, b, c, d) in zip(axes, views):
             tc = ax.tripcolor(T, speed, shading="gouraud", cmap="viridis", vmin=0.0, vmax=float(speed.max()) or 1.0)
@@ -396,8 +425,10 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
         figs["velocity"] = fig
 
         p = m.point_data["pressure"]
-        fig, axes = plane(f"pressure (dynamic), t = {t_f:.4g}", colorbar=True)
-        lim = float(np.abs(p).max()) or 1.0
+        lim, clipped = pressure_limit(p)
+        fig, axes = plane(f"pressure (dynamic), {when}" + (
+            f"; colours clipped at ±{lim:.3g}, the {PRESSURE_PERCENTILE:g}th percentile of |p| (max {clipped:.3g})"
+            if clipped else ""), colorbar=True)
         for ax in axes:
             tc = ax.tripcolor(T, p, shading="gouraud", cmap="RdBu_r", vmin=-lim, vmax=lim)
             draw_holes(ax, holes, body_edges)
@@ -422,12 +453,31 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
         figs["bodies"] = fig
     if moving:
         last = _outlines(bodies_series[-1][1]) if bodies_series else []
-        fig, axes = plane(f"trajectories of {len(ids)} body centres, t = {h['t'].min():.4g}..{h['t'].max():.4g}")
+        from matplotlib.collections import LineCollection
+        from matplotlib.colors import Normalize
+
+        t0, t1 = float(h["t"].min()), float(h["t"].max())
+        fig, axes = plane(f"trajectories of {len(ids)} body centres coloured by time, t = {t0:.4g}..{t1:.4g} "
+                          "(o start, ■ end)", colorbar=True)
+        norm = Normalize(t0, t1 if t1 > t0 else t0 + 1.0)
+        shown = ids[:: max(1, len(ids) // 200)]  # at most ~200 paths drawn
+        segs, times, starts, ends = [], [], [], []
+        for k in shown:
+            sel = h["id"] == k
+            xy = np.column_stack([h["x"][sel], h["y"][sel]])
+            segs.append(np.stack([xy[:-1], xy[1:]], axis=1))
+            times.append(0.5 * (h["t"][sel][:-1] + h["t"][sel][1:]))
+            starts.append(xy[0])
+            ends.append(xy[-1])
+        segs = np.concatenate(segs) if segs else np.zeros((0, 2, 2))
         for ax in axes:
-            for k in ids[:: max(1, len(ids) // 200)]:  # at most ~200 paths drawn
-                sel = h["id"] == k
-                ax.plot(h["x"][sel], h["y"][sel], linewidth=0.6 if len(ids) > 50 else 1.2)
+            lc = LineCollection(segs, cmap="viridis", norm=norm, linewidths=0.8 if len(ids) > 50 else 1.4)
+            lc.set_array(np.concatenate(times) if times else np.zeros(0))
+            ax.add_collection(lc)
+            ax.plot(*np.array(starts).T, "o", ms=2.5, mfc="none", mec="0.2", mew=0.6)
+            ax.plot(*np.array(ends).T, "s", ms=2.5, color="k")
             draw_outlines(ax, last, facecolor="none", edgecolor="k", linewidth=0.3)
+        fig.colorbar(lc, ax=axes, label=f"t [{u('time')}]", shrink=0.9)
         figs["trajectories"] = fig
 
     hist = _history_figure(plt, h, _mass_inertia(scene), _read_quality(out_dir), scene, u)

@@ -15,7 +15,7 @@ worker process with one BLAS thread.  A single simulation never spans processes.
   fields, ...); ``DIR/sweep.csv`` and ``DIR/sweep.json`` the table of every variant's values,
   status, wall time (build and run, in the worker) and the summary quantities its ``run.json``
   records (:meth:`fluidem.Simulation.summary`: steps, DOFs, triangles, final pose, velocity and
-  load of each body); ``DIR/sweep.png`` a plot of one quantity against wall time.
+  load of each body); ``DIR/sweep.png`` one quantity against the varied parameter and against wall time.
 * Resume: a variant whose directory holds a ``run.json`` with status ``complete`` for the same
   scene (or ``stopped`` at the sweep's ``n_steps``) is not run again (its row is read back); any
   other variant is run from scratch.  A directory that holds another scene's sweep (or a
@@ -496,10 +496,31 @@ def _write_json(path: Path, data: dict) -> Path:
     return path
 
 
+def _column_unit(column: str) -> str:
+    """The dimension of a sweep table column: a varied scene key's (``mesh.h`` -> ``length``), a body's history
+    quantity (``disk.vy`` -> ``length/time``), or "" where none applies."""
+    from .io import HISTORY_UNITS
+    from .scene.reference import KEY_DOCS
+
+    if column in KEY_DOCS:
+        unit = KEY_DOCS[column][1]
+        return "" if unit in ("—", "1") else unit
+    if column == "wall_s":
+        return "s"
+    tail = column.rsplit(".", 1)[-1]
+    return HISTORY_UNITS.get(tail, "") if "." in column and HISTORY_UNITS.get(tail) != "1" else ""
+
+
+def _labelled(column: str) -> str:
+    unit = _column_unit(column)
+    return f"{column} [{unit}]" if unit else column
+
+
 def plot_sweep(table: list, path, keys: list, quantity: str | None = None, reference: float | None = None) -> Path:
-    """``quantity`` against wall time, one line per combination of the varied keys but one, which
-    varies along each line (the first key with numeric values, else the first key); a relative
-    error on a log scale with ``reference``.
+    """``quantity`` against the varied parameter (left) and against the wall time of its variant (right:
+    what the accuracy costs), one line per combination of the varied keys but one, which varies along each
+    line (the first key with numeric values, else the first key, its values then in their order); a
+    relative error on a log scale with ``reference``.  Axes name the columns with their dimensions.
 
     Returns the PNG written.  Raises ``ImportError`` without matplotlib.
     """
@@ -517,30 +538,40 @@ def plot_sweep(table: list, path, keys: list, quantity: str | None = None, refer
     numeric = [k for k in keys if ok and all(isinstance(r[k], (int, float)) and not isinstance(r[k], bool) for r in ok)]
     if numeric:  # the first numeric key varies along each line
         keys = [numeric[0]] + [k for k in keys if k != numeric[0]]
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    order = {v: i for i, v in enumerate(dict.fromkeys(r[keys[0]] for r in ok))} if ok else {}
+    fig, (ax_p, ax_w) = plt.subplots(1, 2, figsize=(11.0, 4.4))
     groups: dict = {}
     for r in ok:
         groups.setdefault(tuple(r[k] for k in keys[1:]), []).append(r)
     for g, rs in groups.items():
-        x = [r["wall_s"] for r in rs]
         y = [r[quantity] for r in rs]
         if reference is not None:
             y = [abs(v - reference) / abs(reference) for v in y]
         label = ", ".join(f"{k} = {v}" for k, v in zip(keys[1:], g)) or quantity
-        ax.plot(x, y, "o-", label=label)
+        xp = [r[keys[0]] if numeric else order[r[keys[0]]] for r in rs]
+        line, = ax_p.plot(xp, y, "o-", label=label)
+        x = [r["wall_s"] for r in rs]
+        ax_w.plot(x, y, "o-", color=line.get_color(), label=label)
         for r, xi, yi in zip(rs, x, y):
-            ax.annotate(f"{keys[0]} = {r[keys[0]]}", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=7)
-    ax.set_xscale("log")
-    ax.set_xlabel("wall time per variant [s]")
-    if reference is not None:
-        ax.set_yscale("log")
-        ax.set_ylabel(f"relative error of {quantity} (reference {reference:.12g})")
-    else:
-        ax.set_ylabel(quantity)
-    ax.grid(True, which="both", alpha=0.3)
+            ax_w.annotate(f"{keys[0]} = {r[keys[0]]}", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    xs = [r[keys[0]] for r in ok]
+    if numeric and xs and min(xs) > 0 and max(xs) >= 4 * min(xs):
+        ax_p.set_xscale("log")
+    if not numeric and order:
+        ax_p.set_xticks(range(len(order)), [str(v) for v in order])
+    ax_p.set_xlabel(_labelled(keys[0]))
+    ax_w.set_xscale("log")
+    ax_w.set_xlabel("wall time per variant [s]")
+    for ax in (ax_p, ax_w):
+        if reference is not None:
+            ax.set_yscale("log")
+            ax.set_ylabel(f"relative error of {quantity} (reference {reference:.12g})")
+        else:
+            ax.set_ylabel(_labelled(quantity))
+        ax.grid(True, which="both", alpha=0.3)
     if groups:
-        ax.legend(fontsize=8)
-    ax.set_title(f"sweep over {', '.join(keys)}", fontsize=10)
+        ax_p.legend(fontsize=8)
+    fig.suptitle(f"sweep over {', '.join(keys)}: {quantity} against {keys[0]} and against the cost", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

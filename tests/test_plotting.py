@@ -66,6 +66,39 @@ def test_fixed_body_in_a_long_channel(channel_run):
         plt.close(f)
 
 
+def test_the_pressure_colours_follow_the_field_not_its_spikes_and_the_title_says_so(channel_run):
+    """The colour limits are ± the 99th percentile of |p| when a few nodes exceed it by more than 5 % (the
+    spikes next to touching bodies), and the title says where the colours are clipped."""
+    from fluidem.io import read_fields
+    from fluidem.plotting import PRESSURE_PERCENTILE, pressure_limit
+
+    fig = figures(channel_run)["pressure"]
+    tc = fig.axes[0].collections[0]
+    p = read_fields(channel_run, full=False).point_data["pressure"]  # the series the figures draw
+    lim, top = pressure_limit(p)
+    assert tc.get_clim() == pytest.approx((-lim, lim))
+    assert lim == pytest.approx(max(np.percentile(np.abs(p), PRESSURE_PERCENTILE), 0) if top else np.abs(p).max())
+    assert ("colours clipped" in fig.axes[0].get_title()) == (top is not None)
+
+
+def test_field_titles_say_when_the_run_went_on_past_the_last_fields(tmp_path):
+    """Fields are written every output.every steps: a run whose last fields are older than its last history row
+    (stopped, or fields dropped) says both times, not the fields' alone."""
+    s = example_scene("dfg-cylinder")
+    s.fluid.model = "stokes"
+    s.mesh.h, s.mesh.grading = 0.04, None
+    s.time.dt, s.time.t_end, s.output.every = 0.5, 1.5, 2
+    s.domain.inflow_profile["ramp"] = 0.0
+    s.validate()
+    fluidem.Simulation(s).run(out_dir=tmp_path)
+    assert figures(tmp_path)["mesh"].axes[0].get_title().startswith("mesh at t = 1.5: ")
+    pvd = tmp_path / "fields.pvd"  # as if the fields of the last step had not been written
+    pvd.write_text("".join(ln for ln in pvd.read_text().splitlines(True) if 'step="3"' not in ln))
+    figs = figures(tmp_path)
+    for name in ("mesh", "velocity", "pressure"):
+        assert "t = 1 (last fields written; the run reached t = 1.5)" in figs[name].axes[0].get_title(), name
+
+
 def test_field_figures_draw_the_holes_of_the_field_mesh(channel_run):
     """The body drawn in a field figure is the hole of that step's mesh (same instant as the field)."""
     import meshio
@@ -97,6 +130,25 @@ def test_moving_bodies_dry(tmp_path):
     m = sum(b.density * fluidem.geometry.polygon_area(b.local_vertices(32)) for b in s.bodies)
     assert e[-1] == pytest.approx(0.5 * m * (10 * t[-1]) ** 2, rel=1e-6)  # symplectic Euler: exact velocities
     assert sorted(p.name for p in plot_run(tmp_path)) == ["bodies.png", "history.png", "trajectories.png"]
+
+
+def test_trajectories_are_coloured_by_time_with_start_and_end_marked(tmp_path):
+    """40 paths of one colour each could not be told apart: the segments carry their mid-step time on one
+    colour scale (labelled t), every path has a start (o) and an end (■) marker."""
+    from matplotlib.collections import LineCollection
+
+    s = fluidem.Scene.from_dict({"gravity": [0, -10], "domain": {"box": [0, 1, 0, 1]},
+                                 "bodies": [{"shape": "disk", "radius": 0.04, "position": [0.15 + 0.1 * k, 0.5]}
+                                            for k in range(8)],
+                                 "time": {"dt": 0.01, "t_end": 0.1}})
+    fluidem.Simulation(s).run(out_dir=tmp_path)
+    fig = figures(tmp_path)["trajectories"]
+    ax = fig.axes[0]
+    lc = [c for c in ax.collections if isinstance(c, LineCollection)][0]
+    t = lc.get_array()
+    assert len(lc.get_segments()) == 8 * 10 and t.min() == pytest.approx(0.005) and t.max() == pytest.approx(0.095)
+    assert [len(line.get_xdata()) for line in ax.lines] == [8, 8]  # the starts and the ends
+    assert any(c.get_ylabel() == "t [time]" for c in fig.axes if c.get_label() == "<colorbar>")
 
 
 def test_view_windows_split_and_crop():

@@ -115,3 +115,27 @@ def test_a_variant_counts_as_finished_only_when_complete_for_the_same_scene(tmp_
     row = _finished(tmp_path / "v", sc, n_steps=1)  # a sweep with --steps 1 keeps it
     assert row["status"] == "complete" and row["summary"]["steps"] == 1
     assert _finished(tmp_path / "v", other, n_steps=1) is None  # another scene's run
+
+
+def test_the_sweep_plot_puts_the_quantity_against_the_varied_parameter_with_units(tmp_path, monkeypatch):
+    """sweep.png drew the quantity against wall time only and named columns without units: the left panel
+    now has it against the varied parameter (each line one value of the other keys), the right against the
+    cost; both axes carry the columns' dimensions."""
+    pytest.importorskip("matplotlib")
+    from matplotlib.figure import Figure
+
+    from fluidem.sweep import plot_sweep
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    table = [{"mesh.h": h, "fluid.element": e, "status": "complete", "wall_s": w, "cylinder.fx": fx}
+             for h, e, w, fx in [(0.1, "th", 1.0, 5.1), (0.05, "th", 4.0, 5.5), (0.1, "p2b", 1.5, 5.4),
+                                 (0.05, "p2b", 6.0, 5.57)]]
+    plot_sweep(table, tmp_path / "sweep.png", ["fluid.element", "mesh.h"], "cylinder.fx")
+    left, right = drawn[0].axes
+    assert left.get_xlabel() == "mesh.h [length]" and left.get_ylabel() == "cylinder.fx [force/depth]"
+    assert [list(line.get_xdata()) for line in left.lines] == [[0.1, 0.05], [0.1, 0.05]]
+    assert [list(line.get_ydata()) for line in left.lines] == [[5.1, 5.5], [5.4, 5.57]]
+    assert [t.get_text() for t in left.get_legend().get_texts()] == ["fluid.element = th", "fluid.element = p2b"]
+    assert right.get_xlabel() == "wall time per variant [s]"
+    assert [list(line.get_xdata()) for line in right.lines] == [[1.0, 4.0], [1.5, 6.0]]

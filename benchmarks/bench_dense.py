@@ -1,0 +1,156 @@
+"""Cost of a settling, piling suspension: the contacts' share of a step, per body and per step.
+
+Polygons (disks, rectangles, triangles, hexagons; equal-area radius 0.025–0.04; ρ_s/ρ_f = 2,
+ν = 0.01, g = 9.81) drawn by :func:`fluidem.scene.fill` at an area fraction of 0.35 in the lower
+part of a closed box, so that they touch the floor and each other within the first steps;
+Navier–Stokes, P2+bubble/P1dc, the contact law of the dense repro scenes (``E = 1e4``, μ = 0.3,
+γ = 0.3) with the default lubrication and repulsion, h = 0.012 (about a third of the mean radius),
+dt = 0.01.  Each case runs in its own process (peak memory), one BLAS thread; per step: wall
+seconds, the DEM's share (``dem`` of :class:`fluidem.cost.CostSplit`: the contact sub-steps of
+:class:`fluidem.coupling.contacts.FluidContacts`), DEM sub-steps and passes, re-triangulations.
+Medians over the steps after the first.
+
+Target (issue "Hundreds of bodies in fluid"): the DEM's share of a dense step ≤ 25 %.
+
+Run (tens of minutes)::
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py [--before PATH] [N ...]
+
+writes ``benchmarks/results/dense.{md,json}``.  ``--before PATH`` also runs every case, side by side,
+with the fluidem package found at ``PATH`` (a checkout of an earlier version; keys it does not know
+are left out of its scene).  ``python benchmarks/bench_dense.py --scene N FILE.toml`` writes the scene
+of ``N`` bodies.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+from results_io import RESULTS, machine_description, write_json  # noqa: E402
+
+CASES = {10: 60, 40: 40, 100: 20}  # bodies: steps
+#: scene keys of this version an earlier one may not know (left out of the scene ``--before`` runs)
+NEW_KEYS = ("zero_net_flux", "rheology_window")
+H, DT = 0.012, 0.01
+
+
+def scene_dict(n: int, steps: int) -> dict:
+    """``n`` polygons at area fraction 0.35 in the lower part of a closed box (width ∝ √n)."""
+    from fluidem.scene.fill import fill
+
+    mean_area = np.pi * 0.0325**2
+    width = float(np.sqrt(n * mean_area / 0.35 / 0.8))  # the bed region is 0.8 as tall as wide
+    region = (0.0, width, 0.0, 0.8 * width)
+    p = fill(region, n=n, shapes=("disk", "rectangle", "triangle", "hexagon"), radius=(0.025, 0.04), seed=2,
+             min_gap=0.004)
+    bodies = [dict(b, density=2.0) for b in p.bodies]
+    return {"name": f"dense-{n}", "gravity": [0.0, -9.81],
+            "fluid": {"density": 1.0, "viscosity": 0.01, "element": "p2b"},
+            "domain": {"box": [0.0, width, 0.0, 1.3 * width]}, "bodies": bodies,
+            "contact": {"E": 1e4, "mu": 0.3, "gamma": 0.3}, "mesh": {"h": H},
+            "time": {"dt": DT, "t_end": steps * DT}, "output": {"every": 100000, "fields": False}}
+
+
+def run_case(path: str, steps: int) -> dict:
+    """Run a scene file ``steps`` steps without output; per-step costs and counts."""
+    import warnings
+
+    from fluidem.scene import Scene
+    from fluidem.simulation import Simulation
+
+    warnings.simplefilter("ignore")
+    sim = Simulation(Scene.from_toml(path))
+    rows = []
+
+    def record(k, n, t, cost):
+        rows.append({"wall": cost.total, "dem": cost.parts.get("dem", 0.0), "solve": cost.parts.get("solve", 0.0),
+                     "rebuild": cost.parts.get("rebuild", 0.0), "mesh": cost.parts.get("mesh", 0.0),
+                     "substeps": cost.counts.get("dem_substeps", 0), "passes": cost.counts.get("dem_passes", 0),
+                     "retriangulated": int(bool(getattr(sim.flow.last_event, "retriangulated", False)))})
+
+    t0 = time.perf_counter()
+    error = None
+    try:
+        sim.run(out_dir=None, progress=record, n_steps=steps)
+    except Exception as exc:  # a stopped run is a result too
+        error = str(exc).splitlines()[0][:300]
+    return {"rows": rows, "seconds": time.perf_counter() - t0, "dofs": int(sim.flow.dofs), "error": error,
+            "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}
+
+
+def summary(n: int, out: dict) -> dict:
+    r = out["rows"][1:] or out["rows"]
+    col = {k: np.array([x[k] for x in r], float) for k in r[0]} if r else {}
+    contact = col["passes"] > 0 if r else np.zeros(0, bool)
+    share = col["dem"] / np.maximum(col["wall"], 1e-300) if r else np.zeros(0)
+    return {"bodies": n, "steps": len(out["rows"]), "dofs": out["dofs"], "error": out["error"],
+            "s_per_step": float(np.median(col["wall"])) if r else None,
+            "dem_share_median": float(np.median(share)) if r else None,
+            "dem_share_total": float(col["dem"].sum() / col["wall"].sum()) if r else None,
+            "contact_steps": int(contact.sum()),
+            "substeps_per_pass": float(col["substeps"][contact].sum() / max(col["passes"][contact].sum(), 1)),
+            "passes_per_contact_step": float(np.median(col["passes"][contact])) if contact.any() else 0.0,
+            "retriangulations_per_100": 100.0 * col["retriangulated"].sum() / max(len(r), 1) if r else None,
+            "s_per_step_per_body": float(np.median(col["wall"])) / n if r else None,
+            "peak_mib": out["peak_mib"], "seconds": out["seconds"]}
+
+
+def main(argv: list[str]) -> None:
+    if argv[:1] == ["--scene"]:
+        from fluidem.scene import Scene
+
+        n = int(argv[1])
+        Scene.from_dict(scene_dict(n, CASES.get(n, 30))).to_toml(argv[2])
+        return
+    if argv[:1] == ["--case"]:
+        print(json.dumps(run_case(argv[1], int(argv[2]))))
+        return
+    before = None
+    if argv[:1] == ["--before"]:
+        before, argv = argv[1], argv[2:]
+    cases = {int(a): CASES.get(int(a), 30) for a in argv} or CASES
+    rows = []
+    for n, steps in cases.items():
+        path = RESULTS / f"dense-{n}.toml"
+        RESULTS.mkdir(exist_ok=True)
+        main(["--scene", str(n), str(path)])
+        versions = [("this version", None)]
+        if before is not None:
+            old = RESULTS / f"dense-{n}-before.toml"
+            old.write_text("".join(ln for ln in path.read_text().splitlines(True) if not ln.startswith(NEW_KEYS)))
+            versions.insert(0, ("before", old))
+        for version, scene in versions:
+            env = dict(os.environ, **({"PYTHONPATH": before} if scene is not None else {}))
+            out = subprocess.run([sys.executable, __file__, "--case", str(scene or path), str(steps)],
+                                 capture_output=True, text=True, check=True, env=env)
+            rows.append(dict(summary(n, json.loads(out.stdout.strip().splitlines()[-1])), version=version))
+            print(rows[-1], flush=True)
+            if scene is not None:
+                scene.unlink()
+        path.unlink()
+    machine = machine_description()
+    write_json("dense", machine, rows)
+    lines = ["# Settling suspensions: cost per step and the contacts' share", "",
+             f"Machine: {machine}; one BLAS thread; h = {H}, dt = {DT}; medians over the steps after the first; "
+             "versions side by side, one after the other, in one session.", "",
+             "| bodies | version | DOFs | steps | s/step | s/step/body | DEM share (median, total) "
+             "| DEM sub-steps/pass | passes/contact step | re-triangulations/100 steps | peak MiB | stopped |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['bodies']} | {r['version']} | {r['dofs']} | {r['steps']} | {r['s_per_step']:.3g} | "
+                     f"{r['s_per_step_per_body']:.3g} | {r['dem_share_median']:.1%}, {r['dem_share_total']:.1%} | "
+                     f"{r['substeps_per_pass']:.1f} | {r['passes_per_contact_step']:.0f} | "
+                     f"{r['retriangulations_per_100']:.0f} | {r['peak_mib']:.0f} | {r['error'] or ''} |")
+    (RESULTS / "dense.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
