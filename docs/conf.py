@@ -59,24 +59,25 @@ if _RESULTS.exists():
     shutil.rmtree(_RESULTS)
 _RESULTS.mkdir()
 for _src in sorted((ROOT / "benchmarks" / "results").glob("*.md")):
-    _first = _src.read_text().splitlines()[0]
-    _title = _first[2:] if _first.startswith("# ") else _src.stem
+    _lines = _src.read_text().splitlines()
+    _titled = _lines[0].startswith("# ")
+    _title = _lines[0][2:] if _titled else _src.stem
+    # a table whose sections start at ### gets a ## above them (headings go down one level at a time)
+    _levels = [len(s) - len(s.lstrip("#")) for s in _lines[int(_titled):] if s.startswith("#")]
+    _bridge = "## Tables\n\n" if _levels and min(_levels) == 3 else ""
     (_RESULTS / _src.name).write_text(
-        f"# {_title}\n\n`benchmarks/results/{_src.name}`, as the benchmark wrote it.\n\n"
+        f"# {_title}\n\n`benchmarks/results/{_src.name}`, as the benchmark wrote it.\n\n{_bridge}"
         f"```{{include}} ../../benchmarks/results/{_src.name}\n:relative-images:\n"
-        + (":start-line: 1\n" if _first.startswith("# ") else "") + "```\n")
+        + (":start-line: 1\n" if _titled else "") + "```\n")
 
 nb_execution_mode = "off"  # render the stored outputs; tests/test_notebooks.py runs the scripts
 nb_merge_streams = True
 
 # --- Markdown ---------------------------------------------------------------------------------
 source_suffix = {".md": "myst-nb", ".ipynb": "myst-nb"}
-myst_enable_extensions = ["dollarmath", "colon_fence", "deflist"]
+myst_enable_extensions = ["colon_fence"]
 myst_heading_anchors = 3
-exclude_patterns = ["_build", "README.md", "**/.ipynb_checkpoints"]
-# docs/scenes.md is written by `fluidem reference`; its section titles repeat per table
-# ("### [fluid]" after "## Tables and keys") and some pages skip a heading level on purpose
-suppress_warnings = ["myst.header"]
+exclude_patterns = ["_build", "**/.ipynb_checkpoints"]
 
 # --- API reference ----------------------------------------------------------------------------
 autodoc_default_options = {"members": True, "show-inheritance": True}
