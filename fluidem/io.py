@@ -481,6 +481,8 @@ def _points3(p2):
 class OutputWriter:
     """Writes one run's output directory (see the module docstring for the layout).
 
+    Call :meth:`close` at the end (the history and the event log stay open in between).
+
     Parameters
     ----------
     out_dir : str or Path
@@ -490,8 +492,6 @@ class OutputWriter:
     restart_step : int or None
         When continuing from a checkpoint at this step: rows, series entries and events
         after it are dropped so the continued run appends to a consistent record.
-
-    Call :meth:`close` at the end (the history and the event log stay open in between).
     """
 
     def __init__(self, out_dir: PathLike, restart_step: int | None = None):

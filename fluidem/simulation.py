@@ -931,6 +931,9 @@ class RunWarning(UserWarning):
 class RunStopped(FluidemError):
     """A run stopped before its end: interrupted (SIGINT/SIGTERM) or a step failed.
 
+    The :class:`Simulation` itself is left where it stopped (after a failed step: in the bad
+    state); continue with a new one, ``Simulation(scene).run(out_dir, restart=True)``.
+
     Attributes
     ----------
     status : {"interrupted", "failed"}
@@ -938,9 +941,6 @@ class RunStopped(FluidemError):
         130 (SIGINT), 143 (SIGTERM) or 3 (a failed step): the command line's exit status.
     checkpoint : Path or None
         The checkpoint of the last good step.
-
-    The :class:`Simulation` itself is left where it stopped (after a failed step: in the bad
-    state); continue with a new one, ``Simulation(scene).run(out_dir, restart=True)``.
     """
 
     def __init__(self, message, status="failed", exit_status=3, checkpoint=None):

@@ -1,4 +1,5 @@
-"""The README's Python examples run and print what they say; the install it describes ships what it should."""
+"""The README's and the user guide's Python examples run and print what they say; the README's commands are
+the ones CI runs; the install it describes ships what it should."""
 
 import pathlib
 import re
@@ -6,6 +7,7 @@ import re
 import pytest
 
 README = pathlib.Path(__file__).resolve().parents[1] / "README.md"
+DOCS = README.parent / "docs"
 
 
 def test_readme_python_example(capsys):
@@ -18,17 +20,42 @@ def test_readme_python_example(capsys):
     assert cd == pytest.approx(5.57953523384, rel=3e-5)  # level-1 P3 error measured 1.15e-5
 
 
-def test_readme_other_python_examples_run(tmp_path, monkeypatch):
-    """Every other Python block of the README runs (those reading a user's scene file excepted)."""
+GUIDE = ["running.md", "dem.md", "moving-mesh.md", "free-bodies.md"]  # the pages that took the README's examples
+
+
+def test_guide_python_examples_run(tmp_path, monkeypatch):
+    """Every Python block of the user guide pages runs (those reading a user's scene file excepted)."""
     monkeypatch.chdir(tmp_path)
-    blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)[1:]
     ran = 0
-    for code in blocks:
-        if "my_scene.toml" in code:
-            continue
-        exec(compile(code, "README.md", "exec"), {})
-        ran += 1
-    assert ran >= 2
+    for page in GUIDE:
+        for code in re.findall(r"```python\n(.*?)```", (DOCS / page).read_text(), flags=re.S):
+            if "my_scene.toml" in code:
+                continue
+            exec(compile(code, f"docs/{page}", "exec"), {})
+            ran += 1
+    assert ran >= 3
+
+
+def test_readme_commands_are_the_ones_ci_runs():
+    """The README's test command is what .ci/run installs and runs; the install command runs the bench."""
+    text = README.read_text()
+    blocks = re.findall(r"```bash\n(.*?)```", text, flags=re.S)
+    assert "pip install . && fluidem bench settling-disk" in blocks[0]
+    assert 'pip install -e ".[test]" && python -m pytest -n 2' in blocks[1]
+    ci = (README.parent / ".ci" / "run").read_text()
+    assert 'pip install --quiet -e ".[test]"' in ci and "python -m pytest -n 2 " in ci
+    assert "python -m sphinx -W" in ci  # the documentation site is built with warnings as errors
+
+
+def test_every_figure_is_on_a_documentation_page():
+    """The README's figure exists, and each figure of benchmarks/results and docs/images is shown on a page."""
+    shown = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", README.read_text())
+    assert shown and all((README.parent / p).is_file() for p in shown)
+    pages = [*DOCS.glob("*.md"), *DOCS.glob("examples/*.md")]
+    images = {(page.parent / p).resolve() for page in pages
+              for p in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", page.read_text())}
+    figures = [*(README.parent / "benchmarks" / "results").glob("*.png"), *(DOCS / "images").glob("*.png")]
+    assert figures and not [f.name for f in figures if f.resolve() not in images]
 
 
 def test_cli_bench_json_last_line(capsys):
