@@ -1,0 +1,481 @@
+r"""Numerical health of a run: conditioning, Krylov effort, interpolation noise, mesh oscillation.
+
+Everything here is read from what the run computes anyway; nothing dense is ever formed.
+
+* **Condition estimate** of every LU the solvers compute (fresh, lagged, inside the automatic
+  choice, of the fluid or of the coupled fluid–body system): the 1-norm condition number
+
+  .. math::
+
+      \kappa_1(K) = \|K\|_1 \, \|K^{-1}\|_1 ,
+
+  with ``‖K‖₁`` the largest column sum of ``|K|`` (exact, from the sparse matrix) and ``‖K⁻¹‖₁``
+  by the block 1-norm estimator of Higham & Tisseur (2000), the block form of Hager (1984) and
+  Higham (1988) (:func:`scipy.sparse.linalg.onenormest`), applied to the factors the solver
+  already holds: a handful of solves with ``K`` and ``Kᵀ`` (:meth:`DirectSolver.inverse_operator`).
+  The estimate is a lower bound of ``‖K⁻¹‖₁``, usually exact and rarely low by more than a factor
+  3 (Higham & Tisseur 2000, Sec. 4); measured here: equal to ``numpy.linalg.cond(K, 1)`` to 1e-12
+  on the test matrices (``tests/test_diagnostics.py``).  It is computed only when an LU is
+  computed, so its cost is a fraction of the factorisation's (below).
+* **Krylov effort**: the iterations and the true relative residual of every solve.
+* **Interpolation noise**: the relative L2 change of u a field transfer makes at a
+  re-triangulation (:func:`fluidem.coupling.moving_flow.transfer_change`, paper Sec. 3.3, Fig. 5),
+  per re-triangulation and accumulated.
+* **Oscillation of the mesh relaxation**: nodes whose relaxation move reversed the previous one
+  three steps in a row (:class:`fluidem.mesh.quality.OscillationDetector`; paper Sec. 3.3); the
+  relaxation halves their step.  Reported as how many, which share of the nodes, and the largest
+  swing as a fraction of the node's target size ``h``; a swing ``s h`` every step is a spurious
+  mesh velocity ``s h / Δt`` in the ALE convection ``(u − w)·∇u``.
+
+:class:`RunDiagnostics` gathers these into one :class:`StepHealth` per step, a short text for the
+``--verbose`` line, a ``diagnostics`` section of ``run.json`` (extremes, where they happened and a
+decimated series) and warnings when a threshold below is crossed, each naming the likely mechanism
+and its remedy.
+
+Cost: one estimate takes ``2 t`` solves per iteration of the estimator (``t = 2`` columns, 2-5
+iterations), against a factorisation that costs 40-60 solves (``fluidem.fluid.solvers.lagged``);
+measured in ``benchmarks/bench_diagnostics.py``.
+
+Examples
+--------
+>>> import numpy as np, scipy.sparse as sp
+>>> from fluidem.fluid.solvers import DirectSolver
+>>> K = sp.csr_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]]))
+>>> s = DirectSolver().factorize(K)
+>>> est = condition_estimate(K, s.inverse_operator())
+>>> bool(abs(est / np.linalg.cond(K.toarray(), 1) - 1) < 1e-12)
+True
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+__all__ = ["condition_estimate", "lu_condition", "oscillation_text", "StepHealth", "RunDiagnostics",
+           "CONDITION_GROWTH", "KRYLOV_RISE", "KRYLOV_MIN_ITERATIONS", "KRYLOV_WINDOW", "NOISE_WINDOW",
+           "NOISE_BOUND", "SERIES_POINTS"]
+
+#: Warn when the condition estimate has grown by this factor since the run's first factorisation.
+#: The viscous block of a mesh with smallest element size h_min has κ ∝ h_min⁻² (κ of the whole
+#: saddle-point matrix grows at least as fast), so 1e3 is a smallest element about 30 times smaller
+#: than at the start: a near-contact gap meshed by a few tiny elements, or a pocket of fluid closed by
+#: touching bodies, whose volume cannot change while they move (paper Sec. 3 and 5).
+CONDITION_GROWTH = 1e3
+
+#: Warn when the mean Krylov iterations per solve over the last :data:`KRYLOV_WINDOW` steps exceeds
+#: this factor times their mean over the first such window.  Consecutive matrices of a run differ a
+#: little, so a preconditioner (a lagged LU, an AMG hierarchy with a Schur approximation) that
+#: needed n iterations at the start needs about n later (the lagged LU refactorises above 25; the
+#: block preconditioner took 40-50 from 10k to 500k DOFs, ``fluidem.fluid.solvers.choose``); a
+#: threefold rise says the matrices moved away from what it models.
+KRYLOV_RISE = 3.0
+#: ... and only when that mean is at least this many iterations (a rise from 1 to 3 is no sign).
+KRYLOV_MIN_ITERATIONS = 10.0
+#: Steps of the windows of :data:`KRYLOV_RISE`.
+KRYLOV_WINDOW = 10
+
+#: Warn when the interpolation noise of the last :data:`NOISE_WINDOW` re-triangulations sums above
+#: this (relative L2 change of u).  Between re-triangulations the fields are not interpolated (ALE),
+#: so the transfers are the only source of this error; 5 % over 20 transfers (0.25 % each on average)
+#: is as large as the discretisation error of the coarse meshes the examples use, and the viscous
+#: decay between transfers no longer removes it.
+NOISE_BOUND = 0.05
+#: Re-triangulations summed for :data:`NOISE_BOUND`.
+NOISE_WINDOW = 20
+
+#: Points of each series kept in ``run.json`` (every step up to 2x this, then every 2nd, 4th ... step).
+SERIES_POINTS = 200
+
+
+_SEED = 20001201  # any fixed seed: the estimate of a matrix is the same in every run
+
+
+def condition_estimate(K, inverse, t: int = 2) -> float:
+    """Estimate of the 1-norm condition number ``κ₁(K) = ‖K‖₁ ‖K⁻¹‖₁`` from a solver's factors.
+
+    Parameters
+    ----------
+    K : (n, n) sparse matrix
+        The matrix factorised.
+    inverse : LinearOperator, shape (n, n)
+        ``v ↦ K⁻¹ v`` with ``rmatvec`` ``v ↦ K⁻ᵀ v`` (:meth:`DirectSolver.inverse_operator`).
+    t : int
+        Columns of the block estimator (Higham & Tisseur 2000); 2 is scipy's default.
+
+    Returns
+    -------
+    float
+        ``‖K‖₁ · est ‖K⁻¹‖₁``, dimensionless (in the units of K's rows and columns); the estimate
+        is a lower bound of the true value, usually equal to it.  For ``n ≤ 4`` the norm of the
+        inverse is computed exactly (scipy does so below ``4 t`` columns).
+    """
+    from scipy.sparse.linalg import onenormest
+
+    norm_k = float(abs(K).sum(axis=0).max())
+    # scipy draws the random ±1 start columns from numpy's global generator: seed it for a
+    # reproducible estimate and give the run its generator back as it was
+    state = np.random.get_state()
+    np.random.seed(_SEED)
+    try:
+        return norm_k * float(onenormest(inverse, t=t))
+    finally:
+        np.random.set_state(state)
+
+
+def lu_condition(solver) -> float | None:
+    """:func:`condition_estimate` of the LU a :class:`~fluidem.fluid.solvers.DirectSolver` holds, or
+    None when it holds none or cannot solve with the transpose (PARDISO)."""
+    if getattr(solver, "_lu", None) is None or getattr(solver, "K", None) is None:
+        return None
+    inv = solver.inverse_operator()
+    return None if inv is None else condition_estimate(solver.K, inv)
+
+
+def oscillation_text(n: int, n_nodes: int, swing: float | None) -> str:
+    """What the oscillation count means, in one line (for ``events.log``).
+
+    >>> oscillation_text(3, 1200, 0.004)
+    '3 of 1200 mesh nodes (0.25 %) flip back and forth between two positions in the relaxation (3 steps in a row; largest swing 0.4 % of the local mesh size h a step); their relaxation step is halved'
+    """
+    share = 100.0 * n / max(n_nodes, 1)
+    s = (f"{n} of {n_nodes} mesh nodes ({share:.2g} %) flip back and forth between two positions in the relaxation "
+         "(3 steps in a row")
+    if swing is not None:
+        s += f"; largest swing {100 * swing:.2g} % of the local mesh size h a step"
+    return s + "); their relaxation step is halved"
+
+
+@dataclass
+class StepHealth:
+    """The numerical health of one step.
+
+    Attributes
+    ----------
+    step : int
+    t : float
+        Time.
+    factorizations : int
+        LU factorisations in the step.
+    condition : float or None
+        Largest condition estimate ``κ₁`` of the LUs of the step (None: no LU this step).
+    growth : float or None
+        ``condition`` over the run's first estimate.
+    solves : int
+        Linear solves in the step (direct and Krylov).
+    iterations : int
+        Most Krylov iterations of one solve in the step (0: direct solves only).
+    krylov_iterations : int
+        Krylov iterations summed over the step's solves.
+    residual : float or None
+        Largest true relative residual ``‖b − K x‖₂ / ‖b‖₂`` of the step's solves.
+    noise : float or None
+        Interpolation noise of this step's re-triangulation (None: none).
+    oscillating : int
+        Nodes oscillating in the relaxation this step.
+    oscillating_share : float
+        ``oscillating`` over the mesh nodes.
+    swing : float or None
+        Largest relaxation move of an oscillating node over its target size h.
+    """
+
+    step: int
+    t: float
+    factorizations: int = 0
+    condition: float | None = None
+    growth: float | None = None
+    solves: int = 0
+    iterations: int = 0
+    krylov_iterations: int = 0
+    residual: float | None = None
+    noise: float | None = None
+    oscillating: int = 0
+    oscillating_share: float = 0.0
+    swing: float | None = None
+
+    def text(self) -> str:
+        """The compact health part of a ``--verbose`` line: ``cond1 <κ> (x<growth>)`` at an LU,
+        ``noise <n> %`` at a re-triangulation, ``osc <k> nodes`` when nodes oscillate; ``""`` if none."""
+        parts = []
+        if self.condition is not None:
+            parts.append(f"cond1 {self.condition:.2e}" + (f" (x{self.growth:.3g})" if self.growth is not None else ""))
+        if self.noise is not None:
+            parts.append(f"noise {100 * self.noise:.2g} %")
+        if self.oscillating:
+            parts.append(f"osc {self.oscillating} nodes")
+        return "  ".join(parts)
+
+
+class RunDiagnostics:
+    """Gathers one :class:`StepHealth` per step and the run's extremes (module docstring).
+
+    Usage: wrap the flow step in :meth:`watching` (the solvers report each LU and each solve to
+    it), then call :meth:`finish_step` with the step's mesh event; :meth:`record` is the
+    ``diagnostics`` section of ``run.json``.
+
+    Parameters
+    ----------
+    enabled : bool
+        False: nothing is estimated or recorded.
+
+    Attributes
+    ----------
+    last : StepHealth or None
+        The last finished step.
+    first_condition : float or None
+        The run's first condition estimate (the reference of ``growth``).
+    seconds : float
+        Wall seconds spent on the estimates.
+    warnings : list of str
+        Warnings issued so far (each mechanism once a run).
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.sparse as sp
+    >>> from fluidem.fluid.solvers import DirectSolver
+    >>> d = RunDiagnostics()
+    >>> K = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(20, 20)).tocsr()
+    >>> with d.watching():
+    ...     x = DirectSolver().factorize(K).solve(np.ones(20))
+    >>> h = d.finish_step(1, 0.1)
+    >>> round(h.condition), h.solves, h.iterations     # κ₁ = ‖K‖₁ max_j j(n+1−j)/2 = 4 · 55
+    (220, 1, 0)
+    """
+
+    def __init__(self, enabled: bool = True):
+        self.enabled = bool(enabled)
+        self.last: StepHealth | None = None
+        self.first_condition: float | None = None
+        self.seconds = 0.0
+        self.warnings: list[str] = []
+        self._warned: set = set()
+        self._conditions: list[float] = []
+        self._infos: list = []
+        self._steps = 0
+        self._stride = 1
+        self._series: dict[str, list] = {k: [] for k in ("step", "condition", "iterations", "residual", "noise",
+                                                         "oscillating")}
+        self._ext: dict[str, tuple] = {}
+        self._noise: list[float] = []
+        self._iter_per_step: list[float] = []
+        self._counts = {"factorizations": 0, "estimates": 0, "solves": 0, "krylov_solves": 0,
+                        "krylov_iterations": 0, "retriangulations": 0, "oscillation_steps": 0}
+
+    # -- the solvers' reports ------------------------------------------------------------------
+    def factorized(self, solver) -> None:
+        """An LU was just computed by ``solver`` (a DirectSolver): estimate its condition."""
+        t0 = time.perf_counter()
+        try:
+            c = lu_condition(solver)
+        except Exception:  # an estimate must never stop a run (a singular LU raises in its solve)
+            c = None
+        self._counts["factorizations"] += 1
+        if c is not None and np.isfinite(c):
+            self._conditions.append(c)
+        self.seconds += time.perf_counter() - t0
+
+    def solved(self, info) -> None:
+        """A solve finished (its :class:`~fluidem.fluid.solvers.SolveInfo`)."""
+        self._infos.append(info)
+
+    def watching(self):
+        """Context manager: the solvers of this thread report to this object inside it."""
+        from contextlib import contextmanager
+
+        from .fluid.solvers.results import add_observer, remove_observer
+
+        @contextmanager
+        def cm():
+            if not self.enabled:
+                yield self
+                return
+            add_observer(self)
+            try:
+                yield self
+            finally:
+                remove_observer(self)
+
+        return cm()
+
+    # -- per step ----------------------------------------------------------------------------
+    def finish_step(self, step: int, t: float, event=None, mesh=None) -> StepHealth:
+        """Close the step: its :class:`StepHealth` from what the solvers reported and the mesh event.
+
+        Parameters
+        ----------
+        step : int
+        t : float
+            Time.
+        event : MeshEvent, optional
+            The moving mesh's event of the step (``retriangulated``, ``transfer_change``,
+            ``oscillating``).
+        mesh : MovingMesh, optional
+            For the node count and the swing of the oscillating nodes.
+        """
+        h = StepHealth(step=int(step), t=float(t))
+        infos, self._infos = self._infos, []
+        conds, self._conditions = self._conditions, []
+        h.factorizations, self._counts["factorizations"] = self._counts["factorizations"], 0
+        if conds:
+            h.condition = max(conds)
+            if self.first_condition is None:
+                self.first_condition = conds[0]
+            h.growth = h.condition / self.first_condition
+        h.solves = len(infos)
+        its = [int(i.iterations) for i in infos]
+        h.iterations = max(its, default=0)
+        h.krylov_iterations = sum(its)
+        res = [float(i.relative_residual) for i in infos if np.isfinite(i.relative_residual)]
+        h.residual = max(res) if res else None
+        if event is not None:
+            if getattr(event, "retriangulated", False) and getattr(event, "transfer_change", None) is not None:
+                h.noise = float(event.transfer_change)
+            osc = np.asarray(getattr(event, "oscillating", ()), dtype=np.int64)
+            h.oscillating = int(osc.size)
+            if osc.size and mesh is not None:
+                n_nodes = len(getattr(mesh, "points", ())) or 1
+                h.oscillating_share = osc.size / n_nodes
+                h.swing = _swing(mesh, osc)
+        if self.enabled:
+            self._add(h, n_krylov=sum(1 for i in its if i > 0))
+        self.last = h
+        return h
+
+    def _add(self, h: StepHealth, n_krylov: int) -> None:
+        c = self._counts
+        c["estimates"] += h.condition is not None
+        c["solves"] += h.solves
+        c["krylov_solves"] += n_krylov
+        c["krylov_iterations"] += h.krylov_iterations
+        c["retriangulations"] += h.noise is not None
+        c["oscillation_steps"] += h.oscillating > 0
+        for key, value in (("condition", h.condition), ("iterations", h.iterations if h.solves else None),
+                           ("residual", h.residual), ("noise", h.noise),
+                           ("oscillating", h.oscillating or None), ("swing", h.swing)):
+            if value is None:
+                continue
+            old = self._ext.get(key)
+            self._ext[key] = (value, h.step) if old is None or value > old[0] else old
+            self._ext["last_" + key] = (value, h.step)
+        if h.noise is not None:
+            self._noise.append(h.noise)
+        if n_krylov:
+            self._iter_per_step.append(h.krylov_iterations / n_krylov)
+        self._steps += 1
+        if (self._steps - 1) % self._stride == 0:
+            s = self._series
+            for key in s:
+                s[key].append(getattr(h, key))
+            if len(s["step"]) >= 2 * SERIES_POINTS:
+                for key in s:
+                    s[key] = s[key][::2]
+                self._stride *= 2
+
+    # -- warnings --------------------------------------------------------------------------------
+    def check(self) -> list[str]:
+        """Warnings newly due after the last finished step, each naming the likely mechanism and its
+        remedy (each mechanism once a run; also kept in :attr:`warnings`)."""
+        h, new = self.last, []
+        if h is None or not self.enabled:
+            return new
+        if h.growth is not None and h.growth > CONDITION_GROWTH and "condition" not in self._warned:
+            new.append(("condition",
+                        f"step {h.step}: the condition estimate of the linear system grew {h.growth:.3g}-fold since the "
+                        f"first factorisation (to {h.condition:.3g}; warned above {CONDITION_GROWTH:g}x): likely a "
+                        "near-contact gap meshed with too few elements, or a fluid pocket closed by touching bodies; "
+                        "refine mesh.h near the bodies (mesh.grading), check the contacts (contact.min_gap, the "
+                        "repulsion), see the mesh quality in events.log"))
+        w = KRYLOV_WINDOW
+        its = self._iter_per_step
+        if len(its) >= 2 * w and "krylov" not in self._warned:
+            first, recent = float(np.mean(its[:w])), float(np.mean(its[-w:]))
+            if recent > KRYLOV_RISE * max(first, 1.0) and recent >= KRYLOV_MIN_ITERATIONS:
+                new.append(("krylov",
+                            f"step {h.step}: Krylov iterations per solve rose from {first:.3g} (first {w} steps) to "
+                            f"{recent:.3g} (last {w}; warned above {KRYLOV_RISE:g}x and {KRYLOV_MIN_ITERATIONS:g}): the "
+                            "preconditioner no longer fits the matrices, likely a growing condition number (a narrowing "
+                            "gap) or a stale lagged LU / AMG hierarchy; refactorise more often (fluid.solver = "
+                            "\"direct\") or refine the mesh near the bodies"))
+        noise = self._noise[-NOISE_WINDOW:]
+        if h.noise is not None and sum(noise) > NOISE_BOUND and "noise" not in self._warned:
+            new.append(("noise",
+                        f"step {h.step}: the interpolation noise of the last {len(noise)} re-triangulations sums to "
+                        f"{100 * sum(noise):.3g} % of the velocity (warned above {100 * NOISE_BOUND:g} % over "
+                        f"{NOISE_WINDOW}): the fields are transferred too often or onto a mesh too coarse for them; "
+                        "re-triangulate less often (mesh.retriangulate_every), loosen the quality triggers, or refine "
+                        "mesh.h (the transfer error falls with the element order)"))
+        for key, msg in new:
+            self._warned.add(key)
+            self.warnings.append(msg)
+        return [msg for _, msg in new]
+
+    # -- the record ------------------------------------------------------------------------------
+    def record(self) -> dict:
+        """The ``diagnostics`` section of ``run.json``: counts, extremes (``max`` and the step
+        where, ``last`` and its step) per quantity, the decimated series and the warnings.  Plain
+        JSON data; non-finite values as None."""
+        e = self._ext
+
+        def ext(key, scale=1.0):
+            if key not in e:
+                return None
+            return {"max": _num(e[key][0] * scale), "max_step": e[key][1],
+                    "last": _num(e["last_" + key][0] * scale), "last_step": e["last_" + key][1]}
+
+        c = self._counts
+        cond = ext("condition")
+        if cond is not None:
+            cond.update(first=_num(self.first_condition), growth=_num(e["condition"][0] / self.first_condition),
+                        estimates=c["estimates"])
+        noise = ext("noise")
+        if noise is not None:
+            noise.update(retriangulations=c["retriangulations"], total=_num(sum(self._noise)))
+        osc = ext("oscillating")
+        if osc is not None:
+            osc.update(steps=c["oscillation_steps"], swing_max=_num(e["swing"][0]) if "swing" in e else None)
+        s = self._series
+        return {
+            "note": "condition: 1-norm condition estimate of each LU (Higham-Tisseur estimator on the solver's "
+                    "factors); iterations: most Krylov iterations of a solve in a step; residual: largest true "
+                    "relative residual of a step's solves; noise: relative L2 change of u by the field transfer at a "
+                    "re-triangulation; oscillating: mesh nodes flipping between two positions in the relaxation, "
+                    "swing_max their largest move over the local h; series: every "
+                    f"{self._stride}th step of this run",
+            "seconds": self.seconds, "steps": self._steps,
+            "condition": cond,
+            "krylov": {"solves": c["solves"], "krylov_solves": c["krylov_solves"],
+                       "iterations_total": c["krylov_iterations"], "iterations": ext("iterations"),
+                       "residual": ext("residual")},
+            "interpolation_noise": noise,
+            "oscillation": osc,
+            "series": {k: [_num(v) for v in vals] for k, vals in s.items()},
+            "warnings": list(self.warnings),
+        }
+
+
+def _swing(mesh, osc: np.ndarray) -> float | None:
+    """Largest last relaxation move of the nodes ``osc`` over their target size h (from the moving
+    mesh's oscillation detector), or None when the mesh does not keep it."""
+    det = getattr(mesh, "_osc", None)
+    d = getattr(det, "_prev", None)
+    hn = getattr(mesh, "h_node", None)
+    if d is None or hn is None or len(d) != len(hn) or osc.max() >= len(d):
+        return None
+    return float((np.hypot(d[osc, 0], d[osc, 1]) / hn[osc]).max())
+
+
+def _num(v):
+    """A JSON number: float/int as is, non-finite or None as None."""
+    if v is None:
+        return None
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    v = float(v)
+    return v if np.isfinite(v) else None
+
+
+def health_dict(h: StepHealth) -> dict:
+    """``StepHealth`` as a plain dict (JSON values)."""
+    return {k: _num(v) for k, v in asdict(h).items()}
