@@ -56,7 +56,7 @@ import numpy as np
 
 __all__ = ["condition_estimate", "lu_condition", "oscillation_text", "StepHealth", "RunDiagnostics",
            "CONDITION_GROWTH", "KRYLOV_RISE", "KRYLOV_MIN_ITERATIONS", "KRYLOV_WINDOW", "NOISE_WINDOW",
-           "NOISE_BOUND", "SERIES_POINTS"]
+           "NOISE_BOUND", "SERIES_POINTS", "MECHANISMS"]
 
 #: Warn when the condition estimate has grown by this factor since the run's first factorisation.
 #: The viscous block of a mesh with smallest element size h_min has κ ∝ h_min⁻² (κ of the whole
@@ -85,6 +85,19 @@ KRYLOV_WINDOW = 10
 NOISE_BOUND = 0.05
 #: Re-triangulations summed for :data:`NOISE_BOUND`.
 NOISE_WINDOW = 20
+
+#: The likely mechanism and its remedy, by warning.
+MECHANISMS = {
+    "condition": "likely a near-contact gap meshed with too few elements, or a fluid pocket closed by touching "
+                 "bodies; refine mesh.h near the bodies (mesh.grading), check the contacts (contact.min_gap, the "
+                 "repulsion) and the mesh quality in events.log",
+    "krylov": "the preconditioner no longer fits the matrices, likely a growing condition number (a narrowing "
+              "gap) or a stale lagged LU / AMG hierarchy; refactorise more often (fluid.solver = \"direct\") or "
+              "refine the mesh near the bodies",
+    "noise": "the fields are transferred too often or onto a mesh too coarse for them; re-triangulate less often "
+             "(mesh.retriangulate_every), loosen the quality triggers, or refine mesh.h (the transfer error falls "
+             "with the element order)",
+}
 
 #: Points of each series kept in ``run.json`` (every step up to 2x this, then every 2nd, 4th ... step).
 SERIES_POINTS = 200
@@ -137,8 +150,9 @@ def lu_condition(solver) -> float | None:
 def oscillation_text(n: int, n_nodes: int, swing: float | None) -> str:
     """What the oscillation count means, in one line (for ``events.log``).
 
-    >>> oscillation_text(3, 1200, 0.004)
-    '3 of 1200 mesh nodes (0.25 %) flip back and forth between two positions in the relaxation (3 steps in a row; largest swing 0.4 % of the local mesh size h a step); their relaxation step is halved'
+    >>> print(oscillation_text(3, 1200, 0.004))  # doctest: +NORMALIZE_WHITESPACE
+    3 of 1200 mesh nodes (0.25 %) flip back and forth between two positions in the relaxation
+    (3 steps in a row; largest swing 0.4 % of the local mesh size h a step); their relaxation step is halved
     """
     share = 100.0 * n / max(n_nodes, 1)
     s = (f"{n} of {n_nodes} mesh nodes ({share:.2g} %) flip back and forth between two positions in the relaxation "
@@ -382,30 +396,24 @@ class RunDiagnostics:
             return new
         if h.growth is not None and h.growth > CONDITION_GROWTH and "condition" not in self._warned:
             new.append(("condition",
-                        f"step {h.step}: the condition estimate of the linear system grew {h.growth:.3g}-fold since the "
-                        f"first factorisation (to {h.condition:.3g}; warned above {CONDITION_GROWTH:g}x): likely a "
-                        "near-contact gap meshed with too few elements, or a fluid pocket closed by touching bodies; "
-                        "refine mesh.h near the bodies (mesh.grading), check the contacts (contact.min_gap, the "
-                        "repulsion), see the mesh quality in events.log"))
+                        f"step {h.step}: the condition estimate of the linear system grew {h.growth:.3g}-fold "
+                        f"since the first factorisation (to {h.condition:.3g}; warned above "
+                        f"{CONDITION_GROWTH:g}x): " + MECHANISMS["condition"]))
         w = KRYLOV_WINDOW
         its = self._iter_per_step
         if len(its) >= 2 * w and "krylov" not in self._warned:
             first, recent = float(np.mean(its[:w])), float(np.mean(its[-w:]))
             if recent > KRYLOV_RISE * max(first, 1.0) and recent >= KRYLOV_MIN_ITERATIONS:
                 new.append(("krylov",
-                            f"step {h.step}: Krylov iterations per solve rose from {first:.3g} (first {w} steps) to "
-                            f"{recent:.3g} (last {w}; warned above {KRYLOV_RISE:g}x and {KRYLOV_MIN_ITERATIONS:g}): the "
-                            "preconditioner no longer fits the matrices, likely a growing condition number (a narrowing "
-                            "gap) or a stale lagged LU / AMG hierarchy; refactorise more often (fluid.solver = "
-                            "\"direct\") or refine the mesh near the bodies"))
+                            f"step {h.step}: Krylov iterations per solve rose from {first:.3g} (first {w} "
+                            f"steps) to {recent:.3g} (last {w}; warned above {KRYLOV_RISE:g}x and "
+                            f"{KRYLOV_MIN_ITERATIONS:g}): " + MECHANISMS["krylov"]))
         noise = self._noise[-NOISE_WINDOW:]
         if h.noise is not None and sum(noise) > NOISE_BOUND and "noise" not in self._warned:
             new.append(("noise",
-                        f"step {h.step}: the interpolation noise of the last {len(noise)} re-triangulations sums to "
-                        f"{100 * sum(noise):.3g} % of the velocity (warned above {100 * NOISE_BOUND:g} % over "
-                        f"{NOISE_WINDOW}): the fields are transferred too often or onto a mesh too coarse for them; "
-                        "re-triangulate less often (mesh.retriangulate_every), loosen the quality triggers, or refine "
-                        "mesh.h (the transfer error falls with the element order)"))
+                        f"step {h.step}: the interpolation noise of the last {len(noise)} re-triangulations "
+                        f"sums to {100 * sum(noise):.3g} % of the velocity (warned above "
+                        f"{100 * NOISE_BOUND:g} % over {NOISE_WINDOW}): " + MECHANISMS["noise"]))
         for key, msg in new:
             self._warned.add(key)
             self.warnings.append(msg)
@@ -418,11 +426,11 @@ class RunDiagnostics:
         JSON data; non-finite values as None."""
         e = self._ext
 
-        def ext(key, scale=1.0):
+        def ext(key):
             if key not in e:
                 return None
-            return {"max": _num(e[key][0] * scale), "max_step": e[key][1],
-                    "last": _num(e["last_" + key][0] * scale), "last_step": e["last_" + key][1]}
+            return {"max": _num(e[key][0]), "max_step": e[key][1],
+                    "last": _num(e["last_" + key][0]), "last_step": e["last_" + key][1]}
 
         c = self._counts
         cond = ext("condition")
@@ -441,8 +449,8 @@ class RunDiagnostics:
                     "factors); iterations: most Krylov iterations of a solve in a step; residual: largest true "
                     "relative residual of a step's solves; noise: relative L2 change of u by the field transfer at a "
                     "re-triangulation; oscillating: mesh nodes flipping between two positions in the relaxation, "
-                    "swing_max their largest move over the local h; series: every "
-                    f"{self._stride}th step of this run",
+                    "swing_max their largest move over the local h; series: "
+                    + ("every step" if self._stride == 1 else f"one step in {self._stride}") + " of this run",
             "seconds": self.seconds, "steps": self._steps,
             "condition": cond,
             "krylov": {"solves": c["solves"], "krylov_solves": c["krylov_solves"],

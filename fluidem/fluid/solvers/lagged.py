@@ -147,6 +147,7 @@ class LaggedLUSolver:
         t0 = time.perf_counter()
         self.solves += 1
         note = ""
+        krylov = not self._fresh  # a fresh LU solves directly, and reports that solve itself
         if self._fresh:
             x = self.direct.solve(b)
             it, hist = 0, self.direct.last_info.residuals
@@ -168,7 +169,8 @@ class LaggedLUSolver:
                          solve_s=time.perf_counter() - t0, reused_setup=not self._fresh,
                          factorizations=self.factorizations, note=note)
         self.last_info = info
-        _notify_solve(info)
+        if krylov:
+            _notify_solve(info)
         if not info.relative_residual <= max(self.rtol, self.direct.check_rtol):
             raise SolverError(f"lagged-LU solve ended at residual {info.relative_residual:.2e}",
                               info)
