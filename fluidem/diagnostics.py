@@ -14,9 +14,12 @@ Everything here is read from what the run computes anyway; nothing dense is ever
   Higham (1988) (:func:`scipy.sparse.linalg.onenormest`), applied to the factors the solver
   already holds: a handful of solves with ``K`` and ``Kᵀ`` (:meth:`DirectSolver.inverse_operator`).
   The estimate is a lower bound of ``‖K⁻¹‖₁``, usually exact and rarely low by more than a factor
-  3 (Higham & Tisseur 2000, Sec. 4); measured here: equal to ``numpy.linalg.cond(K, 1)`` to 1e-12
-  on the test matrices (``tests/test_diagnostics.py``).  It is computed only when an LU is
-  computed, so its cost is a fraction of the factorisation's (below).
+  3 (Higham & Tisseur 2000, Sec. 4).  Measured (``tests/test_diagnostics.py``): equal to
+  ``numpy.linalg.cond(K, 1)`` to 1e-12 on 100 random sparse matrices, on Taylor–Hood Stokes systems
+  and a Navier–Stokes channel step (2514 DOFs), low by 4.6 % on one P2-bubble/P1dc system (624
+  DOFs).  The estimator's random start columns are seeded, so a run's estimates are reproducible.
+  It is computed only when an LU is computed, so its cost is a fraction of the factorisation's
+  (below).
 * **Krylov effort**: the iterations and the true relative residual of every solve.
 * **Interpolation noise**: the relative L2 change of u a field transfer makes at a
   re-triangulation (:func:`fluidem.coupling.moving_flow.transfer_change`, paper Sec. 3.3, Fig. 5),
