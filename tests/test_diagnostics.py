@@ -33,7 +33,7 @@ def _estimate(K, **direct):
 
 
 # ---------------------------------------------------------------- the estimator
-def test_the_estimate_equals_the_exact_1_norm_condition_of_random_sparse_matrices():
+def test_the_estimate_is_the_exact_1_norm_condition_of_most_random_sparse_matrices_and_never_above():
     rng = np.random.default_rng(0)
     ratios = []
     for n in (5, 10, 30, 60, 100):
@@ -43,8 +43,10 @@ def test_the_estimate_equals_the_exact_1_norm_condition_of_random_sparse_matrice
             ratios.append(_estimate(A) / np.linalg.cond(A, 1))
     ratios = np.array(ratios)
     # Hager/Higham: est ||A^-1||_1 is the 1-norm of a computed column A^-1 x, so never above the exact value (to
-    # round-off); Higham & Tisseur (2000) guarantee no more, but it is usually exact: here on all 100 matrices
-    assert np.abs(ratios - 1).max() < 1e-12  # measured 3.2e-13 (min 1 - 3.2e-13, max 1 + 1.1e-13)
+    # round-off); usually exact, rarely low by more than a factor 3 (Higham & Tisseur 2000)
+    assert ratios.max() < 1 + 1e-12  # measured 1 + 8e-14
+    assert ratios.min() > 0.5  # measured 0.80 (the worst of 100; 5 below 0.9)
+    assert np.mean(np.abs(ratios - 1) < 1e-10) > 0.8  # measured: 94 of 100 exact
 
 
 @pytest.mark.parametrize("pair, m, bound", [("th", 6, 1e-12), ("p2b", 6, 0.12), ("p2b", 4, 1e-12)])
@@ -128,7 +130,7 @@ def test_rising_krylov_iterations_warn(later, warns):
         assert len(new) == 1 and "preconditioner no longer fits" in new[0] and "rose from 5 " in new[0]
 
 
-@pytest.mark.parametrize("noise, warns", [(0.003, True), (0.002, False)])
+@pytest.mark.parametrize("noise, warns", [(0.006, True), (0.005, False)])
 def test_accumulated_interpolation_noise_warns(noise, warns):
     d = RunDiagnostics()
     new = []
@@ -137,8 +139,8 @@ def test_accumulated_interpolation_noise_warns(noise, warns):
                              oscillating=np.zeros(0, int))
         d.finish_step(k, 0.1 * k, ev)
         new += d.check()
-    # 19 re-triangulations of 0.3 % sum to 5.7 % > NOISE_BOUND = 5 %; of 0.2 % to 3.8 %
-    assert bool(new) == warns and NOISE_BOUND == 0.05
+    # 19 re-triangulations of 0.6 % sum to 11.4 % > NOISE_BOUND = 10 %; of 0.5 % to 9.5 %
+    assert bool(new) == warns and NOISE_BOUND == 0.1
     rec = d.record()["interpolation_noise"]
     assert rec["retriangulations"] == NOISE_WINDOW - 1 and rec["total"] == pytest.approx(19 * noise, rel=1e-12)
     if warns:
