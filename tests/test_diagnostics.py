@@ -17,6 +17,7 @@ from fluidem.diagnostics import (
     CONDITION_GROWTH,
     KRYLOV_WINDOW,
     NOISE_BOUND,
+    NOISE_MIN_TRANSFERS,
     NOISE_WINDOW,
     SERIES_POINTS,
     RunDiagnostics,
@@ -145,6 +146,18 @@ def test_accumulated_interpolation_noise_warns(noise, warns):
     assert rec["retriangulations"] == NOISE_WINDOW - 1 and rec["total"] == pytest.approx(19 * noise, rel=1e-12)
     if warns:
         assert "re-triangulate less often" in new[0]
+
+
+def test_the_noise_of_a_few_transfers_or_of_the_initial_field_does_not_warn():
+    """One rough transfer is recorded but is no accumulation; the initial field's transfer (step 1) is left out."""
+    d = RunDiagnostics()
+    for k in range(1, NOISE_MIN_TRANSFERS + 1):  # step 1 (initial field) + 4 more: too few to warn
+        d.finish_step(k, 0.1 * k, SimpleNamespace(retriangulated=True, transfer_change=0.182,
+                                                  oscillating=np.zeros(0, int)))
+        assert d.check() == []
+    d.finish_step(9, 0.9, SimpleNamespace(retriangulated=True, transfer_change=0.001, oscillating=np.zeros(0, int)))
+    assert len(d.check()) == 1  # the fifth transfer after step 1: 4 x 18.2 % + 0.1 % summed
+    assert d.record()["interpolation_noise"]["max"] == 0.182
 
 
 def test_oscillating_nodes_are_counted_with_their_share_and_swing():
