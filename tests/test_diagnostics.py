@@ -212,3 +212,18 @@ def test_a_run_records_its_health_in_run_json_and_in_the_verbose_lines(tmp_path)
     K = solver.solver.direct.K  # the lagged LU the automatic choice took
     exact = np.linalg.cond(K.toarray(), 1)
     assert abs(rec["condition"]["last"] / exact - 1) < 1e-12  # measured 1 - 3.4e-14 (Taylor-Hood, n = 2514)
+
+
+def test_the_oscillation_event_says_what_it_counts():
+    """events.log: the count with its share of the mesh nodes and the largest swing over h, not a bare number."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RunWarning)
+        sim = Simulation(_disk_over_floor(0.04))
+        sim.run(out_dir=None)
+    n = len(sim.flow.mm.points)
+    sim.diagnostics.last.swing = 0.004
+    lines = []
+    writer = SimpleNamespace(event=lambda step, t, kind, msg: lines.append((kind, msg)))
+    sim._log_mesh_event(writer, SimpleNamespace(retriangulated=False, oscillating=np.array([1, 2, 3])))
+    assert lines == [("oscillation", f"{diagnostics.oscillation_text(3, n, 0.004)}")]
+    assert f"3 of {n} mesh nodes" in lines[0][1] and "largest swing 0.4 % of the local mesh size h" in lines[0][1]
