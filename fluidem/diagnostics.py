@@ -23,6 +23,8 @@ Everything here is read from what the run computes anyway; nothing dense is ever
 * **Interpolation noise**: the relative L2 change of u a field transfer makes at a
   re-triangulation (:func:`fluidem.coupling.moving_flow.transfer_change`, paper Sec. 3.3, Fig. 5),
   per re-triangulation and accumulated.
+* **Discrete inf-sup constant** of the current mesh, on request (one extra LU):
+  :func:`inf_sup_constant`, :func:`flow_inf_sup` (``flow_inf_sup(sim.flow.problem)``).
 * **Oscillation of the mesh relaxation**: nodes whose relaxation move reversed the previous one
   three steps in a row (:class:`fluidem.mesh.quality.OscillationDetector`; paper Sec. 3.3); the
   relaxation halves their step.  Reported as how many, which share of the nodes, and the largest
@@ -60,9 +62,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["condition_estimate", "lu_condition", "oscillation_text", "StepHealth", "RunDiagnostics",
-           "CONDITION_GROWTH", "KRYLOV_RISE", "KRYLOV_MIN_ITERATIONS", "KRYLOV_WINDOW", "NOISE_WINDOW",
-           "NOISE_BOUND", "NOISE_MIN_TRANSFERS", "SERIES_POINTS", "MECHANISMS"]
+__all__ = ["condition_estimate", "lu_condition", "inf_sup_constant", "flow_inf_sup", "oscillation_text",
+           "StepHealth", "RunDiagnostics", "CONDITION_GROWTH", "KRYLOV_RISE", "KRYLOV_MIN_ITERATIONS",
+           "KRYLOV_WINDOW", "NOISE_WINDOW", "NOISE_BOUND", "NOISE_MIN_TRANSFERS", "SERIES_POINTS", "MECHANISMS"]
 
 #: Warn when the condition estimate has grown by this factor since the run's first factorisation.
 #: The viscous block of a mesh with smallest element size h_min has κ ∝ h_min⁻² (κ of the whole
@@ -157,6 +159,88 @@ def lu_condition(solver) -> float | None:
         return None
     inv = solver.inverse_operator()
     return None if inv is None else condition_estimate(solver.K, inv)
+
+
+def inf_sup_constant(A, B, Mp) -> float:
+    r"""The discrete inf-sup constant β_h of a velocity–pressure pair on a mesh (on request: one extra LU).
+
+    .. math::
+
+        \beta_h^2 = \min_{q} \frac{q^T B A^{-1} B^T q}{q^T M_p q},
+
+    the smallest eigenvalue of the pressure Schur complement against the pressure mass matrix
+    (Brezzi & Fortin 1991; the numerical inf-sup test of Chapelle & Bathe 1993).  Found as the
+    eigenvalue of the pencil ``([[A, Bᵀ], [B, 0]], [[0, 0], [0, M_p]])`` nearest to zero (it is
+    ``−β_h²``), by ARPACK in shift-invert mode about 0 on one sparse LU of the saddle-point matrix:
+    no dense matrix.  β_h bounded away from 0 under refinement is what a stable pair guarantees; a
+    mesh with a pressure mode the velocities cannot see (a pocket closed by bodies, a locked
+    element patch) has β_h ≈ 0.
+
+    Parameters
+    ----------
+    A : (n_u, n_u) sparse matrix
+        The velocity norm: the stiffness (vector Laplacian, or the symmetric-gradient form) on the
+        free velocity DOFs, symmetric positive definite (no ν, mass or convection).
+    B : (n_p, n_u) sparse matrix
+        The discrete divergence on the free DOFs.
+    Mp : (n_p, n_p) sparse matrix
+        The pressure mass matrix on the free pressure DOFs.
+
+    Returns
+    -------
+    float
+        β_h, dimensionless; 0 for a singular saddle-point matrix.
+
+    Examples
+    --------
+    >>> from fluidem.cases.manufactured import saddle_point_problem
+    >>> P = saddle_point_problem(4, pair="th")                  # Stokes, ν = 1: K[:n_u, :n_u] is the stiffness
+    >>> n = P.n_u
+    >>> round(inf_sup_constant(P.K[:n, :n], P.K[n:, :n], P.Mp), 3)
+    0.359
+    """
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    A, B, Mp = sp.csr_matrix(A), sp.csr_matrix(B), sp.csr_matrix(Mp)
+    n_u, n_p = A.shape[0], Mp.shape[0]
+    K = sp.bmat([[A, B.T], [B, None]], format="csc")
+    try:
+        lu = spla.splu(K)
+    except RuntimeError:  # exactly singular: a pressure mode with no velocity to see it
+        return 0.0
+
+    def apply(v):  # (K − 0 N)⁻¹ N v
+        w = np.zeros(n_u + n_p)
+        w[n_u:] = Mp @ v[n_u:]
+        return lu.solve(w)
+
+    op = spla.LinearOperator((n_u + n_p, n_u + n_p), matvec=apply, dtype=float)
+    state = np.random.get_state()  # ARPACK's start vector: fixed, the run's generator left as it was
+    np.random.seed(_SEED)
+    try:
+        mu = spla.eigs(op, k=1, which="LM", v0=np.r_[np.zeros(n_u), np.random.rand(n_p)],
+                       return_eigenvectors=False)[0]
+    finally:
+        np.random.set_state(state)
+    lam = 1.0 / mu.real  # the eigenvalue of the pencil nearest to 0: −β_h²
+    return float(np.sqrt(max(-lam, 0.0)))
+
+
+def flow_inf_sup(problem) -> float:
+    """:func:`inf_sup_constant` of a flow problem's current mesh (``problem.A / problem.nu`` on the free
+    velocity DOFs, ``problem.B``, the pressure mass matrix); one extra sparse LU, so on request only."""
+    from skfem import asm
+
+    from .fluid import forms
+
+    n_u = problem.space.n_u
+    free = np.asarray(problem.free)
+    fu, fp = free[free < n_u], free[free >= n_u] - n_u
+    A = (problem.A / problem.nu).tocsr()[fu][:, fu]
+    B = problem.B.tocsr()[fp][:, fu]
+    Mp = asm(forms.pressure_mass, problem.space.pb).tocsr()[fp][:, fp]
+    return inf_sup_constant(A, B, Mp)
 
 
 def oscillation_text(n: int, n_nodes: int, swing: float | None) -> str:
