@@ -634,8 +634,10 @@ class Simulation:
             Accept a pickle checkpoint of an earlier version as ``restart`` (only for your own files).
         verbose : bool or file-like
             One plain-text line per step (to stderr, or to the given stream): step, time, the
-            linear solver's method, Krylov iterations and relative residual, the CFL number and
-            the step's cost split (:func:`verbose_line` of :meth:`step_info`).
+            linear solver's method, Krylov iterations and relative residual, the CFL number, the
+            step's health when it has something to say (condition estimate of a new LU, noise of a
+            re-triangulation, oscillating mesh nodes: :mod:`fluidem.diagnostics`) and the step's
+            cost split (:func:`verbose_line` of :meth:`step_info`).
 
         Raises
         ------

@@ -282,3 +282,17 @@ def test_the_inf_sup_constant_of_a_runs_mesh_on_request(tmp_path):
     exact = np.sqrt(eigh(B @ np.linalg.solve(A, B.T), Mp, eigvals_only=True).min())
     assert abs(beta / exact - 1) < 1e-10  # measured 1.4e-15 (Taylor-Hood, 839 free DOFs)
     assert beta > 0.05  # a stable pair on the channel with its disk: measured beta_h = 0.134
+
+
+def test_a_run_warns_and_logs_when_the_condition_grows(tmp_path, monkeypatch):
+    """The wiring in a run: the tiny channel's second LU has κ₁ 1.42x the first (measured); with the threshold
+    lowered below that, the run warns once and events.log and run.json carry the same text."""
+    monkeypatch.setattr(diagnostics, "CONDITION_GROWTH", 1.2)
+    (tmp_path / "s.toml").write_text(tiny_channel(h=0.05, t_end=0.4))
+    with pytest.warns(RunWarning, match="near-contact gap") as caught:
+        Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=tmp_path / "o")
+    texts = [str(w.message) for w in caught if "condition estimate" in str(w.message)]
+    assert len(texts) == 1 and texts[0].startswith("step 3: ")  # the step of the second LU
+    log = (tmp_path / "o" / "events.log").read_text()
+    assert log.count("health") == 1 and "grew 1.42-fold" in log
+    assert json.loads((tmp_path / "o" / "run.json").read_text())["diagnostics"]["warnings"] == texts
