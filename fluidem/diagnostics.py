@@ -472,9 +472,12 @@ class RunDiagnostics:
             self._ext[key] = (value, h.step) if old is None or value > old[0] else old
             self._ext["last_" + key] = (value, h.step)
         if h.noise is not None and h.step > 1:
-            self._noise.append(h.noise)
+            self._noise = [*self._noise[-(NOISE_WINDOW - 1):], h.noise]  # the window only: long runs stay small
         if n_krylov:
-            self._iter_per_step.append(h.krylov_iterations / n_krylov)
+            its = self._iter_per_step  # the first window and the last one
+            its.append(h.krylov_iterations / n_krylov)
+            if len(its) > 2 * KRYLOV_WINDOW:
+                del its[KRYLOV_WINDOW]
         self._steps += 1
         if (self._steps - 1) % self._stride == 0:
             s = self._series

@@ -296,3 +296,12 @@ def test_a_run_warns_and_logs_when_the_condition_grows(tmp_path, monkeypatch):
     log = (tmp_path / "o" / "events.log").read_text()
     assert log.count("health") == 1 and "grew 1.42-fold" in log
     assert json.loads((tmp_path / "o" / "run.json").read_text())["diagnostics"]["warnings"] == texts
+
+
+def test_a_late_rise_of_krylov_iterations_is_seen_after_a_long_steady_stretch():
+    """Only the first and the last window are kept: a rise after 500 steady steps still warns, and only then."""
+    d = RunDiagnostics()
+    flags = [bool(ws) for ws in _krylov_steps(d, [5] * 500 + [20] * KRYLOV_WINDOW)]
+    assert len(d._iter_per_step) == 2 * KRYLOV_WINDOW
+    # the mean of the last 10 passes 3 x 5 = 15 (and 10) at the 7th step of 20: (3 x 5 + 7 x 20) / 10 = 15.5
+    assert flags.index(True) == 500 + 6 and sum(flags) == 1
