@@ -55,6 +55,7 @@ import numpy as np
 
 from .coupling.bodies import DEMBodies, FlowBodies, KinematicBodies, LinearPath
 from .cost import CostSplit
+from .diagnostics import RunDiagnostics, oscillation_text
 from .errors import FluidemError, InputError
 from .geometry import orient_ccw
 from .scene import Scene
@@ -164,6 +165,8 @@ class Simulation:
         self.step_index = 0
         self.t = 0.0
         self.flow = None
+        #: the numerical health of the run's steps (:mod:`fluidem.diagnostics`); ``enabled = False`` skips it
+        self.diagnostics = RunDiagnostics()
         self.events = [("built", f"plan: mesh {self.plan.mesh}, contacts {self.plan.on('contacts')}")]
         if self.plan.on("contacts") and scene.fluid is None:
             self.bodies = DEMBodies(scene)
@@ -173,18 +176,19 @@ class Simulation:
         else:
             self.bodies = KinematicBodies(scene)
         if scene.fluid is not None:
-            if isinstance(self.bodies, FlowBodies):
-                from .coupling.free_flow import FreeBodyFlow
+            with self.diagnostics.watching():  # an LU of the set-up (Stokes mobility) goes into step 1's record
+                if isinstance(self.bodies, FlowBodies):
+                    from .coupling.free_flow import FreeBodyFlow
 
-                self.flow = self.bodies.flow = FreeBodyFlow(scene, self)
-            elif self.plan.mesh == "moving":
-                from .coupling.moving_flow import MovingMeshFlow
+                    self.flow = self.bodies.flow = FreeBodyFlow(scene, self)
+                elif self.plan.mesh == "moving":
+                    from .coupling.moving_flow import MovingMeshFlow
 
-                self.flow = MovingMeshFlow(scene, self)
-            else:
-                from .coupling.fixed_flow import FixedMeshFlow
+                    self.flow = MovingMeshFlow(scene, self)
+                else:
+                    from .coupling.fixed_flow import FixedMeshFlow
 
-                self.flow = FixedMeshFlow(scene, self)
+                    self.flow = FixedMeshFlow(scene, self)
             self.events.append(("mesh", ("moving, initial: " if self.plan.mesh == "moving" else "built once: ")
                                 + f"{self.flow.mesh.t.shape[1]} triangles, "
                                         f"{self.flow.dofs} DOFs, {'curved' if self.flow.curved else 'polygonal'}"))
@@ -431,7 +435,8 @@ class Simulation:
             check.walls(b.dem.world_vertices(), b.dem.walls, t_new)
             check.overlaps(b.dem.contacts, t_new)
         if self.flow is not None:
-            self.flow.step(dt)
+            with self.diagnostics.watching():  # the solvers report each LU and solve of the step
+                self.flow.step(dt)
             st += self.flow.last_cost
             x, nd = self.flow.x, self.flow.space.ub.nodal_dofs
             if not np.isfinite(x).all():
@@ -491,6 +496,8 @@ class Simulation:
                                                    "note": "wall seconds per part summed over this run's steps"}}),
             **({} if summary is None else {"summary": summary}),
             **({} if dem is None else {"dem_sub_step": dem}),
+            **({} if self.flow is None or not self.diagnostics.enabled else
+               {"diagnostics": self.diagnostics.record()}),
             **self._rheology_record(out_dir, status)})
 
     def _rheology_record(self, out_dir, status: str) -> dict:
@@ -530,7 +537,20 @@ class Simulation:
                     msg += f"; force change {100 * ev_mesh.force_change:.3g} %"
             writer.event(self.step_index, self.t, "retriangulation", msg)
         if len(ev_mesh.oscillating):
-            writer.event(self.step_index, self.t, "oscillation", f"{len(ev_mesh.oscillating)} oscillating nodes")
+            h = self.diagnostics.last
+            swing = h.swing if h is not None and h.step == self.step_index else None
+            writer.event(self.step_index, self.t, "oscillation",
+                         oscillation_text(len(ev_mesh.oscillating), len(self.flow.mm.points), swing))
+
+    def _health(self, writer, ev_mesh) -> None:
+        """Close the step's health record (:class:`fluidem.diagnostics.RunDiagnostics`); a threshold
+        crossed is a :class:`RunWarning` and a ``health`` line in events.log."""
+        d = self.diagnostics
+        d.finish_step(self.step_index, self.t, ev_mesh, getattr(self.flow, "mm", None))
+        for w in d.check():
+            if writer is not None:
+                writer.event(self.step_index, self.t, "health", w)
+            warnings.warn(w, RunWarning, stacklevel=4)
 
     # -- per-step report -------------------------------------------------------------------------
     def _linear_solver(self):
@@ -555,7 +575,10 @@ class Simulation:
             (Courant number max over elements of |u| Δt / h_e, h_e the longest edge, from the new
             velocity; None for quasi-steady Stokes); for a DEM scene ``contacts`` (contacts at the
             end of the step, body-body and body-wall); with contacts in a fluid ``dem_set_by`` (what
-            set the sub-steps of the step's last pass, :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`).
+            set the sub-steps of the step's last pass, :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`);
+            ``health`` when the step has something to say (:meth:`fluidem.diagnostics.StepHealth.text`:
+            the condition estimate of a new LU and its growth, the interpolation noise of a
+            re-triangulation, oscillating nodes).
         """
         out = {"step": self.step_index, "t": self.t}
         if self.flow is not None:
@@ -566,6 +589,9 @@ class Simulation:
                        factorizations=getattr(s, "factorizations", None))
             st = getattr(self.flow, "stepper", None)
             out["cfl"] = st._cfl(st.state.u) if st is not None and st.n_steps else None
+            h = self.diagnostics.last
+            if h is not None and h.step == self.step_index and h.text():
+                out["health"] = h.text()
         if isinstance(self.bodies, DEMBodies):
             out["contacts"] = len(self.bodies.dem.contacts.i)
         contacts = getattr(self.flow, "contacts", None)
@@ -620,8 +646,10 @@ class Simulation:
             Accept a pickle checkpoint of an earlier version as ``restart`` (only for your own files).
         verbose : bool or file-like
             One plain-text line per step (to stderr, or to the given stream): step, time, the
-            linear solver's method, Krylov iterations and relative residual, the CFL number and
-            the step's cost split (:func:`verbose_line` of :meth:`step_info`).
+            linear solver's method, Krylov iterations and relative residual, the CFL number, the
+            step's health when it has something to say (condition estimate of a new LU, noise of a
+            re-triangulation, oscillating mesh nodes: :mod:`fluidem.diagnostics`) and the step's
+            cost split (:func:`verbose_line` of :meth:`step_info`).
 
         Raises
         ------
@@ -754,6 +782,8 @@ class Simulation:
                     last = self.step_index == N
                     t_loads = self._record(writer, fields=(self.step_index % ev == 0 or last), last=last)
                     ev_mesh = getattr(self.flow, "last_event", None) if self.flow is not None else None
+                    if self.flow is not None:
+                        self._health(writer, ev_mesh)
                     if ev_mesh is not None and writer is not None:  # after the loads: the force change is known
                         self._log_mesh_event(writer, ev_mesh)
                     if writer is not None and self.plan.mesh == "moving" and (self.step_index % ev == 0 or last):
@@ -879,7 +909,9 @@ class Simulation:
 
 
 def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str:
-    """One line for a step: ``step k/N  t = ...  linear <method> it <n> res <r>  CFL <c>  <cost split>``;
+    """One line for a step: ``step k/N  t = ...  linear <method> it <n> res <r>  CFL <c>  <health>  <cost split>``
+    (``<health>``: ``cond1 <κ₁> (x<growth since the first LU>)`` at a new LU, ``noise <n> %`` at a
+    re-triangulation, ``osc <k> nodes``; :mod:`fluidem.diagnostics`);
     with contacts in a fluid also ``DEM <n> sub-steps in <p> passes (<what set the last pass's>)``
     (the sub-stepped passes over the step, each of at most ``ceil(dt / dt_max)`` sub-steps:
     :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`; :meth:`Simulation.dem_limit` says what
@@ -898,6 +930,8 @@ def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str
         parts.append(f"CFL {info['cfl']:.3g}")
     if "contacts" in info:
         parts.append(f"contacts {info['contacts']}")
+    if info.get("health"):
+        parts.append(info["health"])
     if cost is not None and cost.counts.get("dem_passes"):
         dem = f"DEM {cost.counts['dem_substeps']} sub-steps in {cost.counts['dem_passes']} passes"
         if cost.counts.get("dem_passes_redone"):

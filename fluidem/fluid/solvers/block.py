@@ -53,7 +53,7 @@ import scipy.sparse.linalg as spla
 from ... import names
 from ._sparse import _as_csr, _is_symmetric, _same_values, _split
 from .krylov import run_fgmres, run_minres
-from .results import SolveInfo, SolverError
+from .results import SolveInfo, SolverError, _notify_solve
 
 __all__ = ["BlockKrylovSolver", "mass_schur_inverse", "cahouet_chabard_schur_inverse",
            "lsc_schur_inverse"]
@@ -451,6 +451,7 @@ class BlockKrylovSolver:
                          relative_residual=float(hist[-1]), setup_s=self._setup_s,
                          solve_s=time.perf_counter() - t0, reused_setup=self._reused)
         self.last_info = info
+        _notify_solve(info)
         if reason:
             raise SolverError(f"{self.method} did not reach rtol={self.rtol:.1e}: {reason}", info)
         return x

@@ -18,7 +18,7 @@ import scipy.sparse.linalg as spla
 
 from ... import validate
 from ._sparse import _as_csr, _relres, _same_values
-from .results import SolveInfo, SolverError
+from .results import SolveInfo, SolverError, _notify_factorization, _notify_solve
 
 __all__ = ["DirectSolver", "default_direct_backend"]
 
@@ -163,6 +163,7 @@ class DirectSolver:
         self.factorizations += 1
         self._setup_s = time.perf_counter() - t0
         self._reused = False
+        _notify_factorization(self)
         return self
 
     def _free(self):
@@ -241,12 +242,28 @@ class DirectSolver:
             solve_s=time.perf_counter() - t0, reused_setup=self._reused,
             factorizations=self.factorizations, note=note)
         self.last_info = info
+        _notify_solve(info)
         if not res[-1] <= self.check_rtol:
             raise SolverError(
                 f"direct solve residual {res[-1]:.2e} exceeds {self.check_rtol:.1e}: the matrix "
                 "is (near) singular; with velocity Dirichlet conditions on the whole boundary "
                 "pin one pressure DOF", info)
         return x
+
+    def inverse_operator(self) -> spla.LinearOperator | None:
+        """The stored LU as ``K⁻¹`` with its transpose: ``matvec`` solves ``K x = v``, ``rmatvec``
+        solves ``Kᵀ x = v`` (SuperLU's ``trans="T"``), shape (n, n); what a 1-norm estimate of
+        ``‖K⁻¹‖₁`` needs (:func:`fluidem.diagnostics.condition_estimate`).  No refinement: the
+        factors as they are.  ``None`` for PARDISO (no transposed solve through ``pypardiso``).
+        """
+        if self._lu is None:
+            raise RuntimeError("call factorize(K) first")
+        if self.backend != "superlu":
+            return None
+        lu, n = self._lu, self.n
+        return spla.LinearOperator((n, n), matvec=lu.solve, matmat=lu.solve,
+                                   rmatvec=lambda v: lu.solve(v, trans="T"),
+                                   rmatmat=lambda v: lu.solve(v, trans="T"), dtype=float)
 
     def as_preconditioner(self) -> spla.LinearOperator:
         """The stored LU as an operator ``v -> K_lu^{-1} v``, shape (n, n)."""

@@ -18,7 +18,7 @@ import scipy.sparse.linalg as spla
 from ._sparse import _as_csr, _same_values
 from .direct import DirectSolver
 from .krylov import run_fgmres
-from .results import SolveInfo, SolverError
+from .results import SolveInfo, SolverError, _notify_solve
 
 __all__ = ["LaggedLUSolver", "FIXED_MESH_STEPPING", "MOVING_MESH_STEPPING"]
 
@@ -147,6 +147,7 @@ class LaggedLUSolver:
         t0 = time.perf_counter()
         self.solves += 1
         note = ""
+        krylov = not self._fresh  # a fresh LU solves directly, and reports that solve itself
         if self._fresh:
             x = self.direct.solve(b)
             it, hist = 0, self.direct.last_info.residuals
@@ -168,6 +169,8 @@ class LaggedLUSolver:
                          solve_s=time.perf_counter() - t0, reused_setup=not self._fresh,
                          factorizations=self.factorizations, note=note)
         self.last_info = info
+        if krylov:
+            _notify_solve(info)
         if not info.relative_residual <= max(self.rtol, self.direct.check_rtol):
             raise SolverError(f"lagged-LU solve ended at residual {info.relative_residual:.2e}",
                               info)

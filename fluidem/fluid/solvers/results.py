@@ -25,13 +25,14 @@ GMRES did not converge
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ...errors import SolverError as _FluidemSolverError
 
-__all__ = ["SolveInfo", "LinearSolverError", "SolverError"]
+__all__ = ["SolveInfo", "LinearSolverError", "SolverError", "add_observer", "remove_observer"]
 
 
 @dataclass
@@ -130,3 +131,35 @@ def _history_summary(res: np.ndarray) -> str:
         tail = ", ".join(f"{r:.2e}" for r in res[-4:])
         shown = f"{head}, ..., {tail}"
     return f"relative residual history ({res.size} entries): {shown}"
+
+
+# --------------------------------------------------------------------------
+# observers: who wants to hear of every solve and every LU (fluidem.diagnostics)
+# --------------------------------------------------------------------------
+_local = threading.local()
+
+
+def add_observer(observer) -> None:
+    """Tell ``observer`` of every solve and LU factorisation in this thread from now on.
+
+    ``observer.solved(info)`` gets the :class:`SolveInfo` of each solve (Krylov or direct, also
+    failed ones), ``observer.factorized(solver)`` the :class:`~.direct.DirectSolver` that has just
+    computed an LU (its ``K`` and factors are current).  Solvers hold no reference to observers;
+    :func:`remove_observer` ends the watch.
+    """
+    _local.observers = (*getattr(_local, "observers", ()), observer)
+
+
+def remove_observer(observer) -> None:
+    """Stop telling ``observer`` (see :func:`add_observer`); nothing if it is not watching."""
+    _local.observers = tuple(o for o in getattr(_local, "observers", ()) if o is not observer)
+
+
+def _notify_solve(info: SolveInfo) -> None:
+    for o in getattr(_local, "observers", ()):
+        o.solved(info)
+
+
+def _notify_factorization(solver) -> None:
+    for o in getattr(_local, "observers", ()):
+        o.factorized(solver)
