@@ -377,8 +377,9 @@ def _sub_step_check(scene: Scene) -> tuple[str | None, str | None]:
     if sub is None or sub[0] <= MAX_CONTACT_SUBSTEPS:
         return None, None
     n, dt_max, by = sub
-    text = (f"contacts take up to {n:.3g} DEM sub-steps per pass over each step of time.dt = {scene.time.dt:g} (dt_max = "
-            f"{dt_max:.3g}, set by {by}, with the lightest free body); expected at most {MAX_CONTACT_SUBSTEPS}: "
+    text = (f"contacts take up to {n:.3g} DEM sub-steps per pass over each step of time.dt = {scene.time.dt:g} "
+            f"(dt_max = {dt_max:.3g}, set by {by}, with the lightest free body); expected at most "
+            f"{MAX_CONTACT_SUBSTEPS}: "
             "lower that stiffness (a smaller E or repulsion_force, a larger repulsion_epsilon or repulsion_range), "
             "or time.dt")
     return (None, text) if n > REFUSED_CONTACT_SUBSTEPS else (text, None)

@@ -97,9 +97,9 @@ def test_the_plan_predicts_the_sub_steps_and_refuses_contacts_that_would_never_f
     assert contact_sub_steps(quiet)[0] == 2101 and not quiet.plan().warnings
     warned = Scene.from_dict(_settling_on_the_floor(E=1e10))  # 21 007: warned, still runs
     assert warned.plan().warnings == [
-        "contacts take up to 2.1e+04 DEM sub-steps per pass over each step of time.dt = 0.02 (dt_max = 9.52e-07, set by "
-        "contact.E = 1e+10 force/length, with the lightest free body); expected at most 10000: lower that stiffness "
-        "(a smaller E or repulsion_force, a larger repulsion_epsilon or repulsion_range), or time.dt"]
+        "contacts take up to 2.1e+04 DEM sub-steps per pass over each step of time.dt = 0.02 (dt_max = 9.52e-07, "
+        "set by contact.E = 1e+10 force/length, with the lightest free body); expected at most 10000: lower that "
+        "stiffness (a smaller E or repulsion_force, a larger repulsion_epsilon or repulsion_range), or time.dt"]
     assert not warned.plan().unsupported
     for contact, by in (({"E": 1e300}, "contact.E = 1e+300 force/length"),
                         ({"repulsion_epsilon": 1e-200}, "the repulsion's stiffness at contact 2c/(ερ) = 1.2e+203"),
