@@ -234,7 +234,8 @@ class FluidContacts:
         a = (V_c - V0) / dt - F / m
         springs = d.spring_history
         n, floor, by = self.sub_steps(dt, poses, velocities, V_c)
-        for attempt in range(2):
+        n_max = max(int(np.ceil(dt / d.dt_max - 1e-9)), 1)
+        while True:
             d.set_motion(poses, velocities, time=t)
             d.external_force = np.zeros((d.n, 2))
             d.external_torque = np.zeros(d.n)
@@ -244,16 +245,30 @@ class FluidContacts:
             self.substeps += d.advance(dt, n=n)
             self.dem_calls += 1
             # stiffer than assumed only inside the repulsion's range (or on an overlap, -inf)
-            if attempt or d.closest_gap_seen >= min(floor, self._stiff_range):
+            seen = d.closest_gap_seen
+            if n >= n_max or seen >= min(floor, self._stiff_range):
                 break
-            # a gap closed below the floor the sub-step assumed: the pass again at the DEM's own bound
+            # a gap closed below the floor the sub-steps assumed: the pass again, at the repulsion's
+            # stiffness at half the gap met (no overlap), else at the DEM's own bound
             self.redone += 1
             d.spring_history = springs
-            n, by = max(int(np.ceil(dt / d.dt_max - 1e-9)), 1), "the DEM's bound: a pass redone"
+            n_k, floor = self._repulsion_sub_steps(dt, 0.5 * seen) if seen > 0 else (n_max, -np.inf)
+            if n_k < n_max and n_k > n:
+                n, by = n_k, f"the repulsion's stiffness at half the gap {seen:.3g} met: a pass redone"
+            else:
+                n, floor, by = n_max, -np.inf, "the DEM's bound: a pass redone"
         self.last_sub_steps, self.last_set_by = n, by
         V_end = np.column_stack([d.velocities, d.omegas])[f]
         self.seconds += time.perf_counter() - t_start
         return m * (V_end - V0 - dt * a) / dt
+
+    def _repulsion_sub_steps(self, dt: float, gap: float) -> tuple[int, float]:
+        """Sub-steps of ``dt`` stable with the repulsion's stiffness at ``gap`` (length) for the lightest free
+        body, 0.1π√(m/k) (Matuttis & Chen 2014, ch. 7), and that gap (the floor they assume)."""
+        d = self.dem
+        m = float(d.mass[d.free].min())
+        k = float(self.repulsion.stiffness(np.array([gap]))[0])
+        return (int(np.ceil(dt / (0.1 * np.pi * np.sqrt(m / k)) - 1e-9)) if k > 0 else 1), gap
 
     def sub_steps(self, dt: float, poses: np.ndarray, velocities: np.ndarray, V_c: np.ndarray):
         """Sub-steps of a pass over [t, t + dt] from the stiffness in play, the gap floor it assumes and why.
@@ -274,8 +289,9 @@ class FluidContacts:
 
         To follow the film and the onset of the repulsion, no sub-step closes the gap of a pair by more
         than a quarter of the larger of its gap and ρ.  :meth:`mean_load` checks the floor against the
-        closest gap the pass met and redoes at the DEM's own bound a pass that met a stiffer force than
-        assumed (a gap below both the floor and ρ, or an overlap).
+        closest gap the pass met and redoes a pass that met a stiffer force than assumed (a gap below both
+        the floor and ρ): at the repulsion's stiffness at half the gap it met, and, should that pass break
+        its floor too, or after an overlap, at the DEM's own bound.
 
         Returns
         -------
@@ -338,10 +354,9 @@ class FluidContacts:
         n = max(int(np.ceil((cl / (0.25 * np.maximum(g, max(rng, 1e-300)))).max() - 1e-9)), 1)
         by = "the gaps' change: a quarter of a gap per sub-step"
         if floor < rng:
-            m = float(d.mass[d.free].min())
-            k = float(self.repulsion.stiffness(np.array([floor]))[0])
-            n_k = int(np.ceil(dt / (0.1 * np.pi * np.sqrt(m / k)) - 1e-9)) if k > 0 else 1
+            n_k, _ = self._repulsion_sub_steps(dt, floor)
             if n_k > n:
+                k = float(self.repulsion.stiffness(np.array([floor]))[0])
                 n, by = n_k, f"the repulsion's stiffness at the gap floor {floor:.3g}: {k:.3g} force/length"
         if n >= n_max:
             return n_max, -np.inf, "the DEM's bound"
