@@ -167,7 +167,7 @@ class FluidContacts:
         self.redone = 0  # passes redone at the DEM's bound (sub_steps)
         #: below this gap a stiff force acts: the repulsion's range (0 without a repulsion: overlaps only)
         self._stiff_range = self.repulsion.range if self.repulsion.force > 0 else 0.0
-        self.last_sub_steps, self.last_set_by = 0, ""
+        self.last_set_by = ""  # what set the sub-steps of the last pass (sub_steps), for --verbose
         self.seconds = 0.0  # wall time in the DEM
 
     def within_reach(self, poses: np.ndarray, travel: float) -> bool:
@@ -257,7 +257,7 @@ class FluidContacts:
                 n, by = n_k, f"the repulsion's stiffness at half the gap {seen:.3g} met: a pass redone"
             else:
                 n, floor, by = n_max, -np.inf, "the DEM's bound: a pass redone"
-        self.last_sub_steps, self.last_set_by = n, by
+        self.last_set_by = by
         V_end = np.column_stack([d.velocities, d.omegas])[f]
         self.seconds += time.perf_counter() - t_start
         return m * (V_end - V0 - dt * a) / dt

@@ -576,20 +576,6 @@ class DEM:
                 g = min(g, lo[0] - x0, x1 - hi[0], lo[1] - y0, y1 - hi[1])
         return g
 
-    def closest_gap(self, poses: np.ndarray | None = None) -> float:
-        """The smallest gap between outlines whose bounding circles are within :attr:`near_range` of
-        each other, and of movable outlines to the walls, at ``poses`` (N, 3) (default the current
-        ones); length, ``inf`` for none, negative for an overlap with a wall, 0 for one between bodies."""
-        x = self.gear.X[0] if poses is None else np.asarray(poses, float).reshape(self.n, 3)
-        W = self.world_vertices(x)
-        pos = x[:, :2]
-        ri, rj = self._neighbours(pos, self.near_range)
-        gaps = pair_gaps(W, ri, rj, pos, self.radii, max(self.near_range, 1e-300)) if len(ri) else None
-        g = self._closest_gap(W, gaps)
-        if len(ri) and g > 0 and len(polygon_overlaps(W, self._nv, pos, ri, rj)["i"]):
-            g = 0.0
-        return g
-
     def repulsion_geometry(self, poses: np.ndarray):
         """The short-range repulsion's pairs within range at ``poses`` (N, 3), walls included.
 
