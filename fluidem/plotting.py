@@ -344,18 +344,35 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
             focus = (focus[0] - r, focus[1] + r, focus[2] - r, focus[3] + r)
     if box is None:
         box = focus if focus is not None else (0.0, 1.0, 0.0, 1.0)
-    views, cropped = view_windows(box, focus)
+    canvas = _Canvas(plt, box, focus, u)
     figs = {}
+    if fields:
+        figs.update(_field_figures(canvas, fields, h))
+    figs.update(_body_figures(canvas, h, bodies_series))
+    hist = _history_figure(plt, h, _mass_inertia(scene), _read_quality(out_dir), scene, u)
+    if hist is not None:
+        figs["history"] = hist
+    return figs
 
-    def plane(title, colorbar=None):
+
+class _Canvas:
+    """The views of a run's box (:func:`view_windows`) and how its figures are drawn: labelled, equal-aspect
+    planes, body outlines, the holes of a field mesh."""
+
+    def __init__(self, plt, box, focus, u):
+        self.plt, self.box, self.u = plt, box, u
+        self.views, self.cropped = view_windows(box, focus)
+
+    def plane(self, title, colorbar=None):
         """A figure with one axes per view, labelled, equal aspect."""
+        views, box, u = self.views, self.box, self.u
         vw, vh = views[0][1] - views[0][0], views[0][3] - views[0][2]
         stacked = vw >= vh
         n = len(views)
         width = 9.0
         panel_h = max(1.6, min(7.0, width * vh / vw)) if stacked else max(2.5, min(7.0, width / n * vh / vw))
         size = (width + (1.4 if colorbar else 0), (panel_h * n if stacked else panel_h) + 0.8)
-        fig, axes = plt.subplots(n if stacked else 1, 1 if stacked else n, squeeze=False, figsize=size)
+        fig, axes = self.plt.subplots(n if stacked else 1, 1 if stacked else n, squeeze=False, figsize=size)
         axes = list(axes.ravel())
         for ax, (a, b, c, d) in zip(axes, views):
             ax.set_xlim(a, b)
@@ -363,127 +380,133 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
             ax.set_aspect("equal")
             ax.set_xlabel(f"x [{u('length')}]")
             ax.set_ylabel(f"y [{u('length')}]")
-        if cropped:
+        if self.cropped:
             title += f" (view x = {views[0][0]:.3g}..{views[0][1]:.3g}, y = {views[0][2]:.3g}..{views[0][3]:.3g} " \
                      f"of the box {box[0]:.3g}..{box[1]:.3g} × {box[2]:.3g}..{box[3]:.3g})"
         axes[0].set_title(title, fontsize=10)
         return fig, axes
 
-    def draw_outlines(ax, outlines, **kw):
+    @staticmethod
+    def outlines(ax, outlines, **kw):
         from matplotlib.collections import PolyCollection
 
         if outlines:
             ax.add_collection(PolyCollection(outlines, **{"facecolor": "0.6", "edgecolor": "k", "linewidth": 0.5,
                                                           **kw}))
 
-    def draw_holes(ax, holes, edges):
+    def holes(self, ax, holes, edges):
         from matplotlib.collections import LineCollection
 
-        draw_outlines(ax, holes, linewidth=0.0)
+        self.outlines(ax, holes, linewidth=0.0)
         if len(edges):
             ax.add_collection(LineCollection(edges, colors="k", linewidths=0.6))
 
-    if fields:
-        import matplotlib.tri as mtri
 
-        t_f, f_last = fields[-1]
-        t_run = float(h["t"].max()) if len(h["t"]) else t_f
-        # the fields are written every output.every steps: say when the run went on past the last of them
-        when = f"t = {t_f:.4g}" + (f" (last fields written; the run reached t = {t_run:.4g})"
-                                   if t_run > t_f + 1e-9 * max(abs(t_run), 1.0) else "")
-        m = _read_vtu(f_last)
-        pts, tri = m.points[:, :2], m.cells_dict["triangle"]
-        T = mtri.Triangulation(pts[:, 0], pts[:, 1], tri)
-        holes, edges = _holes(pts, tri)
-        x0, x1, y0, y1 = box
-        tol = 1e-9 * max(x1 - x0, y1 - y0)
-        on_box = lambda q: (np.abs(q[..., 0] - x0) < tol) | (np.abs(q[..., 0] - x1) < tol) | \
-            (np.abs(q[..., 1] - y0) < tol) | (np.abs(q[..., 1] - y1) < tol)  # noqa: E731
-        body_edges = edges[~(on_box(edges[:, 0]) & on_box(edges[:, 1]))] if len(edges) else edges
+def _field_figures(canvas: _Canvas, fields: list, h: dict) -> dict:
+    """Mesh, velocity and pressure of the last fields written (their time, and the run's if it went on)."""
+    import matplotlib.tri as mtri
 
-        fig, axes = plane(f"mesh at {when}: {len(pts)} vertices, {len(tri)} triangles")
-        for ax in axes:
-            ax.triplot(T, color="0.3", linewidth=0.2)
-            draw_holes(ax, holes, body_edges)
-        figs["mesh"] = fig
+    u, box = canvas.u, canvas.box
+    t_f, f_last = fields[-1]
+    t_run = float(h["t"].max()) if len(h["t"]) else t_f
+    # the fields are written every output.every steps: say when the run went on past the last of them
+    when = f"t = {t_f:.4g}" + (f" (last fields written; the run reached t = {t_run:.4g})"
+                               if t_run > t_f + 1e-9 * max(abs(t_run), 1.0) else "")
+    m = _read_vtu(f_last)
+    pts, tri = m.points[:, :2], m.cells_dict["triangle"]
+    T = mtri.Triangulation(pts[:, 0], pts[:, 1], tri)
+    holes, edges = _holes(pts, tri)
+    x0, x1, y0, y1 = box
+    tol = 1e-9 * max(x1 - x0, y1 - y0)
+    on_box = lambda q: (np.abs(q[..., 0] - x0) < tol) | (np.abs(q[..., 0] - x1) < tol) | \
+        (np.abs(q[..., 1] - y0) < tol) | (np.abs(q[..., 1] - y1) < tol)  # noqa: E731
+    body_edges = edges[~(on_box(edges[:, 0]) & on_box(edges[:, 1]))] if len(edges) else edges
+    figs = {}
 
-        vel = m.point_data["velocity"]
-        speed = np.hypot(vel[:, 0], vel[:, 1])
-        fig, axes = plane(f"velocity magnitude and streamlines, {when}", colorbar=True)
-        ui, vi = mtri.LinearTriInterpolator(T, vel[:, 0]), mtri.LinearTriInterpolator(T, vel[:, 1])
-        for ax, (a, b, c, d) in zip(axes, views):
-            tc = ax.tripcolor(T, speed, shading="gouraud", cmap="viridis", vmin=0.0, vmax=float(speed.max()) or 1.0)
-            nx = 160
-            ny = max(16, int(nx * (d - c) / (b - a)))
-            X, Y = np.meshgrid(np.linspace(a, b, nx), np.linspace(c, d, ny))
-            U, V = ui(X, Y), vi(X, Y)
-            if np.ma.count(U) > 4 and float(np.ma.max(np.hypot(U, V))) > 0:
-                ax.streamplot(X, Y, U.filled(np.nan), V.filled(np.nan), color="w", linewidth=0.5, density=1.0,
-                              arrowsize=0.6)
-            draw_holes(ax, holes, body_edges)
-        fig.colorbar(tc, ax=axes, label=f"|u| [{u('length/time')}]", shrink=0.9)
-        figs["velocity"] = fig
+    fig, axes = canvas.plane(f"mesh at {when}: {len(pts)} vertices, {len(tri)} triangles")
+    for ax in axes:
+        ax.triplot(T, color="0.3", linewidth=0.2)
+        canvas.holes(ax, holes, body_edges)
+    figs["mesh"] = fig
 
-        p = m.point_data["pressure"]
-        lim, clipped = pressure_limit(p)
-        fig, axes = plane(f"pressure (dynamic), {when}" + (
-            f"; colours clipped at ±{lim:.3g}, the {PRESSURE_PERCENTILE:g}th percentile of |p| (max {clipped:.3g})"
-            if clipped else ""), colorbar=True)
-        for ax in axes:
-            tc = ax.tripcolor(T, p, shading="gouraud", cmap="RdBu_r", vmin=-lim, vmax=lim)
-            draw_holes(ax, holes, body_edges)
-        fig.colorbar(tc, ax=axes, label=f"p [{u('force/length²')}]", shrink=0.9)
-        figs["pressure"] = fig
+    vel = m.point_data["velocity"]
+    speed = np.hypot(vel[:, 0], vel[:, 1])
+    fig, axes = canvas.plane(f"velocity magnitude and streamlines, {when}", colorbar=True)
+    ui, vi = mtri.LinearTriInterpolator(T, vel[:, 0]), mtri.LinearTriInterpolator(T, vel[:, 1])
+    for ax, (a, b, c, d) in zip(axes, canvas.views):
+        tc = ax.tripcolor(T, speed, shading="gouraud", cmap="viridis", vmin=0.0, vmax=float(speed.max()) or 1.0)
+        nx = 160
+        ny = max(16, int(nx * (d - c) / (b - a)))
+        X, Y = np.meshgrid(np.linspace(a, b, nx), np.linspace(c, d, ny))
+        U, V = ui(X, Y), vi(X, Y)
+        if np.ma.count(U) > 4 and float(np.ma.max(np.hypot(U, V))) > 0:
+            ax.streamplot(X, Y, U.filled(np.nan), V.filled(np.nan), color="w", linewidth=0.5, density=1.0,
+                          arrowsize=0.6)
+        canvas.holes(ax, holes, body_edges)
+    fig.colorbar(tc, ax=axes, label=f"|u| [{u('length/time')}]", shrink=0.9)
+    figs["velocity"] = fig
 
-    ids = np.unique(h["id"])
-    moving = False
-    if len(h["t"]):
-        span = max(box[1] - box[0], box[3] - box[2])
-        for k in ids:
-            sel = h["id"] == k
-            if np.ptp(h["x"][sel]) > 1e-12 * span or np.ptp(h["y"][sel]) > 1e-12 * span:
-                moving = True
-                break
-    if bodies_series and moving:
-        fig, axes = plane(f"bodies at t = {bodies_series[0][0]:.4g} (dashed) and t = {bodies_series[-1][0]:.4g}")
-        first, last = _outlines(bodies_series[0][1]), _outlines(bodies_series[-1][1])
-        for ax in axes:
-            draw_outlines(ax, first, facecolor="none", edgecolor="0.5", linestyle="--")
-            draw_outlines(ax, last, facecolor="tab:orange", alpha=0.8)
-        figs["bodies"] = fig
-    if moving:
-        last = _outlines(bodies_series[-1][1]) if bodies_series else []
-        from matplotlib.collections import LineCollection
-        from matplotlib.colors import Normalize
-
-        t0, t1 = float(h["t"].min()), float(h["t"].max())
-        fig, axes = plane(f"trajectories of {len(ids)} body centres coloured by time, t = {t0:.4g}..{t1:.4g} "
-                          "(o start, ■ end)", colorbar=True)
-        norm = Normalize(t0, t1 if t1 > t0 else t0 + 1.0)
-        shown = ids[:: max(1, len(ids) // 200)]  # at most ~200 paths drawn
-        segs, times, starts, ends = [], [], [], []
-        for k in shown:
-            sel = h["id"] == k
-            xy = np.column_stack([h["x"][sel], h["y"][sel]])
-            segs.append(np.stack([xy[:-1], xy[1:]], axis=1))
-            times.append(0.5 * (h["t"][sel][:-1] + h["t"][sel][1:]))
-            starts.append(xy[0])
-            ends.append(xy[-1])
-        segs = np.concatenate(segs) if segs else np.zeros((0, 2, 2))
-        for ax in axes:
-            lc = LineCollection(segs, cmap="viridis", norm=norm, linewidths=0.8 if len(ids) > 50 else 1.4)
-            lc.set_array(np.concatenate(times) if times else np.zeros(0))
-            ax.add_collection(lc)
-            ax.plot(*np.array(starts).T, "o", ms=2.5, mfc="none", mec="0.2", mew=0.6)
-            ax.plot(*np.array(ends).T, "s", ms=2.5, color="k")
-            draw_outlines(ax, last, facecolor="none", edgecolor="k", linewidth=0.3)
-        fig.colorbar(lc, ax=axes, label=f"t [{u('time')}]", shrink=0.9)
-        figs["trajectories"] = fig
-
-    hist = _history_figure(plt, h, _mass_inertia(scene), _read_quality(out_dir), scene, u)
-    if hist is not None:
-        figs["history"] = hist
+    p = m.point_data["pressure"]
+    lim, clipped = pressure_limit(p)
+    fig, axes = canvas.plane(f"pressure (dynamic), {when}" + (
+        f"; colours clipped at ±{lim:.3g}, the {PRESSURE_PERCENTILE:g}th percentile of |p| (max {clipped:.3g})"
+        if clipped else ""), colorbar=True)
+    for ax in axes:
+        tc = ax.tripcolor(T, p, shading="gouraud", cmap="RdBu_r", vmin=-lim, vmax=lim)
+        canvas.holes(ax, holes, body_edges)
+    fig.colorbar(tc, ax=axes, label=f"p [{u('force/length²')}]", shrink=0.9)
+    figs["pressure"] = fig
     return figs
+
+
+def _body_figures(canvas: _Canvas, h: dict, bodies_series: list) -> dict:
+    """The bodies at the first and last output and the trajectories of their centres, when any moves."""
+    box = canvas.box
+    ids = np.unique(h["id"])
+    span = max(box[1] - box[0], box[3] - box[2])
+    moving = any(np.ptp(h["x"][h["id"] == k]) > 1e-12 * span or np.ptp(h["y"][h["id"] == k]) > 1e-12 * span
+                 for k in ids) if len(h["t"]) else False
+    if not moving:
+        return {}
+    figs = {}
+    last = _outlines(bodies_series[-1][1]) if bodies_series else []
+    if bodies_series:
+        fig, axes = canvas.plane(f"bodies at t = {bodies_series[0][0]:.4g} (dashed) and t = {bodies_series[-1][0]:.4g}")
+        first = _outlines(bodies_series[0][1])
+        for ax in axes:
+            canvas.outlines(ax, first, facecolor="none", edgecolor="0.5", linestyle="--")
+            canvas.outlines(ax, last, facecolor="tab:orange", alpha=0.8)
+        figs["bodies"] = fig
+    figs["trajectories"] = _trajectory_figure(canvas, h, ids, last)
+    return figs
+
+
+def _trajectory_figure(canvas: _Canvas, h: dict, ids: np.ndarray, last: list):
+    """Body centres' paths coloured by time on one scale, starts (o) and ends (■) marked."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.colors import Normalize
+
+    t0, t1 = float(h["t"].min()), float(h["t"].max())
+    fig, axes = canvas.plane(f"trajectories of {len(ids)} body centres coloured by time, t = {t0:.4g}..{t1:.4g} "
+                             "(o start, ■ end)", colorbar=True)
+    norm = Normalize(t0, t1 if t1 > t0 else t0 + 1.0)
+    segs, times, starts, ends = [], [], [], []
+    for k in ids[:: max(1, len(ids) // 200)]:  # at most ~200 paths drawn
+        sel = h["id"] == k
+        xy = np.column_stack([h["x"][sel], h["y"][sel]])
+        segs.append(np.stack([xy[:-1], xy[1:]], axis=1))
+        times.append(0.5 * (h["t"][sel][:-1] + h["t"][sel][1:]))
+        starts.append(xy[0])
+        ends.append(xy[-1])
+    for ax in axes:
+        lc = LineCollection(np.concatenate(segs), cmap="viridis", norm=norm, linewidths=0.8 if len(ids) > 50 else 1.4)
+        lc.set_array(np.concatenate(times))
+        ax.add_collection(lc)
+        ax.plot(*np.array(starts).T, "o", ms=2.5, mfc="none", mec="0.2", mew=0.6)
+        ax.plot(*np.array(ends).T, "s", ms=2.5, color="k")
+        canvas.outlines(ax, last, facecolor="none", edgecolor="k", linewidth=0.3)
+    fig.colorbar(lc, ax=axes, label=f"t [{canvas.u('time')}]", shrink=0.9)
+    return fig
 
 
 def _history_figure(plt, h, mass, quality, scene, u):
