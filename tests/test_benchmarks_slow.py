@@ -58,18 +58,21 @@ def test_dfg_2d1_p2_elements_converge_at_second_order(element):
         assert e1[k] < b, (k, e1[k])
 
 
-@pytest.mark.slow(seconds=110)
+@pytest.mark.slow(seconds=80)
 def test_dfg_2d2_reaches_the_target_accuracy():
-    """P3/P2 level 1 (16.8k DOFs), BDF3 dt = 0.005, semi-implicit, window [4, 6] (the case
-    defaults): measured St +5.4e-4, c_D,max +3.7e-4, c_L,max −1.7e-3 relative, held at ~2.5x;
-    the target is 0.3 % for St and c_D,max."""
-    from fluidem.cases.dfg import dfg_2d2
+    """The case defaults, the cheapest route of the measured front within 0.3 % on St and c_D,max:
+    P3/P2 on the level-0 mesh refined at the cylinder (FRONT_2D2, 8.9k DOFs), BDF3 dt = 0.0075,
+    semi-implicit, window [4, 6]: measured St +2.02e-3, c_D,max +6.73e-4, c_L,max −2.67e-3 relative
+    (26 s on an idle machine).  St and c_D,max are held at the target itself, 0.3 % (1.5x and 4.5x
+    the measured), c_L,max at 2.5x."""
+    from fluidem.cases.dfg import FRONT_2D2, dfg_2d2
 
     res = dfg_2d2()
+    assert res.level == "0 (h0 0.02, h_max 0.12)" and FRONT_2D2 == {"h0": 0.02, "h_max": 0.12}
     errs = res.relative_errors()
-    assert errs["st"] < 1.4e-3
-    assert errs["cd_max"] < 1e-3
-    assert errs["cl_max"] < 4.5e-3
+    assert errs["st"] < 3e-3
+    assert errs["cd_max"] < 3e-3
+    assert errs["cl_max"] < 6.7e-3
     assert res.extra["periods_measured"] >= 5
 
 

@@ -18,12 +18,13 @@ class CaseResult:
 
     ``quantities`` and ``reference`` map names (``cd``, ``cl``, ``dp``, ``st``, ...) to
     numbers; ``timings`` holds wall seconds per phase (``mesh``, ``assembly``, ``solve``);
-    ``wall_s`` is their sum (imports excluded).
+    ``wall_s`` is their sum (imports excluded).  ``level`` is the mesh level, or a text naming a
+    level-0 mesh with its own size field (``"0 (h0 0.0125, growth 1.25)"``).
     """
 
     case: str
     element: str
-    level: int
+    level: int | str
     dofs: int
     quantities: dict
     reference: dict

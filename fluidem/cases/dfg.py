@@ -153,8 +153,26 @@ def _coefficients(space, residual, Ubar):
     return scale * load.fx, scale * load.fy
 
 
+#: The default mesh of :func:`dfg_2d1`: :func:`dfg_mesh` at level 0 with cells of 0.0125 at the cylinder
+#: growing by 1.25, the cheapest P3/P2 mesh of the measured front (``benchmarks/results/dfg_2d1_peer.md``)
+#: that meets c_D ≤ 1e-5 and c_L ≤ 1e-3: 8.4k DOFs, 0.31 s, c_D 1.2e-6, c_L 8.5e-4, Δp 4.2e-4 (level 1 of
+#: the halving family: 26.9k DOFs, 1.4 s, c_D 1.2e-5, c_L 2.4e-3; Taylor–Hood level 2: 2.6 s, c_L 9.8e-4).
+FRONT_2D1 = {"h0": 0.0125, "growth": 1.25}
+#: The default mesh of :func:`dfg_2d2`: level 0 refined at the cylinder (0.02, growing by 1.15 to 0.12),
+#: with BDF3 at dt = 0.0075 the cheapest route of the measured front within 0.3 % on St and c_D,max
+#: (``benchmarks/results/dfg_2d2.md``): 8.9k DOFs, 26 s, St +2.0e-3, c_D,max +6.7e-4, c_L,max −2.7e-3.
+FRONT_2D2 = {"h0": 0.02, "h_max": 0.12}
+
+
+def _mesh_label(level: int, mesh_options: dict | None) -> int | str:
+    """``level``, or a description of a level-0 mesh with its own size field."""
+    if not mesh_options:
+        return level
+    return f"{level} ({', '.join(f'{k} {v:g}' for k, v in mesh_options.items())})"
+
+
 @register_case("dfg-2d1")
-def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="auto",
+def dfg_2d1(element: str = "p3", level: int | None = None, curved: bool = True, solver="auto",
             verbose: bool = False, grading: str = "halving", mesh_options: dict | None = None) -> CaseResult:
     """Steady DFG 2D-1 (U = 0.3 m/s, Re = 20): c_D, c_L, Δp by Newton's method.
 
@@ -162,8 +180,9 @@ def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="au
     ----------
     element : str
         Element pair name.
-    level : int
-        Mesh level of :func:`dfg_mesh`.
+    level : int or None
+        Mesh level of :func:`dfg_mesh`; None (with no ``mesh_options``): level 0 with :data:`FRONT_2D1`,
+        the cheapest mesh of the measured front that meets c_D ≤ 1e-5 and c_L ≤ 1e-3.
     curved : bool
         Isoparametric cylinder outline.
     solver : str or solver object
@@ -188,7 +207,12 @@ def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="au
     >>> res = dfg_2d1("p3", level=0)                # 6.8k DOFs, under a second
     >>> bool(res.relative_errors()["cd"] < 3e-4)    # measured 1.3e-4
     True
+    >>> e = dfg_2d1().relative_errors()              # the default: P3/P2 on FRONT_2D1, 8.4k DOFs
+    >>> bool(e["cd"] < 3e-6 and e["cl"] < 1e-3)      # measured 1.2e-6 and 8.5e-4
+    True
     """
+    if level is None:
+        level, mesh_options = 0, (dict(FRONT_2D1) if mesh_options is None else mesh_options)
     t0 = time.perf_counter()
     mesh = dfg_mesh(level, curved, grading=grading, **(mesh_options or {}))
     t_mesh = time.perf_counter() - t0
@@ -200,7 +224,7 @@ def dfg_2d1(element: str = "p3", level: int = 1, curved: bool = True, solver="au
     cd, cl = _coefficients(pr.space, pr.steady_residual(state.x), 0.2)
     p = pr.space.probe_matrix([[0.15, 0.2], [0.25, 0.2]]) @ state.p
     t_post = time.perf_counter() - t1
-    return CaseResult("dfg-2d1", element, level, pr.space.n_dofs,
+    return CaseResult("dfg-2d1", element, _mesh_label(level, mesh_options), pr.space.n_dofs,
                       {"cd": cd, "cl": cl, "dp": float(p[0] - p[1])}, REFERENCE["dfg-2d1"],
                       {"mesh": t_mesh, "assembly": pr.timings.assembly + t_post, "solve": pr.timings.solve},
                       "curved" if curved else "polygonal",
@@ -241,7 +265,7 @@ def _kick(t_kick: float, omega: float):
 
 
 @register_case("dfg-2d2")
-def dfg_2d2(element: str = "p3", level: int = 1, dt: float = 0.005, t_end: float = 6.0, window: float = 2.0,
+def dfg_2d2(element: str = "p3", level: int | None = None, dt: float = 0.0075, t_end: float = 6.0, window: float = 2.0,
             convection: str = "semi-implicit", curved: bool = True, progress: Progress | None = None,
             solver: str = "lagged", grading: str = "fixed-slope", order: int = 3,
             mesh_options: dict | None = None) -> CaseResult:
@@ -249,17 +273,20 @@ def dfg_2d2(element: str = "p3", level: int = 1, dt: float = 0.005, t_end: float
 
     The run starts from rest with a short cylinder rotation (t < 0.5) that triggers
     shedding (settled by t ≈ 4), and is measured on ``[t_end − window, t_end]``.  Defaults
-    chosen by measured accuracy against cost (``benchmarks/bench_dfg_unsteady.py``): P3/P2
-    level 1 (16.8k DOFs) with BDF3 at dt = 0.005 (1 200 steps): St +5.4e-4, c_D,max +3.7e-4,
-    c_L,max −1.7e-3.  BDF2 at the same dt and mesh: St +4.3e-3, c_D,max +4.0e-3 (the time
-    error dominates: the former default, P3/P2 level 2 with BDF2 at dt = 0.0025, 41.7k DOFs and
-    2 400 steps, reached St +1.2e-3, c_D,max +9.7e-4 in ~10 minutes).  BDF3 at dt = 0.01: St
-    +7.3e-3, c_D,max +9.4e-4.
+    chosen on the measured front of accuracy against cost (``benchmarks/bench_dfg_unsteady.py``,
+    ``benchmarks/results/dfg_2d2.md``): the cheapest route within 0.3 % on St and c_D,max, P3/P2 on
+    the level-0 mesh refined at the cylinder (:data:`FRONT_2D2`, 8.9k DOFs) with BDF3 at
+    dt = 0.0075 (800 steps, 26 s): St +2.0e-3, c_D,max +6.7e-4, c_L,max −2.7e-3.  The former default,
+    P3/P2 level 1 (16.8k DOFs) at dt = 0.005 (1 200 steps, 91 s): St +5.5e-4, c_D,max +3.7e-4,
+    c_L,max −1.4e-3.  BDF2 at that dt and mesh: St +4.3e-3, c_D,max +3.9e-3 (the time error
+    dominates).
 
     Parameters
     ----------
-    element, level, curved
+    element, curved
         As for :func:`dfg_2d1`.
+    level : int or None
+        Mesh level of :func:`dfg_mesh`; None (with no ``mesh_options``): level 0 with :data:`FRONT_2D2`.
     dt, t_end, window : float
         Time step, end time and length of the measuring window, s.
     convection : str
@@ -283,6 +310,8 @@ def dfg_2d2(element: str = "p3", level: int = 1, dt: float = 0.005, t_end: float
         Quantities ``st`` (D / period of c_L), ``cd_max``, ``cd_min``, ``cl_max``, ``cl_min``
         (normalised with Ū = 1 m/s) against :data:`REFERENCE`.
     """
+    if level is None:
+        level, mesh_options = 0, (dict(FRONT_2D2) if mesh_options is None else mesh_options)
     level = _check_level(level)
     if not 0 < window < t_end:
         raise InputError(f"window = {window:g}: expected a positive window shorter than t_end ({t_end:g})")
@@ -295,7 +324,7 @@ def dfg_2d2(element: str = "p3", level: int = 1, dt: float = 0.005, t_end: float
     sd = periodic_stats(ts, cd, t_end - window)
     sl = periodic_stats(ts, cl, t_end - window)
     q = {"st": D / (sl.period * 1.0), "cd_max": sd.max, "cd_min": sd.min, "cl_max": sl.max, "cl_min": sl.min}
-    return CaseResult("dfg-2d2", element, level, pr.space.n_dofs, q, REFERENCE["dfg-2d2"],
+    return CaseResult("dfg-2d2", element, _mesh_label(level, mesh_options), pr.space.n_dofs, q, REFERENCE["dfg-2d2"],
                       {"mesh": t_mesh, "assembly": pr.timings.assembly, "solve": pr.timings.solve},
                       "curved" if curved else "polygonal", dt,
                       extra={"steps": st_.n_steps, "periods_measured": sl.n_periods, "convection": convection,
