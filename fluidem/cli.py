@@ -277,7 +277,8 @@ def _add_sweep_command(sub) -> None:
                                     "one task (one process, one BLAS thread) on a LocalCluster (one worker per core) "
                                     "or an existing scheduler. Writes DIR/<variant>/ run directories, sweep.csv, "
                                     "sweep.json and sweep.png; finished variants are not run again. Needs "
-                                    "dask.distributed: pip install \"fluidem[sweep]\".")
+                                    "dask.distributed: pip install \"fluidem[sweep]\" (editable checkout: "
+                                    "pip install -e \".[sweep]\").")
     sw.add_argument("scene", nargs="?", help="scene TOML file")
     sw.add_argument("--example", metavar="NAME", help="a built-in scene instead of a file: "
                     + ", ".join(names.choices("example")))

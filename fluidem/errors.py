@@ -23,7 +23,18 @@ SceneError True
 
 from __future__ import annotations
 
-__all__ = ["FluidemError", "InputError", "SceneError", "MeshError", "SolverError"]
+__all__ = ["FluidemError", "InputError", "SceneError", "MeshError", "SolverError", "install_hint"]
+
+
+def install_hint(extra: str) -> str:
+    """How to add an optional extra, for the message of a missing dependency: the plain form and the
+    editable one (a plain ``pip install ".[extra]"`` replaces an editable checkout by a copy).
+
+    >>> install_hint("plot")
+    'pip install "fluidem[plot]" (in an editable checkout: pip install -e ".[plot]")'
+    """
+    return f'pip install "fluidem[{extra}]" (in an editable checkout: pip install -e ".[{extra}]")'
+
 
 
 class FluidemError(Exception):

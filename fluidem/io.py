@@ -88,7 +88,7 @@ from numpy.typing import ArrayLike
 from .checkpoint import CheckpointError, checkpoint_files
 from .checkpoint import load as _load_npz
 from .checkpoint import save as _save_npz
-from .errors import InputError
+from .errors import InputError, install_hint
 from .validate import fail
 
 __all__ = ["OutputWriter", "read_history", "read_sides", "SIDES_COLUMNS",
@@ -820,7 +820,7 @@ def require_h5py(what: str = "XDMF output") -> None:
     try:
         import h5py  # noqa: F401
     except ImportError:
-        raise InputError(f'{what} needs h5py: pip install "fluidem[xdmf]"') from None
+        raise InputError(f'{what} needs h5py: {install_hint("xdmf")}') from None
 
 
 def _TimeSeriesWriter(path: Path):

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from . import names
-from .errors import InputError
+from .errors import InputError, install_hint
 from .io import HISTORY_UNITS, PathLike, read_history, read_pvd
 
 __all__ = ["plot_run", "figures", "require_matplotlib", "view_windows", "UNIT_SYSTEMS", "PlotWarning"]
@@ -55,7 +55,7 @@ def require_matplotlib(what: str = "plotting") -> None:
     try:
         import matplotlib  # noqa: F401
     except ImportError:
-        raise InputError(f'{what} needs matplotlib: pip install "fluidem[plot]"') from None
+        raise InputError(f'{what} needs matplotlib: {install_hint("plot")}') from None
 
 
 def _unit(dim: str, units) -> str:

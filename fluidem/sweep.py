@@ -44,7 +44,7 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import InputError
+from .errors import InputError, install_hint
 from .validate import fail
 
 __all__ = ["sweep", "variants", "parse_vary", "set_key", "SweepResult", "require_dask", "THREAD_ENV",
@@ -67,7 +67,7 @@ def require_dask(what: str = "a parameter sweep") -> None:
     try:
         import distributed  # noqa: F401
     except ImportError:
-        raise InputError(f'{what} needs dask.distributed: pip install "fluidem[sweep]"') from None
+        raise InputError(f'{what} needs dask.distributed: {install_hint("sweep")}') from None
 
 
 # -- variants -------------------------------------------------------------------------------------
@@ -465,7 +465,7 @@ def sweep(scene, vary: dict[str, list], out_dir="sweep", scheduler=None, workers
         try:
             files.append(plot_sweep(table, out / "sweep.png", list(vary), quantity, reference))
         except ImportError:
-            say('no plot: it needs matplotlib: pip install "fluidem[plot]"')
+            say(f'no plot: it needs matplotlib: {install_hint("plot")}')
     table.files = files
     n_bad = sum(r["status"] != "complete" for r in table)
     say(f"done in {wall:.1f} s: {len(table) - n_bad} complete, {n_bad} failed; table {files[0]}")

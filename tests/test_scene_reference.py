@@ -8,7 +8,7 @@ import sys
 import pytest
 
 from fluidem.cli import main
-from fluidem.errors import SceneError
+from fluidem.errors import SceneError, install_hint
 from fluidem.scene import Scene, files, specs
 from fluidem.scene.reference import WORKED_EXAMPLE, accepted_keys, markdown
 
@@ -152,11 +152,10 @@ def test_plot_without_matplotlib_fails_before_the_run(tmp_path, capsys, monkeypa
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib raises ImportError
     assert main(["run", "--example", "dry-heap", "--out", str(tmp_path / "o"), "--plot"]) == 2
     err = capsys.readouterr().err
-    assert err == 'fluidem: error: --plot needs matplotlib: pip install "fluidem[plot]"\n'
+    assert err == f"fluidem: error: --plot needs matplotlib: {install_hint('plot')}\n"
     assert not ran and not (tmp_path / "o").exists()
     assert main(["plot", str(tmp_path)]) == 2
-    assert capsys.readouterr().err == "fluidem: error: 'fluidem plot' needs matplotlib: pip install " \
-                                      '"fluidem[plot]"\n'
+    assert capsys.readouterr().err == f"fluidem: error: 'fluidem plot' needs matplotlib: {install_hint('plot')}\n"
 
 
 def test_plot_extra_in_pyproject():

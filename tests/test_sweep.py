@@ -99,12 +99,14 @@ def test_vary_values_keys_and_errors(tmp_path):
 
 def test_without_dask_the_error_names_the_extra(monkeypatch, capsys, tmp_path):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
-    with pytest.raises(InputError, match=r'a parameter sweep needs dask.distributed: pip install "fluidem\[sweep\]"'):
+    with pytest.raises(InputError, match=r'a parameter sweep needs dask.distributed: pip install "fluidem\[sweep\]" '
+                                         r'\(in an editable checkout: pip install -e "\.\[sweep\]"\)'):
         require_dask()
     (tmp_path / "s.toml").write_text(TINY)
     assert main(["sweep", str(tmp_path / "s.toml"), "--vary", "mesh.h=0.1"]) == 2
     assert capsys.readouterr().err.strip() == ("fluidem: error: 'fluidem sweep' needs dask.distributed: "
-                                               'pip install "fluidem[sweep]"')
+                                               'pip install "fluidem[sweep]" (in an editable checkout: '
+                                               'pip install -e ".[sweep]")')
 
 
 def test_a_variant_counts_as_finished_only_when_complete_for_the_same_scene(tmp_path):
