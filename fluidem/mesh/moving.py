@@ -126,7 +126,7 @@ from ..errors import InputError, MeshError
 from .adaptation import adapt as adapt_nodes
 from .adaptation import cleanup_candidates
 from .background import GradedSize, SizeField, UniformSize
-from .contact_outline import contact_outline, contact_pairs, wall_contacts, wall_depths
+from .contact_outline import contact_outline, contact_pairs, wall_depths
 from .cutout import Triangulation, cut_out, triangulate
 from .drag import DragAssociation, HarmonicDrag, drag_association, dragged_positions, harmonic_drag
 from .gaps import (
@@ -474,22 +474,46 @@ class MovingMesh:
         if p.shape != (self.n_bodies, 3) or not np.all(np.isfinite(p)):
             raise InputError(f"poses must be a finite ({self.n_bodies}, 3) array of x, y, angle; got shape {p.shape}")
         w = world(self._vcat, self._vbody, p)
-        # a body may touch a wall or overlap it slightly (it is meshed with the wall as one outline)
+        # a body may touch a wall or overlap it (the overlap is meshed as contact, the body with
+        # the wall as one outline), as deep as allowed_wall_overlap
         depth = -wall_depths(w, self._vbody, self.n_bodies, self.box)  # (n_bodies, 4): > 0 outside
-        allowed = self.params.wall_overlap * self.h
-        bad = np.flatnonzero(depth.max(axis=1) > allowed)
+        allowed = self.allowed_wall_overlap(p)
+        bad = np.flatnonzero((depth > allowed).any(axis=1))
         if len(bad):
             b = int(bad[0])
-            side = int(np.argmax(depth[b]))
-            what = ("it lies outside" if self._outside(p[b]) else
-                    f"it overlaps the {SIDE_NAMES[side]} wall by {depth[b, side]:.3g}")
+            side = int(np.argmax(depth[b] - allowed[b]))
+            if self._outside(p[b]):
+                raise InputError(
+                    f"body {b} ({self.body_names[b]}) at pose {p[b].tolist()} is not inside the domain "
+                    f"{tuple(float(c) for c in self.box)}: it lies outside")
             raise InputError(
                 f"body {b} ({self.body_names[b]}) at pose {p[b].tolist()} is not inside the domain "
-                f"{tuple(float(c) for c in self.box)}: {what}; expected an overlap of at most "
-                f"wall_overlap · h = {allowed:.3g}")
+                f"{tuple(float(c) for c in self.box)}: it overlaps the {SIDE_NAMES[side]} wall by "
+                f"{depth[b, side]:.3g}; expected an overlap of at most {allowed[b, side]:.3g} = max(wall_overlap · h, "
+                f"wall_overlap_fraction · its extent across the wall) (the overlap is meshed as contact): a "
+                f"resting overlap this deep means a contact law too soft for the load (raise [contact] E) or a "
+                f"pose outside the box")
         check_clearance(w, self._vbody, self.body_names, p, self.box, self.periodic, self.h,
                         error=InputError if self.__dict__.get("step_count") is None else MeshError)
         return p
+
+    def allowed_wall_overlap(self, poses=None) -> np.ndarray:
+        """Deepest overlap ``(n_bodies, 4)`` of each body with each box side (bottom, right, top,
+        left) that is meshed as contact, length units: ``max(wall_overlap · h,
+        wall_overlap_fraction · e)``, ``e`` the body's extent across the side at ``poses``
+        (default: the current ones; :class:`MeshParams`)."""
+        poses = self.poses if poses is None else np.asarray(poses, dtype=float)
+        p = self.params
+        w = world(self._vcat, self._vbody, poses)
+        ext = np.zeros((self.n_bodies, 2))
+        for axis in range(2):
+            hi = np.full(self.n_bodies, -np.inf)
+            lo = np.full(self.n_bodies, np.inf)
+            np.maximum.at(hi, self._vbody, w[:, axis])
+            np.minimum.at(lo, self._vbody, w[:, axis])
+            ext[:, axis] = hi - lo
+        across = ext[:, [1, 0, 1, 0]]  # bottom/top: the height, right/left: the width
+        return np.maximum(p.wall_overlap * self.h, p.wall_overlap_fraction * across)
 
     def _outside(self, pose) -> bool:
         """The reference point of a body at ``pose`` lies outside the box."""
@@ -650,7 +674,7 @@ class MovingMesh:
         narrow = self._narrow_gap_owners() | structural_narrow(self.topo, self.kind, self.body_of)
         shape = element_shape(self.points, self.topo) if shape is None else shape
         self.baseline: QualityBaseline = quality_baseline(shape, narrow, p.min_angle_trigger, p.max_angle_trigger,
-                                                          p.angle_margin)
+                                                          p.angle_margin, p.min_angle_margin)
 
     # ------------------------------------------------------------------ stepping
     def update(self, poses) -> MeshEvent:
@@ -711,7 +735,16 @@ class MovingMesh:
         if outside.any():
             movable = outside & self._mobility.any(axis=1)
             xd[movable] = np.clip(xd[movable], lo, hi)
-            pressed = bool((outside & ~movable).any())
+            over = np.flatnonzero(outside & ~movable)
+            if len(over):
+                # outline nodes of a body meshed with a wall, pressed past it by at most
+                # contact_slack · h (a resting body's overlap breathing), are put back on it
+                depth = np.maximum(lo - xd[over], xd[over] - hi).max(axis=1)
+                walled = np.isin(self.body_of[over], self.__dict__.get("walls", np.zeros((0, 2), int))[:, 0])
+                if (walled & (depth <= self._contact_slack())).all():
+                    xd[over] = np.clip(xd[over], lo, hi)
+                else:
+                    pressed = True
         if pressed:
             self.points = xd
             self._steps_since += 1
@@ -771,12 +804,15 @@ class MovingMesh:
     # ------------------------------------------------------------------ gaps and triggers on the current mesh
     def _contacts_changed(self) -> bool:
         """:func:`fluidem.mesh.triggers.contacts_changed` at the current poses, or a body
-        came within ``min_gap`` of a wall or left it (:func:`wall_contacts`)."""
+        came within ``min_gap`` of a wall, or one meshed with a wall left it by more than
+        :meth:`_contact_slack` (hysteresis: a body resting on a wall whose gap breathes
+        around ``min_gap`` does not re-trigger every step)."""
         if self.n_bodies:
-            now = wall_contacts(world(self._vcat, self._vbody, self.poses), self._vbody, self.n_bodies, self.box,
-                                self.min_gap)
+            depth = wall_depths(world(self._vcat, self._vbody, self.poses), self._vbody, self.n_bodies, self.box)
             before = self.__dict__.get("walls", np.zeros((0, 2), dtype=np.int64))
-            if now.shape != before.shape or not np.array_equal(now, before):
+            was = np.zeros(depth.shape, dtype=bool)
+            was[before[:, 0], before[:, 1]] = True
+            if ((depth < self.min_gap) & ~was).any() or (was & (depth > self._contact_slack())).any():
                 return True
             # a wall node held on its side while its body lifted off there (a body rocking on
             # the wall): the closed outline no longer fits
@@ -785,10 +821,15 @@ class MovingMesh:
                 sel = wall >= 0
                 idx = self._contact_idx[sel]
                 rigid = world(self._contact_local[sel], self.body_of[idx], self.poses)
-                if (np.abs(rigid - self.points[idx]).max() > self.min_gap):
+                if (np.abs(rigid - self.points[idx]).max() > self._contact_slack()):
                     return True
         return contacts_changed(self._polygons(), self._near_pairs, self.contacts, self.min_gap, self.points,
                                 self.body_of)
+
+    def _contact_slack(self) -> float:
+        """How far (length units) a wall contact may breathe between re-triangulations:
+        ``max(min_gap, contact_slack · h)`` (:class:`MeshParams`)."""
+        return max(self.min_gap, self.params.contact_slack * self.h)
 
     def _anchored_across_gap(self, tri_idx, table=None) -> np.ndarray:
         """:func:`fluidem.mesh.gaps.anchored_across_gap` of triangles ``tri_idx``."""
