@@ -39,10 +39,14 @@ Strategies (``strategy=``):
     - an element is inverted by the rigid motion (``"inverted"``) or shrank below a tenth of
       its area (``"degenerate"``, typically a narrow-gap element whose anchor passes a
       corner),
-    - bodies came within ``min_gap`` of each other, or a contact changed (``"contact"``),
-    - an element outside narrow gaps crossed the angle bounds ``min_angle_trigger`` (15°)
-      or 135° that it kept after the last triangulation (``"quality"``; an element that
-      was already outside may lose 3° more).
+    - bodies came within ``min_gap`` of each other, or a contact changed (``"contact"``;
+      a wall contact may breathe by ``contact_slack · h``, 0.02 h, first: a resting body
+      whose overlap or gap changes by a little more than ``min_gap`` keeps its outline),
+    - an element outside narrow gaps degraded ``angle_margin`` (10°) past 135°, or
+      ``min_angle_margin`` (3°) below ``min_angle_trigger`` (15°), or as far past its own
+      angles after the last triangulation if it was born outside them (``"quality"``, with
+      hysteresis: an element born near a bound does not fire as soon as it crosses it,
+      :func:`fluidem.mesh.triggers.quality_baseline`).
 
     At re-triangulation nodes swallowed by (or closer than ``purge_clearance · h`` to) a
     body are purged, an independent set of nodes is removed where the incident edges are on
@@ -83,8 +87,9 @@ element overlaps a body, at the price of a fluid sliver below ``0.3 h`` at each 
 Fluid enclosed by a ring of touching bodies (a hole of the closed union) is a *pore*: it is
 meshed, detected and reported (``pore_areas``; it needs its own pressure reference).
 Walls join the contact policy: a body closer than ``min_gap`` to a box side (touching it,
-or overlapping it by up to ``wall_overlap · h``, as the DEM's soft wall contact allows) is
-meshed with that wall as one closed outline; the fluid between them narrower than
+or overlapping it as the DEM's soft wall contact allows at rest, up to
+:meth:`MovingMesh.allowed_wall_overlap`: the overlap is meshed as contact) is meshed
+with that wall as one closed outline; the fluid between them narrower than
 ``min_gap`` is filled, the box sides under the body are no boundary (the ``bottom``/...
 facets end where the body's facets begin), and *wall nodes* where the outline leaves the
 side slide along it with the body (:mod:`fluidem.mesh.contact_outline`).  Fluid conditions
@@ -92,8 +97,9 @@ on the merged outline: every facet keeps its owner, the body facets get the body
 motion and the wall facets the wall's condition; the node where they meet is a body (wall)
 node, so it moves with the body: the body condition applied after the wall one wins there,
 as at a corner of a lid-driven cavity.  A body overlapping a side by more than
-``wall_overlap · h`` or lying outside the box raises :class:`~fluidem.errors.InputError`
-(a ``ValueError``).
+``max(wall_overlap · h, wall_overlap_fraction · its extent across the side)`` (0.1 h, a
+quarter of its height) or lying outside the box raises :class:`~fluidem.errors.InputError`
+(a ``ValueError``) naming the contact law's ``E``.
 
 Narrow gaps: see :mod:`fluidem.mesh.quality`; an element counts as narrow-gap when the gap
 at its centroid is narrower than ``h/2`` or when one of its edges joins two different
