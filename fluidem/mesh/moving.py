@@ -745,9 +745,14 @@ class MovingMesh:
             if len(over):
                 # outline nodes of a body meshed with a wall, pressed past it by at most
                 # contact_slack · h (a resting body's overlap breathing), are put back on it
-                depth = np.maximum(lo - xd[over], xd[over] - hi).max(axis=1)
-                walled = np.isin(self.body_of[over], self.__dict__.get("walls", np.zeros((0, 2), int))[:, 0])
-                if (walled & (depth <= self._contact_slack())).all():
+                # per node and side (bottom, right, top, left) how far past it
+                past = np.column_stack([ymin - xd[over, 1], xd[over, 0] - xmax, xd[over, 1] - ymax,
+                                        xmin - xd[over, 0]])
+                walls = self.__dict__.get("walls", np.zeros((0, 2), dtype=np.int64))
+                meshed = np.zeros((self.n_bodies, 4), dtype=bool)
+                meshed[walls[:, 0], walls[:, 1]] = True
+                ok = np.where(past > 0, meshed[self.body_of[over]] & (past <= self._contact_slack()), True)
+                if ok.all():
                     xd[over] = np.clip(xd[over], lo, hi)
                 else:
                     pressed = True
