@@ -18,8 +18,8 @@ are filled and no element thinner than ``min_gap`` is produced.  On the closed o
   the rest of the box by bodies in contact with a wall (all fluid regions but the largest).
 
 Walls in contact: a box side closer than ``min_gap`` to a body of a cluster (touching, or
-overlapping it by as much as ``wall_overlap · h``) is one more member of that cluster.  It
-enters the union as a slab outside the box along that side, the closing fills the fluid
+overlapping it up to :meth:`~fluidem.mesh.MovingMesh.allowed_wall_overlap`) is one more
+member of that cluster.  It enters the union as a slab outside the box along that side, the closing fills the fluid
 between body and wall narrower than ``min_gap``, and the result is clipped to the box.  The
 clipped outline runs partly along the box sides: those parts are not fluid boundary (no
 segment, the box nodes on them are dropped, :func:`covered_box_nodes`).  Where the outline

@@ -39,10 +39,14 @@ Strategies (``strategy=``):
     - an element is inverted by the rigid motion (``"inverted"``) or shrank below a tenth of
       its area (``"degenerate"``, typically a narrow-gap element whose anchor passes a
       corner),
-    - bodies came within ``min_gap`` of each other, or a contact changed (``"contact"``),
-    - an element outside narrow gaps crossed the angle bounds ``min_angle_trigger`` (15°)
-      or 135° that it kept after the last triangulation (``"quality"``; an element that
-      was already outside may lose 3° more).
+    - bodies came within ``min_gap`` of each other, or a contact changed (``"contact"``;
+      a wall contact may breathe by ``contact_slack · h``, 0.02 h, first: a resting body
+      whose overlap or gap changes by a little more than ``min_gap`` keeps its outline),
+    - an element outside narrow gaps degraded ``angle_margin`` (10°) past 135°, or
+      ``min_angle_margin`` (3°) below ``min_angle_trigger`` (15°), or as far past its own
+      angles after the last triangulation if it was born outside them (``"quality"``, with
+      hysteresis: an element born near a bound does not fire as soon as it crosses it,
+      :func:`fluidem.mesh.triggers.quality_baseline`).
 
     At re-triangulation nodes swallowed by (or closer than ``purge_clearance · h`` to) a
     body are purged, an independent set of nodes is removed where the incident edges are on
@@ -83,8 +87,9 @@ element overlaps a body, at the price of a fluid sliver below ``0.3 h`` at each 
 Fluid enclosed by a ring of touching bodies (a hole of the closed union) is a *pore*: it is
 meshed, detected and reported (``pore_areas``; it needs its own pressure reference).
 Walls join the contact policy: a body closer than ``min_gap`` to a box side (touching it,
-or overlapping it by up to ``wall_overlap · h``, as the DEM's soft wall contact allows) is
-meshed with that wall as one closed outline; the fluid between them narrower than
+or overlapping it as the DEM's soft wall contact allows at rest, up to
+:meth:`MovingMesh.allowed_wall_overlap`: the overlap is meshed as contact) is meshed
+with that wall as one closed outline; the fluid between them narrower than
 ``min_gap`` is filled, the box sides under the body are no boundary (the ``bottom``/...
 facets end where the body's facets begin), and *wall nodes* where the outline leaves the
 side slide along it with the body (:mod:`fluidem.mesh.contact_outline`).  Fluid conditions
@@ -92,8 +97,9 @@ on the merged outline: every facet keeps its owner, the body facets get the body
 motion and the wall facets the wall's condition; the node where they meet is a body (wall)
 node, so it moves with the body: the body condition applied after the wall one wins there,
 as at a corner of a lid-driven cavity.  A body overlapping a side by more than
-``wall_overlap · h`` or lying outside the box raises :class:`~fluidem.errors.InputError`
-(a ``ValueError``).
+``max(wall_overlap · h, wall_overlap_fraction · its extent across the side)`` (0.1 h, a
+quarter of its height) or lying outside the box raises :class:`~fluidem.errors.InputError`
+(a ``ValueError``) naming the contact law's ``E``.
 
 Narrow gaps: see :mod:`fluidem.mesh.quality`; an element counts as narrow-gap when the gap
 at its centroid is narrower than ``h/2`` or when one of its edges joins two different
@@ -126,7 +132,7 @@ from ..errors import InputError, MeshError
 from .adaptation import adapt as adapt_nodes
 from .adaptation import cleanup_candidates
 from .background import GradedSize, SizeField, UniformSize
-from .contact_outline import contact_outline, contact_pairs, wall_contacts, wall_depths
+from .contact_outline import contact_outline, contact_pairs, wall_depths
 from .cutout import Triangulation, cut_out, triangulate
 from .drag import DragAssociation, HarmonicDrag, drag_association, dragged_positions, harmonic_drag
 from .gaps import (
@@ -474,22 +480,46 @@ class MovingMesh:
         if p.shape != (self.n_bodies, 3) or not np.all(np.isfinite(p)):
             raise InputError(f"poses must be a finite ({self.n_bodies}, 3) array of x, y, angle; got shape {p.shape}")
         w = world(self._vcat, self._vbody, p)
-        # a body may touch a wall or overlap it slightly (it is meshed with the wall as one outline)
+        # a body may touch a wall or overlap it (the overlap is meshed as contact, the body with
+        # the wall as one outline), as deep as allowed_wall_overlap
         depth = -wall_depths(w, self._vbody, self.n_bodies, self.box)  # (n_bodies, 4): > 0 outside
-        allowed = self.params.wall_overlap * self.h
-        bad = np.flatnonzero(depth.max(axis=1) > allowed)
+        allowed = self.allowed_wall_overlap(p)
+        bad = np.flatnonzero((depth > allowed).any(axis=1))
         if len(bad):
             b = int(bad[0])
-            side = int(np.argmax(depth[b]))
-            what = ("it lies outside" if self._outside(p[b]) else
-                    f"it overlaps the {SIDE_NAMES[side]} wall by {depth[b, side]:.3g}")
+            side = int(np.argmax(depth[b] - allowed[b]))
+            if self._outside(p[b]):
+                raise InputError(
+                    f"body {b} ({self.body_names[b]}) at pose {p[b].tolist()} is not inside the domain "
+                    f"{tuple(float(c) for c in self.box)}: it lies outside")
             raise InputError(
                 f"body {b} ({self.body_names[b]}) at pose {p[b].tolist()} is not inside the domain "
-                f"{tuple(float(c) for c in self.box)}: {what}; expected an overlap of at most "
-                f"wall_overlap · h = {allowed:.3g}")
+                f"{tuple(float(c) for c in self.box)}: it overlaps the {SIDE_NAMES[side]} wall by "
+                f"{depth[b, side]:.3g}; expected an overlap of at most {allowed[b, side]:.3g} = max(wall_overlap · h, "
+                f"wall_overlap_fraction · its extent across the wall) (the overlap is meshed as contact): a "
+                f"resting overlap this deep means a contact law too soft for the load (raise [contact] E) or a "
+                f"pose outside the box")
         check_clearance(w, self._vbody, self.body_names, p, self.box, self.periodic, self.h,
                         error=InputError if self.__dict__.get("step_count") is None else MeshError)
         return p
+
+    def allowed_wall_overlap(self, poses=None) -> np.ndarray:
+        """Deepest overlap ``(n_bodies, 4)`` of each body with each box side (bottom, right, top,
+        left) that is meshed as contact, length units: ``max(wall_overlap · h,
+        wall_overlap_fraction · e)``, ``e`` the body's extent across the side at ``poses``
+        (default: the current ones; :class:`MeshParams`)."""
+        poses = self.poses if poses is None else np.asarray(poses, dtype=float)
+        p = self.params
+        w = world(self._vcat, self._vbody, poses)
+        ext = np.zeros((self.n_bodies, 2))
+        for axis in range(2):
+            hi = np.full(self.n_bodies, -np.inf)
+            lo = np.full(self.n_bodies, np.inf)
+            np.maximum.at(hi, self._vbody, w[:, axis])
+            np.minimum.at(lo, self._vbody, w[:, axis])
+            ext[:, axis] = hi - lo
+        across = ext[:, [1, 0, 1, 0]]  # bottom/top: the height, right/left: the width
+        return np.maximum(p.wall_overlap * self.h, p.wall_overlap_fraction * across)
 
     def _outside(self, pose) -> bool:
         """The reference point of a body at ``pose`` lies outside the box."""
@@ -650,7 +680,7 @@ class MovingMesh:
         narrow = self._narrow_gap_owners() | structural_narrow(self.topo, self.kind, self.body_of)
         shape = element_shape(self.points, self.topo) if shape is None else shape
         self.baseline: QualityBaseline = quality_baseline(shape, narrow, p.min_angle_trigger, p.max_angle_trigger,
-                                                          p.angle_margin)
+                                                          p.angle_margin, p.min_angle_margin)
 
     # ------------------------------------------------------------------ stepping
     def update(self, poses) -> MeshEvent:
@@ -711,7 +741,21 @@ class MovingMesh:
         if outside.any():
             movable = outside & self._mobility.any(axis=1)
             xd[movable] = np.clip(xd[movable], lo, hi)
-            pressed = bool((outside & ~movable).any())
+            over = np.flatnonzero(outside & ~movable)
+            if len(over):
+                # outline nodes of a body meshed with a wall, pressed past it by at most
+                # contact_slack · h (a resting body's overlap breathing), are put back on it
+                # per node and side (bottom, right, top, left) how far past it
+                past = np.column_stack([ymin - xd[over, 1], xd[over, 0] - xmax, xd[over, 1] - ymax,
+                                        xmin - xd[over, 0]])
+                walls = self.__dict__.get("walls", np.zeros((0, 2), dtype=np.int64))
+                meshed = np.zeros((self.n_bodies, 4), dtype=bool)
+                meshed[walls[:, 0], walls[:, 1]] = True
+                ok = np.where(past > 0, meshed[self.body_of[over]] & (past <= self._contact_slack()), True)
+                if ok.all():
+                    xd[over] = np.clip(xd[over], lo, hi)
+                else:
+                    pressed = True
         if pressed:
             self.points = xd
             self._steps_since += 1
@@ -771,12 +815,15 @@ class MovingMesh:
     # ------------------------------------------------------------------ gaps and triggers on the current mesh
     def _contacts_changed(self) -> bool:
         """:func:`fluidem.mesh.triggers.contacts_changed` at the current poses, or a body
-        came within ``min_gap`` of a wall or left it (:func:`wall_contacts`)."""
+        came within ``min_gap`` of a wall, or one meshed with a wall left it by more than
+        :meth:`_contact_slack` (hysteresis: a body resting on a wall whose gap breathes
+        around ``min_gap`` does not re-trigger every step)."""
         if self.n_bodies:
-            now = wall_contacts(world(self._vcat, self._vbody, self.poses), self._vbody, self.n_bodies, self.box,
-                                self.min_gap)
+            depth = wall_depths(world(self._vcat, self._vbody, self.poses), self._vbody, self.n_bodies, self.box)
             before = self.__dict__.get("walls", np.zeros((0, 2), dtype=np.int64))
-            if now.shape != before.shape or not np.array_equal(now, before):
+            was = np.zeros(depth.shape, dtype=bool)
+            was[before[:, 0], before[:, 1]] = True
+            if ((depth < self.min_gap) & ~was).any() or (was & (depth > self._contact_slack())).any():
                 return True
             # a wall node held on its side while its body lifted off there (a body rocking on
             # the wall): the closed outline no longer fits
@@ -785,10 +832,15 @@ class MovingMesh:
                 sel = wall >= 0
                 idx = self._contact_idx[sel]
                 rigid = world(self._contact_local[sel], self.body_of[idx], self.poses)
-                if (np.abs(rigid - self.points[idx]).max() > self.min_gap):
+                if (np.abs(rigid - self.points[idx]).max() > self._contact_slack()):
                     return True
         return contacts_changed(self._polygons(), self._near_pairs, self.contacts, self.min_gap, self.points,
                                 self.body_of)
+
+    def _contact_slack(self) -> float:
+        """How far (length units) a wall contact may breathe between re-triangulations:
+        ``max(min_gap, contact_slack · h)`` (:class:`MeshParams`)."""
+        return max(self.min_gap, self.params.contact_slack * self.h)
 
     def _anchored_across_gap(self, tri_idx, table=None) -> np.ndarray:
         """:func:`fluidem.mesh.gaps.anchored_across_gap` of triangles ``tri_idx``."""

@@ -76,7 +76,12 @@ class MeshParams:
         re-triangulation (``"quality"``) and elements outside them are fixed by the
         clean-up pass.
     angle_margin : float
-        Degrees an element that started outside the bounds may lose before it triggers.
+        Degrees the largest angle of an element may grow past ``max_angle_trigger`` (or past
+        its angle after the last triangulation if that was larger) before it triggers a
+        re-triangulation (:func:`fluidem.mesh.triggers.quality_baseline`), >= 0.
+    min_angle_margin : float
+        Degrees the smallest angle may fall below ``min_angle_trigger`` (or below its angle
+        after the last triangulation if that was smaller) before it triggers, >= 0.
     degenerate_area : float
         An element that shrank below this fraction of its area at the last triangulation
         triggers a re-triangulation (``"degenerate"``).
@@ -102,10 +107,23 @@ class MeshParams:
     contact_node_spacing : float
         A vertex of a closed contact outline farther than ``contact_node_spacing · h``
         from every kept outline node becomes a contact node.
-    wall_overlap : float
-        A body may overlap a box side by up to ``wall_overlap · h`` (the small overlaps of
-        the DEM's soft wall contact); it is meshed with the wall as one closed outline
-        (:mod:`fluidem.mesh.contact_outline`).  A deeper overlap raises ``InputError``; >= 0.
+    wall_overlap, wall_overlap_fraction : float
+        A body may overlap a box side by up to ``max(wall_overlap · h, wall_overlap_fraction ·
+        e)``, ``e`` the body's extent across that side (its height for the floor and the lid,
+        its width for the side walls): the overlap is meshed as contact, the body and the
+        wall as one closed outline (:mod:`fluidem.mesh.contact_outline`), which holds at any
+        depth that leaves most of the body in the box (measured to half its extent).  So the
+        resting overlap of the DEM's soft wall contact, which grows with the load and falls
+        with the contact law's ``E``, is meshable whatever the mesh size; a deeper overlap
+        raises ``InputError`` naming the contact law.  ``wall_overlap >= 0``,
+        ``wall_overlap_fraction`` in [0, 0.5].
+    contact_slack : float
+        Hysteresis of a wall contact, a multiple of ``h``: between re-triangulations the
+        outline of a body meshed with a wall may stay on the wall while the body lifts off it
+        by up to ``contact_slack · h``, and its outline nodes pressed past the wall by up to
+        that much are put back on it, instead of a re-triangulation (``"contact"``) each time
+        a resting body moves by more than ``min_gap``; a body lifted farther leaves the
+        contact; >= 0.
     mitre_limit : float
         Mitre limit of the closing buffer of a contact cluster (shapely ``buffer``).
     junctions : bool
@@ -164,7 +182,8 @@ class MeshParams:
     retriangulate_iterations: int = 20
     min_angle_trigger: float = 15.0
     max_angle_trigger: float = 135.0
-    angle_margin: float = 3.0
+    angle_margin: float = 10.0
+    min_angle_margin: float = 3.0
     degenerate_area: float = 0.1
     clearance: float = 0.5
     purge_clearance: float = 0.3
@@ -175,6 +194,8 @@ class MeshParams:
     contact_merge: float = 0.1
     contact_node_spacing: float = 0.3
     wall_overlap: float = 0.1
+    wall_overlap_fraction: float = 0.25
+    contact_slack: float = 0.02
     mitre_limit: float = 20.0
     junctions: bool = True
     junction_clearance: float = 0.3
@@ -206,13 +227,17 @@ class MeshParams:
         s(self, "max_angle_trigger", v.number(_key("max_angle_trigger"), self.max_angle_trigger,
                                               "a number in (60, 180]", lo=60.0, lo_open=True, hi=180.0))
         s(self, "angle_margin", v.nonnegative(_key("angle_margin"), self.angle_margin))
+        s(self, "min_angle_margin", v.nonnegative(_key("min_angle_margin"), self.min_angle_margin))
         s(self, "degenerate_area", v.fraction(_key("degenerate_area"), self.degenerate_area))
         for name in ("clearance", "purge_clearance"):
             s(self, name, v.number(_key(name), getattr(self, name), "a number in [0, 2) (multiple of h)",
                                    lo=0.0, hi=2.0, hi_open=True))
         for name in ("gap_purge", "tow_width", "drag_reach", "contact_merge", "contact_node_spacing",
-                     "junction_clearance", "cleanup_clearance", "wall_overlap"):
+                     "junction_clearance", "cleanup_clearance", "wall_overlap", "contact_slack"):
             s(self, name, v.number(_key(name), getattr(self, name), "a number >= 0 (multiple of h)", lo=0.0))
+        s(self, "wall_overlap_fraction", v.number(_key("wall_overlap_fraction"), self.wall_overlap_fraction,
+                                                  "a number in [0, 0.5] (fraction of the body's extent)",
+                                                  lo=0.0, hi=0.5))
         if self.min_gap is not None:
             s(self, "min_gap", v.positive(_key("min_gap"), self.min_gap))
         s(self, "default_min_gap", v.positive(_key("default_min_gap"), self.default_min_gap))

@@ -53,6 +53,8 @@ def test_keywords_and_params_build_the_same_mesh():
     ("clearance", 2.0, "a number in [0, 2) (multiple of h)"),
     ("min_gap", 0.0, "a positive finite number"),
     ("background", "hex", "one of 'fk', 'delaunay'"),
+    ("wall_overlap_fraction", 0.6, "a number in [0, 0.5] (fraction of the body's extent)"),
+    ("contact_slack", -0.1, "a number >= 0 (multiple of h)"),
 ])
 def test_bad_values_raise_one_line_input_errors(key, value, allowed):
     with pytest.raises(InputError) as err:

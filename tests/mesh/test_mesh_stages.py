@@ -6,7 +6,8 @@ import pytest
 import shapely
 
 from fluidem.cases.packings import pore_ring
-from fluidem.geometry import rectangle
+from fluidem.geometry import rectangle, regular_polygon
+from fluidem.mesh import MovingMesh
 from fluidem.mesh.contact_outline import contact_outline
 from fluidem.mesh.cutout import cut_out
 from fluidem.mesh.drag import DragAssociation, dragged_positions
@@ -125,7 +126,7 @@ def test_boundary_owner_and_structural_narrow():
     assert structural_narrow(topo, kind, body_of).tolist() == [True, False, True, False]
 
 
-def test_quality_baseline_lets_bad_elements_lose_the_margin_only():
+def test_quality_baseline_fires_a_margin_past_the_bound_or_past_the_start():
     def shape_of(deg):  # isosceles triangles with apex angle `deg` (their smallest or largest angle)
         pts, tris = [], []
         for k, a in enumerate(np.radians(deg)):
@@ -135,13 +136,43 @@ def test_quality_baseline_lets_bad_elements_lose_the_margin_only():
 
     base = quality_baseline(shape_of([40.0, 13.0, 13.0]), np.array([False, False, True]), 15.0, 135.0, 3.0)
     lo = np.degrees(np.arccos(base.cos_lo[:2]))
-    np.testing.assert_allclose(lo, [15.0, 10.0], atol=1e-9)  # the bound, or 3° below where it started
+    # 3° below min(bound, where it started): born inside at 40° -> 12°, born outside at 13° -> 10°
+    np.testing.assert_allclose(lo, [12.0, 10.0], atol=1e-9)
     assert base.cos_lo[2] == 2.0 and base.cos_hi[2] == -2.0  # narrow-gap: left out
-    assert not quality_dropped(shape_of([16.0, 10.5, 5.0]), base, lambda idx: np.ones(len(idx), bool))
-    assert quality_dropped(shape_of([14.0, 10.5, 5.0]), base, lambda idx: np.ones(len(idx), bool))
-    assert quality_dropped(shape_of([16.0, 9.5, 5.0]), base, lambda idx: np.ones(len(idx), bool))
-    # a narrow-gap element that got worse and is no longer anchored across a gap triggers
+    anchored = lambda idx: np.ones(len(idx), bool)  # noqa: E731
+    # an element born inside that crossed the bound by less than the margin does not fire
+    # (before the margin it did: 14° < 15°)
+    assert not quality_dropped(shape_of([14.0, 10.5, 5.0]), base, anchored)
+    assert quality_dropped(shape_of([11.5, 10.5, 5.0]), base, anchored)
+    assert quality_dropped(shape_of([16.0, 9.5, 5.0]), base, anchored)
+    # a narrow-gap element that got worse, past the widened bound (12°), and is no longer
+    # anchored across a gap triggers; one within the margin does not
     assert quality_dropped(shape_of([16.0, 10.5, 5.0]), base, lambda idx: np.zeros(len(idx), bool))
+    assert not quality_dropped(shape_of([16.0, 10.5, 12.5]), base, lambda idx: np.zeros(len(idx), bool))
+
+
+def test_a_fresh_mesh_does_not_fire_just_past_the_bounds():
+    """The elements of a fresh triangulation of 12 polygons in a box each pushed 2° past
+    max(135°, its largest angle) and min(15°, its smallest): none fires (without the margin
+    all of them would); pushed 10.5° past, they fire."""
+    bodies = [rectangle(0.06, 0.03), regular_polygon(0.03, 6), regular_polygon(0.03, 3)] * 4
+    poses = [[0.05 + 0.09 * (k % 4), 0.03 + 0.07 * (k // 4), 0.4 * k] for k in range(12)]
+    mm = MovingMesh((0.0, 0.36, 0.0, 0.32), bodies, poses, h=0.02)
+    s0 = element_shape(mm.points, mm.topo)
+    amin = np.minimum(np.degrees(np.arccos(np.clip(s0.cos_max, -1, 1))), 15.0)
+    amax = np.maximum(np.degrees(np.arccos(np.clip(s0.cos_min, -1, 1))), 135.0)
+
+    def pushed(d, d_min):
+        return ElementShape(np.cos(np.radians(amin - d_min)), np.cos(np.radians(amax + d)), s0.area)
+
+    def anchored(idx):
+        return np.ones(len(idx), bool)
+
+    assert not quality_dropped(pushed(2.0, 2.0), mm.baseline, anchored)
+    assert quality_dropped(pushed(10.5, 0.0), mm.baseline, anchored)  # angle_margin = 10°
+    assert quality_dropped(pushed(0.0, 3.5), mm.baseline, anchored)  # min_angle_margin = 3°
+    no_margin = quality_baseline(s0, mm.baseline.narrow, 15.0, 135.0, 0.0)
+    assert quality_dropped(pushed(2.0, 0.0), no_margin, anchored)
 
 
 def test_retriangulation_reasons_come_in_order_and_lazily():
