@@ -103,8 +103,8 @@ NOISE_MIN_TRANSFERS = 5
 #: The likely mechanism and its remedy, by warning.
 MECHANISMS = {
     "condition": "likely a near-contact gap meshed with too few elements, or a fluid pocket closed by touching "
-                 "bodies; refine mesh.h near the bodies (mesh.grading), check the contacts (contact.min_gap, the "
-                 "repulsion) and the mesh quality in events.log",
+                 "bodies; refine mesh.h near the bodies (mesh.grading), check the contacts (the repulsion's "
+                 "contact.repulsion_range) and the mesh quality in events.log",
     "krylov": "the preconditioner no longer fits the matrices, likely a growing condition number (a narrowing "
               "gap) or a stale lagged LU / AMG hierarchy; refactorise more often (fluid.solver = \"direct\") or "
               "refine the mesh near the bodies",
