@@ -153,8 +153,9 @@ def test_quality_baseline_fires_a_margin_past_the_bound_or_past_the_start():
 
 def test_a_fresh_mesh_does_not_fire_just_past_the_bounds():
     """The elements of a fresh triangulation of 12 polygons in a box each pushed 2° past
-    max(135°, its largest angle) and min(15°, its smallest): none fires (without the margin
-    all of them would); pushed 10.5° past, they fire."""
+    max(135°, its largest angle): none fires (without the margin all of them would); pushed
+    10.5° past, they fire.  The smallest angle has no margin by default (min_angle_margin = 0):
+    0.5° below min(15°, its angle after the triangulation) fires."""
     bodies = [rectangle(0.06, 0.03), regular_polygon(0.03, 6), regular_polygon(0.03, 3)] * 4
     poses = [[0.05 + 0.09 * (k % 4), 0.03 + 0.07 * (k // 4), 0.4 * k] for k in range(12)]
     mm = MovingMesh((0.0, 0.36, 0.0, 0.32), bodies, poses, h=0.02)
@@ -168,9 +169,9 @@ def test_a_fresh_mesh_does_not_fire_just_past_the_bounds():
     def anchored(idx):
         return np.ones(len(idx), bool)
 
-    assert not quality_dropped(pushed(2.0, 2.0), mm.baseline, anchored)
+    assert not quality_dropped(pushed(2.0, 0.0), mm.baseline, anchored)
     assert quality_dropped(pushed(10.5, 0.0), mm.baseline, anchored)  # angle_margin = 10°
-    assert quality_dropped(pushed(0.0, 3.5), mm.baseline, anchored)  # min_angle_margin = 3°
+    assert quality_dropped(pushed(0.0, 0.5), mm.baseline, anchored)  # min_angle_margin = 0
     no_margin = quality_baseline(s0, mm.baseline.narrow, 15.0, 135.0, 0.0)
     assert quality_dropped(pushed(2.0, 0.0), no_margin, anchored)
 

@@ -79,15 +79,14 @@ def test_a_body_in_a_corner_touches_two_walls():
 @pytest.mark.parametrize("gap", [0.0, 1e-4, 0.2 * H])
 def test_a_long_slide_along_the_floor_keeps_its_quality(gap):
     """140 steps of 0.2 h touching, at 2 min_gap and at h/5: the box-side nodes ahead of the
-    body are coarsened at re-triangulation instead of piling up (before, elements of 0.4° between
-    piled-up nodes).  The quality trigger fires 3° below min(15°, an element's angle after the
-    triangulation) (``min_angle_margin``): measured worst min angle 11.9°."""
+    body are coarsened at re-triangulation instead of piling up (measured worst min angle
+    15.1–15.4°, 12–13 re-triangulations; before, elements of 0.4° between piled-up nodes)."""
     mm = MovingMesh(BOX, [rectangle(0.3, 0.1)], [[0.3, 0.05 + gap, 0.0]], h=H)
     n = 0
     for k in range(1, 141):
         ev = mm.update([[0.3 + 0.01 * k, 0.05 + gap, 0.0]])
         q = _check_valid(mm)
-        assert q.min_angle >= 11.0, (k, q)
+        assert q.min_angle >= 12.0, (k, q)
         n += ev.retriangulated
     assert n <= 26
 
