@@ -149,15 +149,16 @@ def test_head_on_collision_in_the_conservative_ale_form_keeps_the_momentum_to_so
     outlines make every term but the time derivative a boundary flux when tested with a
     constant, and re-triangulations shift the transferred fields to the old momentum.  With a
     fresh LU every step the momentum of fluid and bodies changes by round-off only (measured
-    1.4e-15 of m U over 130 steps and 13 re-triangulations); with the lagged LU by its GMRES
-    tolerance 1e-6 (measured 3.2e-8).  The disks still stop without a rebound (smallest gap
-    0.0025 = 0.064 h, end speed 1.8e-3 of the initial)."""
+    1.4e-15 of m U over 130 steps and 13 re-triangulations; 9 re-triangulations since the quality
+    trigger's margin, within the same bounds); with the lagged LU by its GMRES tolerance 1e-6
+    (measured 3.2e-8 with 13).  The disks still stop without
+    a rebound (smallest gap 0.0025 = 0.064 h, end speed 1.8e-3 of the initial)."""
     d = _pair_scene().to_dict()
     d["fluid"].update(ale_form="conservative", solver=solver)
     sim, r = _momentum_history(Scene.from_dict(d))
     fl = sim.flow
     drift = np.abs(r[:, :2] - r[0, :2]).max(axis=0) / (fl.mass[0] * 1.0)
-    assert sim.counters["transfers"] >= 10
+    assert sim.counters["transfers"] >= 5  # the momentum goes through several transfers: measured 9
     assert drift.max() < bound, drift
     assert (r[:, 3] >= 0).all() and abs(r[-1, 3]) < 5e-3
 
