@@ -176,7 +176,8 @@ def test_xdmf_is_refused_for_a_moving_mesh_and_without_h5py(tmp_path, monkeypatc
     assert not (tmp_path / "moving" / "history.csv").exists()  # refused before anything was written
     monkeypatch.setitem(sys.modules, "h5py", None)
     (tmp_path / "s.toml").write_text(_tiny("th", "true", "true"))
-    with pytest.raises(InputError, match=r'^output.xdmf = true needs h5py: pip install "fluidem\[xdmf\]"$'):
+    with pytest.raises(InputError, match=r'^output.xdmf = true needs h5py: pip install "fluidem\[xdmf\]" \(in an '
+                                         r'editable checkout: pip install -e "\.\[xdmf\]"\)$'):
         Simulation(Scene.from_toml(tmp_path / "s.toml")).run(out_dir=tmp_path / "o")
     assert not (tmp_path / "o").exists()
 
