@@ -26,7 +26,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from results_io import RESULTS, machine_description, write_json  # noqa: E402
 
-from fluidem.cases.junction_split import (OUTLETS, VARIANTS, flux_split, junction_case,  # noqa: E402
+from fluidem.cases.junction_split import (VARIANTS, flux_split, junction_case,  # noqa: E402
                                           junction_geometry, reference_mesh)
 
 GAP = 0.1
