@@ -4,7 +4,7 @@ mesh of the same fluid (:mod:`fluidem.cases.junction_split`; the full table is
 ``benchmarks/results/stability_junctions.md``).
 
 The reference here is the body-fitted mesh at h = gap/4 (0.2 s); it differs from the benchmark's
-gap/16 one by at most 3e-4 of the inflow (P2-bubble, 90°), well below every bound below.
+gap/16 one by at most 4e-4 of the inflow (P2-bubble, both angles), well below every bound below.
 """
 
 import numpy as np
