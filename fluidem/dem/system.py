@@ -215,6 +215,16 @@ class DEM:
         self._initial_forces()
         self._fresh = True      # again at the first step, with the external forces set by then
 
+    def __setstate__(self, state: dict) -> None:
+        """Restore from a checkpoint; one written before periodic boxes gets none (``period`` None)."""
+        self.__dict__.update(state)
+        if "_L" not in state:
+            self._L = np.zeros(2)
+            self._wall_box = self._walls
+        C = self.__dict__.get("contacts")
+        if C is not None and getattr(C, "shift", None) is None:
+            C.shift = np.zeros((len(C.i), 2))
+
     # ---- set-up ------------------------------------------------------------------------
     def _setup(self, bodies, state=None, key="DEM(period=...)"):
         B = list(bodies)
