@@ -63,6 +63,7 @@ from ..dem import DEM, Body, ContactModel
 from ..dem.lubrication import Lubrication
 from ..dem.periodic import image_shift
 from ..dem.repulsion import Repulsion
+from ..dem.system import critical_sub_step
 
 __all__ = ["BACKSTOP", "FluidContacts", "RESOLVED_FILM", "lubrication_for", "repulsion_for", "scene_period"]
 
@@ -286,11 +287,11 @@ class FluidContacts:
 
     def _repulsion_sub_steps(self, dt: float, gap: float) -> tuple[int, float]:
         """Sub-steps of ``dt`` stable with the repulsion's stiffness at ``gap`` (length) for the lightest free
-        body, 0.1π√(m/k) (Matuttis & Chen 2014, ch. 7), and that gap (the floor they assume)."""
+        body (:func:`fluidem.dem.system.critical_sub_step`), and that gap (the floor they assume)."""
         d = self.dem
         m = float(d.mass[d.free].min())
         k = float(self.repulsion.stiffness(np.array([gap]))[0])
-        return (int(np.ceil(dt / (0.1 * np.pi * np.sqrt(m / k)) - 1e-9)) if k > 0 else 1), gap
+        return (int(np.ceil(dt / float(critical_sub_step(m, k)) - 1e-9)) if k > 0 else 1), gap
 
     def sub_steps(self, dt: float, poses: np.ndarray, velocities: np.ndarray, V_c: np.ndarray):
         """Sub-steps of a pass over [t, t + dt] from the stiffness in play, the gap floor it assumes and why.

@@ -41,7 +41,7 @@ from .lubrication import Lubrication, equal_area_radius, implicit_damping, lubri
 from .periodic import as_period, check_pair_reach, image_shift
 from .repulsion import Repulsion, pair_gaps, repulsion_forces, repulsion_pairs
 
-__all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS"]
+__all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS", "critical_sub_step", "stable_sub_step"]
 
 
 #: Deprecated alias of :class:`fluidem.cost.CostSplit`, the one cost-split type (kept for one version).
@@ -69,6 +69,19 @@ def _pad_vertices(bodies) -> tuple[np.ndarray, np.ndarray]:
 
 
 
+def critical_sub_step(mass, stiffness):
+    """The explicit sub-step ``0.1 π √(m / k)`` that resolves a spring of ``stiffness`` k
+    (force/length) on a body of ``mass`` m (Matuttis & Chen 2014, ch. 7), time units; scalars or arrays.
+
+    Examples
+    --------
+    >>> round(float(critical_sub_step(0.01, 1e4)), 7)
+    0.0003142
+    """
+    with np.errstate(all="ignore"):  # an absurd stiffness: 0, which the plan refuses
+        return 0.1 * np.pi * np.sqrt(np.asarray(mass, dtype=float) / stiffness)
+
+
 def stable_sub_step(mass: float, E: float, repulsion=None) -> tuple[float, str]:
     """The DEM's largest stable sub-step ``0.1 π √(m / k)`` (Matuttis & Chen 2014, ch. 7) and what sets it.
 
@@ -87,8 +100,8 @@ def stable_sub_step(mass: float, E: float, repulsion=None) -> tuple[float, str]:
         k = repulsion.max_stiffness
         by = (f"the repulsion's stiffness at contact 2c/(ερ) = {k:.3g} force/length (contact.repulsion_epsilon, "
               "repulsion_force, repulsion_range)")
-    with np.errstate(all="ignore"):  # an absurd stiffness: 0, which the plan refuses
-        return float(0.1 * np.pi * np.sqrt(mass / k)), by
+    return float(critical_sub_step(mass, k)), by
+
 
 class DEM:
     """Polygonal discrete element simulation.
