@@ -27,7 +27,7 @@ import time
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from results_io import RESULTS, machine_description, write_json  # noqa: E402
+from results_io import RESULTS, machine_description, markdown_table, write_json  # noqa: E402
 
 from fluidem.cases.curvature import couette_case, gap_case, lubrication_profile  # noqa: E402
 
@@ -126,20 +126,17 @@ def report(rows: list, machine: str) -> None:
                      f"{r['normal_force']:+.2e} | {r['profile_error']:.2e} | {r['condition']:.2e} |")
     lines += ["", "Main load: the drag F_x (sliding) or the torque (rotating); second: the torque (sliding) or the "
               "sideways force F_x (rotating).", "", "## References and their checks", "",
-              "| set-up | δ/a | F_x | F_y | torque | DOFs | layers | κ₁ | profile at x = 0 − lubrication |",
-              "|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        if r["kind"] == "reference":
-            lines.append(f"| {r['geometry']} | {r['delta_over_a']} | {r['fx']:.6g} | {r['fy']:+.1e} | "
-                         f"{r['torque']:.6g} | {r['dofs']} | {r['layers']} | {r['condition']:.2e} | "
-                         f"{r['lubrication_profile_error']:.3f} |")
-    lines += ["", "| set-up | δ/a | check | DOFs | main load | second load | normal force | profile |",
-              "|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        if r["kind"] == "reference_check":
-            lines.append(f"| {r['geometry']} | {r['delta_over_a']} | {r['check']} | {r['dofs']} | "
-                         f"{r['main_error']:+.1e} | {r['second_error']:+.1e} | {r['normal_force']:+.1e} | "
-                         f"{r['profile_error']:.1e} |")
+              ]
+    lines += markdown_table(
+        ["set-up", "δ/a", "F_x", "F_y", "torque", "DOFs", "layers", "κ₁", "profile at x = 0 − lubrication"],
+        [[r["geometry"], str(r["delta_over_a"]), f"{r['fx']:.6g}", f"{r['fy']:+.1e}", f"{r['torque']:.6g}",
+          str(r["dofs"]), str(r["layers"]), f"{r['condition']:.2e}", f"{r['lubrication_profile_error']:.3f}"]
+         for r in rows if r["kind"] == "reference"])
+    lines += [""] + markdown_table(
+        ["set-up", "δ/a", "check", "DOFs", "main load", "second load", "normal force", "profile"],
+        [[r["geometry"], str(r["delta_over_a"]), r["check"], str(r["dofs"]), f"{r['main_error']:+.1e}",
+          f"{r['second_error']:+.1e}", f"{r['normal_force']:+.1e}", f"{r['profile_error']:.1e}"]
+         for r in rows if r["kind"] == "reference_check"])
     lines += ["", "## Plane Couette flow (sanity check: every pair is exact)", "",
               "Plates at ±1, gap 0.1, periodic, n rows of right triangles across.", "",
               "| element | n | force error | profile error | κ₁ |", "|---|---|---|---|---|"]

@@ -24,7 +24,7 @@ import time
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from results_io import RESULTS, machine_description, write_json  # noqa: E402
+from results_io import RESULTS, machine_description, markdown_table, write_json  # noqa: E402
 
 from fluidem.cases.junction_split import (VARIANTS, flux_split, junction_case,  # noqa: E402
                                           junction_geometry, reference_mesh)
@@ -75,20 +75,20 @@ def report(rows: list, refs: list, machine: str) -> None:
              "that point without the angle screen; `centre` one node at the crossing of the diagonals of the "
              "junction quadrilateral (two junction triangles split into four).  Nodes: junction nodes added.  "
              "κ₁: 1-norm condition estimate of the Stokes LU.", "",
-             "## Reference", "",
-             "| angle | element | h | split (right / top / bottom) | difference from the reference | DOFs | κ₁ |",
-             "|---|---|---|---|---|---|---|"]
-    for r in refs:
-        s = " / ".join(f"{v:.4f}" for v in r["split"])
-        lines.append(f"| {r['angle']:g}° | {r['element']} | {r['h']:g} | {s} | {r['difference']:.1e} | {r['dofs']} | "
-                     f"{r['condition']:.2e} |")
-    lines += ["", "## Coarse meshes", "",
-              "| angle | element | h | h/gap | junction | nodes | split (right / top / bottom) | error | κ₁ | DOFs |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        s = " / ".join(f"{v:.4f}" for v in r["split"])
-        lines.append(f"| {r['angle']:g}° | {r['element']} | {r['h']} | {r['h_over_gap']:.1f} | {r['variant']} | "
-                     f"{r['junction_nodes']} | {s} | {r['error']:.4f} | {r['condition']:.2e} | {r['dofs']} |")
+             "## Reference", ""]
+
+    def split(r):
+        return " / ".join(f"{v:.4f}" for v in r["split"])
+
+    lines += markdown_table(
+        ["angle", "element", "h", "split (right / top / bottom)", "difference from the reference", "DOFs", "κ₁"],
+        [[f"{r['angle']:g}°", r["element"], f"{r['h']:g}", split(r), f"{r['difference']:.1e}", str(r["dofs"]),
+          f"{r['condition']:.2e}"] for r in refs])
+    lines += ["", "## Coarse meshes", ""] + markdown_table(
+        ["angle", "element", "h", "h/gap", "junction", "nodes", "split (right / top / bottom)", "error", "κ₁", "DOFs"],
+        [[f"{r['angle']:g}°", r["element"], str(r["h"]), f"{r['h_over_gap']:.1f}", r["variant"],
+          str(r["junction_nodes"]), split(r), f"{r['error']:.4f}", f"{r['condition']:.2e}", str(r["dofs"])]
+         for r in rows])
     (RESULTS / "stability_junctions.md").write_text("\n".join(lines) + "\n")
 
 
