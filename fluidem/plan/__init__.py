@@ -31,11 +31,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import names
-from .errors import InputError
+from .. import names
+from ..errors import InputError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .scene import Scene
+    from ..scene import Scene
 
 __all__ = ["Plan", "Effect", "make_plan", "moving_mesh_available", "contact_candidates", "prescribed_collisions",
            "mesh_estimate", "machine_memory", "boundary_fluxes", "FLUX_TOLERANCE", "contact_sub_steps",
@@ -117,7 +117,7 @@ class Plan:
 def moving_mesh_available() -> bool:
     """True when the moving-mesh layer (:class:`fluidem.mesh.MovingMesh`) can be imported."""
     try:
-        from .mesh import MovingMesh  # noqa: F401
+        from ..mesh import MovingMesh  # noqa: F401
     except ImportError:
         return False
     return True
@@ -340,15 +340,15 @@ def contact_sub_steps(scene: Scene) -> tuple[float, float, str] | None:
     free = [b for b in scene.bodies if b.motion == "free"]
     if c is None or not c.enabled or not free or (fl is not None and fl.model == "stokes"):
         return None
-    from .dem.system import stable_sub_step
-    from .geometry import polygon_area
+    from ..dem.system import stable_sub_step
+    from ..geometry import polygon_area
 
     areas = np.array([abs(polygon_area(b.local_vertices(scene.default_segments(b)))) for b in free])
     dens = np.array([b.density for b in free], float)
     mass = float(((dens + (fl.density if fl is not None else 0.0)) * areas).min())
     rep = None
     if fl is not None:
-        from .coupling.contacts import repulsion_for
+        from ..coupling.contacts import repulsion_for
 
         rep = repulsion_for(scene, areas, dens)
     dt_max, by = stable_sub_step(mass, c.E, rep)
@@ -551,7 +551,7 @@ def make_plan(scene: Scene) -> Plan:
                 notes.append("solver = 'iterative': the coupled fluid-body system is solved by block-preconditioned "
                              "GMRES with the body velocities in the velocity block")
             if c_on and fl.model == "stokes":
-                from .coupling.contacts import repulsion_for
+                from ..coupling.contacts import repulsion_for
 
                 rep = repulsion_for(scene, np.zeros(0), np.zeros(0))
                 notes.append(f"contacts of Stokes free bodies: the short-range repulsion (Glowinski et al. 2001) "
@@ -567,7 +567,7 @@ def make_plan(scene: Scene) -> Plan:
                         "force scale (the largest buoyant weight) is 0, so bodies that meet overlap and the run stops; "
                         "expected contact.repulsion_force > 0 (a force per unit depth, e.g. the largest load that "
                         "presses bodies together)")
-                from .coupling.contacts import lubrication_for, repulsion_for
+                from ..coupling.contacts import lubrication_for, repulsion_for
 
                 rep = repulsion_for(scene, np.zeros(0), np.zeros(0))
                 lub = lubrication_for(scene)
@@ -638,7 +638,7 @@ def make_plan(scene: Scene) -> Plan:
         warnings.append(f"no [contact] table: {nb} body pair(s) and {nw} body–wall pair(s) can meet before t_end = "
                         f"{scene.time.t_end:g}, and without contacts bodies pass through each other and through the "
                         "walls; expected a [contact] table (E, mu, gamma) for bodies that meet")
-    from .rheology import plan_note
+    from ..rheology import plan_note
 
     rheo = plan_note(scene)
     if rheo:
