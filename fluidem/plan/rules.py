@@ -176,7 +176,7 @@ def mesh(scene, ctx):
     elif not ctx.outline_moving:
         why = "no body outline moves" + (" (spinning disks keep their outline)" if ctx.moving else "")
         yield Effect("mesh", True, why + ": the mesh is built once", "once")
-    elif ctx.mesh == "once":
+    elif ctx.quasi_static_once:
         yield Effect("mesh", True, "Stokes at one instant (a single step): the geometry at t = 0 is all a "
                      "quasi-steady solve needs; the mesh is built once", "once")
     else:
@@ -191,7 +191,7 @@ def ale(scene, ctx):
         yield Effect("ale", False, "no fluid")
     elif not ctx.outline_moving:
         yield Effect("ale", False, "the mesh never moves")
-    elif ctx.mesh == "once":
+    elif ctx.quasi_static_once:
         yield Effect("ale", False, "one quasi-steady step: the mesh never moves")
     elif scene.fluid.model != "navier-stokes":
         yield Effect("ale", False, "Stokes has no convection: the mesh velocity does not enter")
