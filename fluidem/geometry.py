@@ -50,6 +50,7 @@ from . import validate
 from .errors import InputError
 
 __all__ = [
+    "minimum_image",
     "as_polygon",
     "polygon_area",
     "polygon_centroid",
@@ -456,3 +457,15 @@ def point_in_polygon(points, vertices) -> np.ndarray:
         xcross = a[None, :, 0] + (py - ay) * (b[None, :, 0] - a[None, :, 0]) / (by - ay)
     hits = straddle & (px < xcross)
     return (hits.sum(axis=1) % 2) == 1
+
+
+def minimum_image(d, period) -> np.ndarray:
+    """Difference vectors ``d (k, 2)`` reduced to their nearest periodic image (length units).
+
+    ``period``: ``(L_x, L_y)`` with ``None`` for a non-periodic axis.
+    """
+    d = np.array(d, dtype=float)
+    for c, L in enumerate(period):
+        if L:
+            d[:, c] -= L * np.round(d[:, c] / L)
+    return d

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .space import FlowSpace
-from ..mesh.seam import minimum_image
+from ..geometry import minimum_image
 
 __all__ = ["BodyLoad", "body_loads", "RigidModes", "SideLoads", "side_loads", "PeriodicStats", "periodic_stats"]
 

@@ -160,12 +160,28 @@ def _on_periodic_sides(points, box, axes) -> np.ndarray:
     return on
 
 
+def _partners(points, box, axes) -> np.ndarray:
+    """The partners ``(k, 2)`` across the side pair of the ``points`` on a periodic side."""
+    xmin, xmax, ymin, ymax = box
+    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
+    out = []
+    for c, (lo, hi) in ((0, (xmin, xmax)), (1, (ymin, ymax))):
+        if "xy"[c] not in axes:
+            continue
+        for a, b in ((lo, hi), (hi, lo)):
+            q = points[np.abs(points[:, c] - a) < tol].copy()
+            q[:, c] = b
+            out.append(q)
+    return np.vstack(out) if out else np.zeros((0, 2))
+
+
 def _hole_points(solids, box) -> np.ndarray:
     """One point ``(k, 2)`` inside every part of the ``solids`` within the box."""
     xmin, xmax, ymin, ymax = box
     inner = shapely.intersection(np.asarray(solids, dtype=object), shapely.box(xmin, ymin, xmax, ymax))
+    tiny = (1e-6 * max(xmax - xmin, ymax - ymin)) ** 2  # slivers along a side are no hole (a body edge on it)
     parts = [p for g in inner for p in shapely.get_parts(g)
-             if shapely.get_type_id(p) == 3 and shapely.area(p) > 0.0]
+             if shapely.get_type_id(p) == 3 and shapely.area(p) > tiny]
     if not parts:
         return np.zeros((0, 2))
     return shapely.get_coordinates(shapely.point_on_surface(np.asarray(parts, dtype=object)))
@@ -250,10 +266,9 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
     if seams is not None and len(oc_nodes):
         # bodies across periodic sides: outlines clipped at the box, seam nodes where they leave it
         axes, merge = seams
-        clip = clip_at_seams(oc_nodes, oc_segments, np.ones(len(oc_nodes), dtype=bool), box)
+        clip = clip_at_seams(oc_nodes, oc_segments, box, axes)
         if len(clip.seam_points) or not clip.keep.all():
             k = len(clip.seam_points)
-            seam_idx = len(oc_nodes) + np.arange(k)
             keep = np.concatenate([clip.keep, np.ones(k, dtype=bool)])
             oc_nodes = np.vstack([oc_nodes, clip.seam_points])
             oc_body = np.concatenate([oc_body, oc_body[clip.seam_inner]])
@@ -269,12 +284,14 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
                                                           oc_row[keep], oc_uid[keep])
             oc_wall, oc_outer_body, oc_outer_local = oc_wall[keep], oc_outer_body[keep], oc_outer_local[keep]
             n_oc_outline = int((oc_row >= 0).sum())
-            # box nodes on periodic sides under a body or next to a seam node are no boundary
-            seam_pts = clip.seam_points
+            # box nodes on periodic sides under a body or next to a seam node (on both sides
+            # of the pair) are no boundary
+            ends = clip.seam_points
+            ends = np.vstack([ends, _partners(ends, box, axes)])
             on_periodic = _on_periodic_sides(points, box, axes) & ((kind == SIDE) | (kind == CORNER))
             if on_periodic.any():
                 drop = np.zeros(len(points), dtype=bool)
-                drop[on_periodic] = covered_side_nodes(points[on_periodic], contact.solids, seam_pts, merge, box)
+                drop[on_periodic] = covered_side_nodes(points[on_periodic], contact.solids, ends, merge, box)
                 points, kind, uid = points[~drop], kind[~drop], uid[~drop]
     # assemble nodes: [candidates | outline | contact and seam nodes | junctions]
     n_cand = len(points)
@@ -293,11 +310,16 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
     wall_nodes = first_contact + np.flatnonzero(contact_wall_all >= 0)
     ring_seg, ring_mark = box_ring(nodes, kind, box, extra=wall_nodes)
     if seams is not None and (contact_wall_all >= SEAM_CODE).any():
-        # the seam under a body is no boundary
+        # the seam under a body is no boundary: ring segments lying wholly on a body
         mid = 0.5 * (nodes[ring_seg[:, 0]] + nodes[ring_seg[:, 1]])
         under = np.zeros(len(ring_seg), dtype=bool)
-        on_periodic = _on_periodic_sides(mid, box, seams[0])
-        under[on_periodic] = covered_side_nodes(mid[on_periodic], contact.solids, np.zeros((0, 2)), 0.0, box)
+        on_periodic = np.flatnonzero(_on_periodic_sides(mid, box, seams[0]))
+        if len(on_periodic) and len(contact.solids):
+            tol = 1e-9 * max(box[1] - box[0], box[3] - box[2])
+            u = shapely.buffer(shapely.union_all(np.asarray(contact.solids, dtype=object)), tol)
+            lines = shapely.linestrings(np.stack([nodes[ring_seg[on_periodic, 0]], nodes[ring_seg[on_periodic, 1]]],
+                                                 axis=1))
+            under[on_periodic] = shapely.covers(u, lines)
         ring_seg, ring_mark = ring_seg[~under], ring_mark[~under]
     if len(wall_nodes):
         # the box segments under a body in contact are no fluid boundary

@@ -161,7 +161,8 @@ from .nodes import (
     world,
 )
 from .periodic import freeze_periodic_sides, match_side_nodes, periodic_axes
-from .seam import SEAM_CODE, SEAM_MERGE, PeriodicImages, period_of, periodic_images, seam_positions
+from .seam import (SEAM_BAND, SEAM_CODE, SEAM_MERGE, PeriodicImages, period_of, periodic_images, seam_nudge,
+                   seam_positions)
 from .params import PARAM_NAMES, STRATEGIES, MeshParams, mesh_params
 from .proximity import PolygonTable
 from .quality import MeshQuality, OscillationDetector, mesh_quality
@@ -522,8 +523,9 @@ class MovingMesh:
         return np.array(["y" not in ax, "x" not in ax, "y" not in ax, "x" not in ax])
 
     def _check_widths(self) -> None:
-        """A body across a periodic side must be narrower than half the period (its images
-        are then told apart by the nearest one, :func:`fluidem.mesh.seam.minimum_image`)."""
+        """Every vertex of a body lies less than half the period from its origin: the arm of a
+        point of a body across a periodic side is then the one to the nearest image of its
+        origin (:func:`fluidem.geometry.minimum_image`)."""
         L = period_of(self.box, self.periodic)
         for c, Lc in enumerate(L):
             if not Lc or not self.n_real:
@@ -531,10 +533,10 @@ class MovingMesh:
             r = np.zeros(self.n_real)
             np.maximum.at(r, self._real_vbody, np.linalg.norm(self._real_vcat, axis=1))
             b = int(np.argmax(r))
-            if 2.0 * r[b] >= 0.5 * Lc:
-                raise InputError(f"body {b} ({self.body_names[b]}) spans {2 * r[b]:.4g} (twice its farthest vertex "
-                                 f"from its origin) across the periodic sides of period {Lc:.4g} in {'xy'[c]}: "
-                                 f"allowed: less than half the period, {0.5 * Lc:.4g}")
+            if r[b] >= 0.5 * Lc:
+                raise InputError(f"body {b} ({self.body_names[b]}) has a vertex {r[b]:.4g} from its origin, across "
+                                 f"periodic sides of period {Lc:.4g} in {'xy'[c]}: allowed: less than half the "
+                                 f"period, {0.5 * Lc:.4g} (the arms of its rigid motion go to its nearest image)")
 
     # ------------------------------------------------------------------ periodic images
     def _extent(self, body_poses) -> np.ndarray:
@@ -556,8 +558,15 @@ class MovingMesh:
         margin = (self.params.drag_reach + 1.0) * self.h
         return periodic_images(body_poses, self._extent(body_poses), self.box, self.periodic, margin)
 
-    def _set_images(self, images: PeriodicImages) -> None:
-        """Make ``images`` the bodies the mesh holds: per image its outline, vertices and pose."""
+    def _set_images(self, images: PeriodicImages, nudge: bool = False) -> None:
+        """Make ``images`` the bodies the mesh holds: per image its outline, vertices and pose
+        (``nudge``: bodies with an outline node on a periodic side line are held nudged off it,
+        :func:`fluidem.mesh.seam.seam_nudge`)."""
+        if nudge and self.periodic and self.n_real:
+            ol = self._real_outlines
+            pts = world(ol.local, ol.body, self.body_poses)
+            shift = seam_nudge(pts, ol.body, self.n_real, self.box, self.periodic, SEAM_BAND * self.h)
+            images = PeriodicImages(body=images.body, cell=images.cell, shift=images.shift + shift[images.body])
         self.images = images
         nb = len(images.body)
         self.n_bodies = nb
@@ -667,7 +676,7 @@ class MovingMesh:
         candidate nodes (Sec. 2.1); returns the counts of :class:`MeshEvent`."""
         p = self.params
         if self.periodic:
-            self._set_images(self._image_set(self.body_poses))
+            self._set_images(self._image_set(self.body_poses), nudge=True)
         poses = self.poses
         outline_world = self.outlines.world(poses)
         polys = self._polygons(poses)
@@ -911,7 +920,7 @@ class MovingMesh:
     def _place_seam_nodes(self, xd, poses) -> bool:
         """Put the seam nodes of ``xd (n, 2)`` at the crossings of their segments at ``poses``
         (:func:`fluidem.mesh.seam.seam_positions`); ``True`` if a segment no longer crosses its
-        side (its inner end left the box or its outer end came in: re-triangulate)."""
+        side (its inner end left the box or its outer end came in): re-triangulate."""
         wall = self.__dict__.get("_contact_wall")
         if wall is None:
             return False
@@ -928,7 +937,7 @@ class MovingMesh:
         c = np.where((side == 1) | (side == 3), 0, 1)
         k = np.arange(len(side))
         outward = np.where((side == 1) | (side == 2), 1.0, -1.0)
-        inner_in = outward * (level - p_in[k, c]) >= 0.0
+        inner_in = outward * (level - p_in[k, c]) > 0.0
         outer_out = outward * (p_out[k, c] - level) > 0.0
         return bool(not (inner_in & outer_out).all())
 

@@ -41,11 +41,16 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-__all__ = ["SEAM_CODE", "SEAM_MERGE", "PeriodicImages", "periodic_images", "period_of", "minimum_image", "clip_at_seams",
-           "seam_positions"]
+from ..geometry import minimum_image
+
+__all__ = ["SEAM_CODE", "SEAM_MERGE", "SEAM_BAND", "PeriodicImages", "periodic_images", "period_of",
+           "clip_at_seams", "seam_nudge", "covered_side_nodes", "seam_positions"]
 
 #: box nodes closer than this many ``h`` to a seam node are dropped (no sliver element)
 SEAM_MERGE = 0.4
+#: a body with an outline node closer than this many ``h`` to a periodic side is meshed
+#: nudged off it (:func:`seam_nudge`)
+SEAM_BAND = 1e-3
 
 #: side code of a seam node in the contact-node side array: ``SEAM_CODE + side`` (0 bottom,
 #: 1 right, 2 top, 3 left); wall nodes use 0..3
@@ -56,18 +61,6 @@ def period_of(box, axes) -> tuple:
     """``(L_x or None, L_y or None)``: the periods of the periodic ``axes`` of ``box``."""
     xmin, xmax, ymin, ymax = box
     return (xmax - xmin if "x" in axes else None, ymax - ymin if "y" in axes else None)
-
-
-def minimum_image(d, period) -> np.ndarray:
-    """Difference vectors ``d (k, 2)`` reduced to their nearest periodic image (length units).
-
-    ``period``: ``(L_x, L_y)`` with ``None`` for a non-periodic axis.
-    """
-    d = np.array(d, dtype=float)
-    for c, L in enumerate(period):
-        if L:
-            d[:, c] -= L * np.round(d[:, c] / L)
-    return d
 
 
 @dataclass(frozen=True)
@@ -141,22 +134,18 @@ def periodic_images(poses, extent, box, axes, margin: float) -> PeriodicImages:
     return PeriodicImages(body=body.astype(np.int64), cell=cell.astype(np.int64), shift=shift)
 
 
-def _inside(points, box, tol) -> np.ndarray:
-    xmin, xmax, ymin, ymax = box
-    return ((points[:, 0] >= xmin - tol) & (points[:, 0] <= xmax + tol)
-            & (points[:, 1] >= ymin - tol) & (points[:, 1] <= ymax + tol))
-
-
-def _exit_point(p, q, box):
-    """Where segments from ``p (k, 2)`` (inside) to ``q (k, 2)`` (outside) leave the box: the
-    points ``(k, 2)`` and the side ``(k,)`` (0 bottom, 1 right, 2 top, 3 left)."""
+def _exit_point(p, q, box, axes=("x", "y")):
+    """Where segments from ``p (k, 2)`` (inside) to ``q (k, 2)`` (outside) leave the box through
+    a side of the periodic ``axes``: the points ``(k, 2)`` and the side ``(k,)`` (0 bottom,
+    1 right, 2 top, 3 left)."""
     xmin, xmax, ymin, ymax = box
     d = q - p
+    py, px = "y" in axes, "x" in axes
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.column_stack([np.where(d[:, 1] < 0, (ymin - p[:, 1]) / d[:, 1], np.inf),
-                             np.where(d[:, 0] > 0, (xmax - p[:, 0]) / d[:, 0], np.inf),
-                             np.where(d[:, 1] > 0, (ymax - p[:, 1]) / d[:, 1], np.inf),
-                             np.where(d[:, 0] < 0, (xmin - p[:, 0]) / d[:, 0], np.inf)])
+        t = np.column_stack([np.where(py & (d[:, 1] < 0), (ymin - p[:, 1]) / d[:, 1], np.inf),
+                             np.where(px & (d[:, 0] > 0), (xmax - p[:, 0]) / d[:, 0], np.inf),
+                             np.where(py & (d[:, 1] > 0), (ymax - p[:, 1]) / d[:, 1], np.inf),
+                             np.where(px & (d[:, 0] < 0), (xmin - p[:, 0]) / d[:, 0], np.inf)])
     side = np.argmin(t, axis=1)
     tt = np.clip(t[np.arange(len(p)), side], 0.0, 1.0)
     x = p + tt[:, None] * d
@@ -184,8 +173,6 @@ class SeamClip:
         Their side (0 bottom, 1 right, 2 top, 3 left).
     seam_inner, seam_outer : (k,) int
         The ends of the clipped segment: the node inside and the one outside the box.
-    segment_of : (s,) int
-        The input segment each output segment comes from.
     """
 
     keep: np.ndarray
@@ -194,35 +181,59 @@ class SeamClip:
     seam_side: np.ndarray
     seam_inner: np.ndarray
     seam_outer: np.ndarray
-    segment_of: np.ndarray
 
 
-def clip_at_seams(nodes, segments, candidates, box) -> SeamClip:
-    """Clip the outline segments ``(s, 2)`` over ``nodes (n, 2)`` by the box.
-
-    ``candidates (n,)`` bool: the nodes that may lie outside (outline and contact nodes);
-    other nodes are box or free nodes, inside by construction.
-    """
+def clip_at_seams(nodes, segments, box, axes) -> SeamClip:
+    """Clip the outline segments ``(s, 2)`` over ``nodes (n, 2)`` (outline and contact nodes)
+    at the periodic sides of ``box`` (module docstring).  No node lies on a periodic side
+    (the images are nudged off it, :func:`seam_nudge`)."""
     xmin, xmax, ymin, ymax = box
-    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
-    inside = ~candidates | _inside(nodes, box, tol)
+    p = np.asarray(nodes, dtype=float)
+    inside = np.ones(len(p), dtype=bool)
+    if "x" in axes:
+        inside &= (p[:, 0] > xmin) & (p[:, 0] < xmax)
+    if "y" in axes:
+        inside &= (p[:, 1] > ymin) & (p[:, 1] < ymax)
     a, b = segments[:, 0], segments[:, 1]
     ia, ib = inside[a], inside[b]
     both = ia & ib
     cross = ia ^ ib
     inner = np.where(ia, a, b)[cross]
     outer = np.where(ia, b, a)[cross]
-    x, side = _exit_point(nodes[inner], nodes[outer], box)
-    n = len(nodes)
-    seam = n + np.arange(len(inner))
+    x, side = _exit_point(p[inner], p[outer], box, axes)
+    seam = len(p) + np.arange(len(inner))
     cs = segments[cross].copy()
     # keep the orientation of the outline: replace the outside end by the seam node
     cs[:, 0] = np.where(ia[cross], cs[:, 0], seam)
     cs[:, 1] = np.where(ia[cross], seam, cs[:, 1])
-    keep = inside.copy()
-    src = np.concatenate([np.flatnonzero(both), np.flatnonzero(cross)])
-    return SeamClip(keep=keep, segments=np.vstack([segments[both], cs]), seam_points=x, seam_side=side,
-                    seam_inner=inner, seam_outer=outer, segment_of=src)
+    return SeamClip(keep=inside, segments=np.vstack([segments[both], cs]), seam_points=x, seam_side=side,
+                    seam_inner=inner, seam_outer=outer)
+
+
+def seam_nudge(points, body, n_bodies: int, box, axes, band: float) -> np.ndarray:
+    """Per body a shift ``(n_bodies, 2)`` (length units, a few ``band``) that puts every one of its
+    outline ``points (m, 2)`` (bodies ``body (m,)``) at least ``band`` off the periodic side
+    lines: an edge or a vertex of a body exactly on a seam would be meshed on one side and
+    not the other.  Zero for the bodies clear of them; the mesh holds the body nudged by it
+    until the next triangulation (a geometric change of ~1e-3 h)."""
+    xmin, xmax, ymin, ymax = box
+    out = np.zeros((n_bodies, 2))
+    for c, (a, lo, L) in enumerate((("x", xmin, xmax - xmin), ("y", ymin, ymax - ymin))):
+        if a not in axes or not len(points):
+            continue
+        r = np.mod(points[:, c] - lo + 0.5 * L, L) - 0.5 * L  # signed distance to the nearest seam line
+        need = np.zeros(n_bodies, dtype=bool)
+        np.logical_or.at(need, body, np.abs(r) <= band)
+        todo = need.copy()
+        for k in (2, -2, 4, -4, 6, -6, 8, -8):  # a few tries; bodies have few nodes near a seam
+            if not todo.any():
+                break
+            bad = np.zeros(n_bodies, dtype=bool)
+            np.logical_or.at(bad, body, np.abs(r + k * band) <= band)
+            ok = todo & ~bad
+            out[ok, c] = k * band
+            todo &= ~ok
+    return out
 
 
 def covered_side_nodes(points, solids, seam_points, merge, box) -> np.ndarray:
@@ -233,9 +244,12 @@ def covered_side_nodes(points, solids, seam_points, merge, box) -> np.ndarray:
     if not len(points):
         return out
     if len(solids):
+        # the closed solids: a box node on a body's edge along the side is none either
+        xmin, xmax, ymin, ymax = box
+        tol = 1e-9 * max(xmax - xmin, ymax - ymin)
         u = shapely.union_all(np.asarray(solids, dtype=object))
         shapely.prepare(u)
-        out |= shapely.contains_xy(u, points[:, 0], points[:, 1])
+        out |= shapely.dwithin(u, shapely.points(points), tol)
     if len(seam_points):
         from scipy.spatial import cKDTree
 
