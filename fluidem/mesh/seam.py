@@ -29,7 +29,7 @@ Examples
 >>> img = periodic_images(np.array([[1.95, 0.5, 0.0]]), np.array([[-0.1, 0.1, -0.1, 0.1]]),
 ...                       (0, 2, 0, 1), ("x",), margin=0.0)
 >>> img.body.tolist(), img.shift.tolist()
-[[0, 0], [[0.0, 0.0], [-2.0, 0.0]]]
+([0, 0], [[0.0, 0.0], [-2.0, 0.0]])
 >>> minimum_image(np.array([[1.9, 0.0]]), (2.0, None)).tolist()
 [[-0.10000000000000009, 0.0]]
 """
