@@ -149,6 +149,7 @@ from .nodes import (
     FIRST_BODY_MARKER,
     FREE,
     JUNCTION,
+    OUTLINE,
     SIDE,
     UID_OUTLINE,
     BackgroundNodes,
@@ -160,7 +161,7 @@ from .nodes import (
     outline_nodes,
     world,
 )
-from .periodic import freeze_periodic_sides, match_side_nodes, periodic_axes
+from .periodic import match_side_nodes, periodic_axes, side_partners, slide_in_pairs
 from .seam import (SEAM_BAND, SEAM_CODE, SEAM_MERGE, PeriodicImages, period_of, periodic_images, seam_nudge,
                    seam_positions)
 from .params import PARAM_NAMES, STRATEGIES, MeshParams, mesh_params
@@ -714,7 +715,7 @@ class MovingMesh:
         final_shape = None
         for attempt in range(p.cleanup_passes + 1):
             kept_points, kept_kind, kept_uid = match_side_nodes(kept_points, kept_kind, kept_uid, self.box,
-                                                                self.periodic, self._uids)
+                                                                self.periodic, self._uids, merge=0.25 * self.h)
             tri = triangulate(kept_points, kept_kind, kept_uid, outline_world, self.outlines, contact, poses, polys,
                               tree, self.box, self._uids, p.junctions, p.junction_clearance, target,
                               seams=(self.periodic, SEAM_MERGE * self.h) if self.periodic else None)
@@ -722,6 +723,7 @@ class MovingMesh:
             if n_relax:
                 self.points, _ = relax(self.points, self.topo, self.h_node, self._mobility, n_relax,
                                        p.relax_params, bounds=self.box)
+                self.points = slide_in_pairs(self.points, self._side_pairs, self.box)
             if attempt == p.cleanup_passes:
                 break
             # clean-up: bad elements outside narrow gaps lose their free nodes, or get one
@@ -765,8 +767,9 @@ class MovingMesh:
                                  else tri.seam_outer_body)
         self._seam_outer_local = np.zeros((nc, 2)) if tri.seam_outer_local is None else tri.seam_outer_local
         self.h_node = self._target(tri.points, outline_world)
-        self._mobility = freeze_periodic_sides(mobility(tri.kind, tri.points, self.box), tri.points, tri.kind,
-                                               self.box, self.periodic)
+        # periodic side nodes slide along their side in matched pairs (:func:`slide_in_pairs`)
+        self._mobility = mobility(tri.kind, tri.points, self.box)
+        self._side_pairs = side_partners(tri.points, tri.kind, self.box, self.periodic)
         # junction nodes are dragged (they are not relaxed)
         self._drag_mobility = self._mobility.copy()
         self._drag_mobility[tri.kind == JUNCTION] = 1.0
@@ -798,6 +801,8 @@ class MovingMesh:
         """
         t0 = time.perf_counter()
         real = self._check_poses(poses)
+        hist = self.__dict__.get("_body_pose_history", (None, None))
+        self._body_pose_history = (self.body_poses, hist[0])  # body poses at t^n, t^{n-1}
         self.body_poses = real
         new = self._image_poses(real)
         self.step_count += 1
@@ -889,6 +894,7 @@ class MovingMesh:
             return
         # relaxation with the per-step iteration limit (Sec. 3.3)
         damp = self.drag.relax_damping if self._damping is None else self.drag.relax_damping * self._damping
+        xd = slide_in_pairs(xd, self.__dict__.get("_side_pairs", np.zeros((0, 2), dtype=np.int64)), self.box)
         xr, nb = relax(xd, self.topo, self.h_node, self._mobility, self.relax_iterations, p.relax_params,
                        bounds=self.box, damping=damp)
         ev.n_blocked = nb
@@ -898,7 +904,7 @@ class MovingMesh:
                 self._damping = np.ones(len(xd))
             self._damping[osc] *= 0.5
         ev.oscillating = osc
-        self.points = xr
+        self.points = slide_in_pairs(xr, self.__dict__.get("_side_pairs", np.zeros((0, 2), dtype=np.int64)), self.box)
         self._steps_since += 1
         # re-triangulate?  (one pass over the elements gives areas and angle cosines)
         shape = element_shape(xr, self.topo)
@@ -1090,6 +1096,41 @@ class MovingMesh:
 
         ev.history = "ale"
         self._trajectory = (pull(x_n), pull(x_nm1))
+        if self.periodic:
+            self._rigid_history()
+
+    def _rigid_history(self) -> None:
+        """Trajectories of the body nodes a re-triangulation created (nodes of an image entering
+        the box, seam nodes): the rigid motion of their body (the crossing of their segment for
+        seam nodes), not the old mesh's motion, which does not reach them (they lie beyond the
+        old clipped outline)."""
+        hist = self.__dict__.get("_body_pose_history", (None, None))
+        prev = self._prev_uid
+        new = np.ones(len(self.uid), dtype=bool)
+        if prev is not None and len(prev):
+            new = ~np.isin(self.uid, prev)
+        traj = list(self._trajectory)
+        for level, body_poses in enumerate(hist):
+            if body_poses is None or traj[level] is None:
+                continue
+            poses = self._image_poses(body_poses)
+            x = traj[level]
+            ol = np.flatnonzero(new & (self.kind == OUTLINE))
+            if len(ol):
+                rows = self.outline_row[ol]
+                x[ol] = world(self.outlines.local[rows], self.outlines.body[rows], poses)
+            ci = self._contact_idx
+            sel = new[ci]
+            if sel.any():
+                wall = self._contact_wall[sel]
+                idx = ci[sel]
+                x[idx] = world(self._contact_local[sel], self.body_of[idx], poses)
+                seam = wall >= SEAM_CODE
+                if seam.any():
+                    p_out = world(self._seam_outer_local[sel][seam], self._seam_outer_body[sel][seam], poses)
+                    x[idx[seam]] = seam_positions(x[idx[seam]], p_out, wall[seam] - SEAM_CODE, self.box,
+                                                  self.points[idx[seam]])
+        self._trajectory = tuple(traj)
 
     def node_history(self) -> tuple[np.ndarray | None, np.ndarray | None]:
         """Positions ``(x_n, x_nm1)``, each ``(n_nodes, 2)`` or None, of the current nodes' trajectories

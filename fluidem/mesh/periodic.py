@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import InputError, MeshError
 
 __all__ = ["AXES", "SIDE_PAIRS", "periodic_axes", "axes_of_sides", "match_side_nodes", "freeze_periodic_sides",
-           "check_clearance", "check_matched"]
+           "side_partners", "slide_in_pairs", "check_clearance", "check_matched"]
 
 #: the periodic directions: ``"x"`` pairs left/right, ``"y"`` bottom/top
 AXES = ("x", "y")
@@ -80,7 +80,7 @@ def _tolerance(box) -> float:
     return 1e-9 * max(xmax - xmin, ymax - ymin)
 
 
-def match_side_nodes(points, kind, uid, box, axes, uids):
+def match_side_nodes(points, kind, uid, box, axes, uids, merge: float = 0.0):
     """The node set with the partner of every periodic side node that lacks one.
 
     Parameters
@@ -96,6 +96,11 @@ def match_side_nodes(points, kind, uid, box, axes, uids):
         Periodic axes.
     uids : UidSource
         Source of the uids of added partners.
+    merge : float
+        A node whose partner place lies closer than this (length units) to a node of the
+        other side is moved to that node's place instead (side nodes slide in pairs: a pair
+        broken by a re-triangulation would otherwise leave two nodes almost on top of each
+        other).
 
     Returns
     -------
@@ -122,9 +127,16 @@ def match_side_nodes(points, kind, uid, box, axes, uids):
             so = np.sort(s[other])
             if len(so):
                 pos = np.searchsorted(so, s[mine])
-                d = np.minimum(np.abs(so[np.clip(pos - 1, 0, len(so) - 1)] - s[mine]),
-                               np.abs(so[np.clip(pos, 0, len(so) - 1)] - s[mine]))
-                lack = mine[d > tol]
+                below = so[np.clip(pos - 1, 0, len(so) - 1)]
+                above = so[np.clip(pos, 0, len(so) - 1)]
+                nearest = np.where(np.abs(below - s[mine]) <= np.abs(above - s[mine]), below, above)
+                d = np.abs(nearest - s[mine])
+                snap = (d > tol) & (d < merge) & (kind[mine] == SIDE)
+                if snap.any():
+                    points = points.copy()
+                    points[mine[snap], 1 - c] = nearest[snap]
+                    s = points[:, 1 - c]
+                lack = mine[(d > tol) & ~snap]
             else:
                 lack = mine
             q = points[lack].copy()
@@ -154,6 +166,51 @@ def freeze_periodic_sides(mobility, points, kind, box, axes) -> np.ndarray:
         on |= (np.abs(points[:, 1] - ymin) < tol) | (np.abs(points[:, 1] - ymax) < tol)
     mob[on & (kind == SIDE)] = 0.0
     return mob
+
+
+def side_partners(points, kind, box, axes) -> np.ndarray:
+    """Pairs ``(k, 2)`` of matched box side nodes (kind ``SIDE``, corners left out) across the
+    periodic ``axes``: ``[low side node, high side node]`` at the same place along the side."""
+    from .nodes import SIDE
+
+    if not axes:
+        return np.zeros((0, 2), dtype=np.int64)
+    xmin, xmax, ymin, ymax = box
+    tol = _tolerance(box)
+    out = []
+    for a in axes:
+        c = 0 if a == "x" else 1
+        lo, hi = (xmin, xmax) if a == "x" else (ymin, ymax)
+        side = kind == SIDE
+        low = np.flatnonzero(side & (np.abs(points[:, c] - lo) < tol))
+        high = np.flatnonzero(side & (np.abs(points[:, c] - hi) < tol))
+        if not len(low) or not len(high):
+            continue
+        s_hi = points[high, 1 - c]
+        order = np.argsort(s_hi)
+        pos = np.clip(np.searchsorted(s_hi[order], points[low, 1 - c]), 0, len(high) - 1)
+        j = high[order[pos]]
+        ok = np.abs(points[j, 1 - c] - points[low, 1 - c]) < tol
+        out.append(np.column_stack([low[ok], j[ok]]))
+    return np.vstack(out) if out else np.zeros((0, 2), dtype=np.int64)
+
+
+def slide_in_pairs(points, pairs, box) -> np.ndarray:
+    """``points (n, 2)`` with every pair of matched side nodes ``pairs (k, 2)`` put at the mean
+    of their places along the side (each slid with its own neighbourhood; the pair stays
+    matched exactly, as the periodic degrees of freedom need)."""
+    if not len(pairs):
+        return points
+    p = np.array(points, dtype=float)
+    xmin, xmax, ymin, ymax = box
+    tol = _tolerance(box)
+    on_x = np.abs(p[pairs[:, 0], 0] - xmin) < tol  # a left/right pair slides in y
+    along = np.where(on_x, 1, 0)
+    k = np.arange(len(pairs))
+    mean = 0.5 * (p[pairs[:, 0], :][k, along] + p[pairs[:, 1], :][k, along])
+    p[pairs[k, 0], along] = mean
+    p[pairs[k, 1], along] = mean
+    return p
 
 
 def check_clearance(vertices, vbody, names, poses, box, axes, clearance: float, error=MeshError) -> None:
