@@ -22,3 +22,8 @@ def write_json(name: str, machine: str, rows: list) -> None:
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{name}.json").write_text(json.dumps({"machine": machine, "rows": rows}, indent=1,
                                                      default=lambda o: o.item()))
+
+
+def markdown_table(header, rows) -> list:
+    """Lines of a Markdown table: ``header`` (column titles) and ``rows`` (lists of cell strings)."""
+    return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows]

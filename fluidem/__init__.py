@@ -24,9 +24,8 @@ factories; bad input raises :class:`fluidem.errors.FluidemError` subclasses with
 messages.
 """
 
-__version__ = "0.1.0.dev0"
-
-from .scene import Scene  # noqa: E402
-from .simulation import Simulation, run  # noqa: E402
+from .scene import Scene
+from .simulation import Simulation, run
+from .version import __version__
 
 __all__ = ["__version__", "Scene", "Simulation", "run"]

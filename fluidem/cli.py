@@ -111,7 +111,7 @@ def _add_debug(parser, default=False) -> None:
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from .version import __version__
 
     p = argparse.ArgumentParser(prog="fluidem", description="Resolved particle-laden flow: FEM fluid + polygonal DEM.")
     p.add_argument("--version", action="version", version=f"fluidem {__version__}")

@@ -232,20 +232,6 @@ def prescribed_collisions(scene: Scene) -> list:
     return out
 
 
-def _moving_mesh_available() -> bool:
-    """:func:`moving_mesh_available` as seen from :mod:`fluidem.scene` (which re-exports it).
-
-    Replacing the function in either module (``fluidem.scene.moving_mesh_available`` or
-    ``fluidem.plan.moving_mesh_available``, e.g. to try a scene as if the layer were missing)
-    reaches the plan.
-    """
-    from . import scene
-
-    f = scene.moving_mesh_available
-    return (f if f is not _MOVING_MESH_AVAILABLE else moving_mesh_available)()
-
-
-_MOVING_MESH_AVAILABLE = moving_mesh_available
 
 
 #: relative tolerance of a zero net boundary flux: |Σ Q| <= this × Σ |Q| (the fluxes' round-off)
@@ -555,7 +541,7 @@ def make_plan(scene: Scene) -> Plan:
         unsupported.append(f"periodic sides ({', '.join(periodic)}) are not supported yet by the DEM "
                            "(a dry scene); use 'wall' or 'outflow'")
     if fl is not None:
-        if free and not _moving_mesh_available():
+        if free and not moving_mesh_available():
             unsupported.append(f"free bodies in a fluid ({len(free)}) need the moving-mesh layer "
                                "(fluidem.mesh.MovingMesh), which is not available in this installation")
         elif free:
@@ -602,7 +588,7 @@ def make_plan(scene: Scene) -> Plan:
                 notes.append("no [contact] table: free bodies must stay apart and off the walls (the run stops with "
                              "a message if they overlap); add [contact] for contacts and short-range repulsion")
         elif mesh == "moving":
-            if not _moving_mesh_available():
+            if not moving_mesh_available():
                 unsupported.append("moving bodies in fluid need the moving-mesh layer (fluidem.mesh.MovingMesh), "
                                    "which is not available in this installation")
             else:
@@ -794,7 +780,7 @@ def _mesh_warnings(scene, est) -> tuple[list, list]:
     if h > L / 4:
         warn.append(f"mesh.h = {h:g} is coarse for the box ({x1 - x0:g} × {y1 - y0:g}): about {est['triangles']:.0f} "
                     f"triangles; results will be far off (the default is min(box / 20, body / 4) = "
-                    f"{_default_h(scene):g})")
+                    f"{scene.default_mesh_size():g})")
     if scene.bodies:
         area, perim = _outline_stats(scene)
         nodes = np.array([scene.default_segments(b) if b.shape in ("disk", "ellipse") else len(b.local_vertices())
@@ -814,7 +800,3 @@ def _mesh_warnings(scene, est) -> tuple[list, list]:
     return warn, refuse
 
 
-def _default_h(scene) -> float:
-    from .scene.specs import default_h
-
-    return default_h(scene)

@@ -218,7 +218,7 @@ class Simulation:
 
     def _header(self) -> dict:
         """What a checkpoint carries beside the state: the scene, dt and the plan it ran with."""
-        from . import __version__
+        from .version import __version__
 
         return {"scene": self.scene.to_dict(), "dt": self.scene.time.dt, "fluidem": __version__,
                 "plan": {"mesh": self.plan.mesh, "contacts": self.plan.on("contacts"), "n_steps": self.plan.n_steps,
@@ -480,7 +480,7 @@ class Simulation:
 
     def _run_record(self, out_dir, status: str, n_steps: int, checkpoint=None, message: str = "",
                     totals: CostSplit | None = None, summary: dict | None = None) -> None:
-        from . import __version__
+        from .version import __version__
         from .io import HISTORY_UNITS, write_run_record
 
         sc, dem = self.scene, self.dem_limit()

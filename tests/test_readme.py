@@ -80,7 +80,8 @@ def test_cli_rejects_options_that_do_not_apply(capsys):
 
 
 def test_install_takes_the_version_from_the_package_and_ships_the_type_hints():
-    """One version (``fluidem.__version__``, read by pyproject) and the PEP 561 marker in the wheel."""
+    """One version (``fluidem/version.py``, read by pyproject and re-exported as ``fluidem.__version__``)
+    and the PEP 561 marker in the wheel."""
     try:
         import tomllib
     except ModuleNotFoundError:  # Python 3.10
@@ -91,7 +92,10 @@ def test_install_takes_the_version_from_the_package_and_ships_the_type_hints():
     root = README.parent
     meta = tomllib.loads((root / "pyproject.toml").read_text())
     assert "version" not in meta["project"] and "version" in meta["project"]["dynamic"]
-    assert meta["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "fluidem.__version__"}
+    assert meta["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "fluidem.version.__version__"}
+    import fluidem.version
+
+    assert fluidem.__version__ is fluidem.version.__version__
     assert "py.typed" in meta["tool"]["setuptools"]["package-data"]["fluidem"]
     assert (root / "fluidem" / "py.typed").is_file()
     assert re.fullmatch(r"\d+\.\d+\.\d+((a|b|rc)\d+)?(\.post\d+)?(\.dev\d+)?", fluidem.__version__)

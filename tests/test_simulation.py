@@ -135,9 +135,9 @@ def test_restart_reproduces_a_navier_stokes_run(tmp_path):
 
 
 def test_moving_and_free_bodies_in_fluid_need_the_moving_mesh(monkeypatch):
-    import fluidem.scene as scene_mod
+    import fluidem.plan
 
-    monkeypatch.setattr(scene_mod, "moving_mesh_available", lambda: False)
+    monkeypatch.setattr(fluidem.plan, "moving_mesh_available", lambda: False)
     with pytest.raises(ValueError, match="free bodies in a fluid .* need the moving-mesh layer"):
         Simulation(_channel("stokes", motion="free"))
     with pytest.raises(ValueError, match="moving bodies in fluid need the moving-mesh layer"):

@@ -132,6 +132,7 @@ class DEMBodies:
 
     def __init__(self, scene, t0: float = 0.0):
         from ..dem import DEM, Body, ContactModel
+        from .contacts import scene_period
 
         bodies = []
         for b in scene.bodies:
@@ -148,7 +149,7 @@ class DEMBodies:
                  y0 if sides["bottom"] == "wall" else -np.inf, y1 if sides["top"] == "wall" else np.inf)
         c = scene.contact
         self.dem = DEM(bodies, walls=walls, gravity=scene.gravity, contact=ContactModel(E=c.E, mu=c.mu, gamma=c.gamma),
-                       t0=t0)
+                       t0=t0, period=scene_period(scene))
         self.n = len(bodies)
         self.substeps = 0
 

@@ -61,9 +61,11 @@ import numpy as np
 
 from ..dem import DEM, Body, ContactModel
 from ..dem.lubrication import Lubrication
+from ..dem.periodic import image_shift
 from ..dem.repulsion import Repulsion
+from ..dem.system import critical_sub_step
 
-__all__ = ["BACKSTOP", "FluidContacts", "RESOLVED_FILM", "lubrication_for", "repulsion_for"]
+__all__ = ["BACKSTOP", "FluidContacts", "RESOLVED_FILM", "lubrication_for", "repulsion_for", "scene_period"]
 
 
 #: Resolved-film length δ_r / h of each element pair, for ``contact.lubrication_resolved_gap``:
@@ -92,6 +94,27 @@ def repulsion_for(scene, free_areas: np.ndarray, free_densities: np.ndarray) -> 
         w = np.abs(free_densities - scene.fluid.density) * free_areas * g
         force = float(w.max()) if len(w) else 0.0
     return Repulsion(range=rng, force=force, epsilon=eps)
+
+
+def scene_period(scene) -> tuple:
+    """The periods ``(L_x, L_y)`` of the scene's box for :class:`fluidem.dem.DEM` (``period=...``), length:
+    the box's width where ``domain.left``/``right`` are ``"periodic"``, its height where ``bottom``/``top``
+    are, None on the other axes."""
+    x0, x1, y0, y1 = scene.domain.box
+    return (float(x1 - x0) if scene.domain.side("left").type == "periodic" else None,
+            float(y1 - y0) if scene.domain.side("bottom").type == "periodic" else None)
+
+
+def _pairs_within(pos: np.ndarray, r: float, period: np.ndarray):
+    """Index pairs (P, 2) of centres ``pos`` (N, 2) closer than ``r`` (length), across the periodic
+    sides between nearest images (cKDTree with ``boxsize`` on copies wrapped into [0, L))."""
+    from scipy.spatial import cKDTree
+
+    from ..dem.periodic import wrap
+
+    if period.any():
+        return cKDTree(wrap(pos, period), boxsize=period).query_pairs(r, output_type="ndarray")
+    return cKDTree(pos).query_pairs(r, output_type="ndarray")
 
 
 def lubrication_for(scene) -> Lubrication | None:
@@ -129,7 +152,8 @@ class FluidContacts:
     repulsion : Repulsion
     dem : fluidem.dem.DEM
         The bodies (free ones free, the others as prescribed or fixed), walls from the box,
-        no gravity.
+        periodic where its sides are (:func:`scene_period`; positions unwrapped, pairs between
+        nearest images), no gravity.
     substeps : int
         DEM sub-steps taken so far; ``dem_calls`` the sub-stepped passes over a fluid step.
     """
@@ -157,7 +181,8 @@ class FluidContacts:
                  y0 if solid["bottom"] else -np.inf, y1 if solid["top"] else np.inf)
         c = scene.contact
         self.dem = DEM(bodies, walls=walls, gravity=(0.0, 0.0), contact=ContactModel(E=c.E, mu=c.mu, gamma=c.gamma),
-                       repulsion=self.repulsion, lubrication=self.lubrication)
+                       repulsion=self.repulsion, lubrication=self.lubrication, period=scene_period(scene))
+        self._L = self.dem._L  # (2,) periods, 0 on a non-periodic axis
         self.radii = np.array([b.radius for b in bodies])
         self.walls = walls
         # no rotational added mass: the free bodies' moments of inertia are their own, ρ_s J
@@ -181,16 +206,14 @@ class FluidContacts:
             return True
         if len(p) < 2:
             return False
-        from scipy.spatial import cKDTree
-
-        tree = cKDTree(p)
-        pairs = tree.query_pairs(2.0 * float(r.max()) + reach, output_type="ndarray")
+        pairs = _pairs_within(p, 2.0 * float(r.max()) + reach, self._L)
         if not len(pairs):
             return False
         i, j = pairs[:, 0], pairs[:, 1]
         isfree = np.zeros(len(p), bool)
         isfree[f] = True
-        d = np.linalg.norm(p[i] - p[j], axis=1)
+        d = p[j] - p[i]
+        d = np.linalg.norm(d + image_shift(d, self._L), axis=1)
         return bool(((isfree[i] | isfree[j]) & (d < r[i] + r[j] + reach)).any())
 
     def load_function(self, t: float, dt: float, poses: np.ndarray, velocities: np.ndarray):
@@ -264,11 +287,11 @@ class FluidContacts:
 
     def _repulsion_sub_steps(self, dt: float, gap: float) -> tuple[int, float]:
         """Sub-steps of ``dt`` stable with the repulsion's stiffness at ``gap`` (length) for the lightest free
-        body, 0.1π√(m/k) (Matuttis & Chen 2014, ch. 7), and that gap (the floor they assume)."""
+        body (:func:`fluidem.dem.system.critical_sub_step`), and that gap (the floor they assume)."""
         d = self.dem
         m = float(d.mass[d.free].min())
         k = float(self.repulsion.stiffness(np.array([gap]))[0])
-        return (int(np.ceil(dt / (0.1 * np.pi * np.sqrt(m / k)) - 1e-9)) if k > 0 else 1), gap
+        return (int(np.ceil(dt / float(critical_sub_step(m, k)) - 1e-9)) if k > 0 else 1), gap
 
     def sub_steps(self, dt: float, poses: np.ndarray, velocities: np.ndarray, V_c: np.ndarray):
         """Sub-steps of a pass over [t, t + dt] from the stiffness in play, the gap floor it assumes and why.
@@ -302,8 +325,6 @@ class FluidContacts:
         set_by : str
             What sets ``n``.
         """
-        from scipy.spatial import cKDTree
-
         from ..dem.repulsion import pair_gaps
 
         d = self.dem
@@ -322,16 +343,17 @@ class FluidContacts:
         pos = x[:, :2]
         if len(x) > 1:
             reach = near + 3.0 * dt * float(speed.max())
-            pairs = cKDTree(pos).query_pairs(2.0 * float(self.radii.max()) + reach, output_type="ndarray")
+            pairs = _pairs_within(pos, 2.0 * float(self.radii.max()) + reach, self._L)
             if len(pairs):
                 i, j = pairs[:, 0], pairs[:, 1]
                 rel = np.maximum(np.hypot(*(V0[i, :2] - V0[j, :2]).T), np.hypot(*(V1[i, :2] - V1[j, :2]).T))
                 cl = 1.5 * dt * (rel + turn[i] + turn[j])
-                keep = (np.linalg.norm(pos[i] - pos[j], axis=1) < self.radii[i] + self.radii[j] + near + cl) & \
+                shift = image_shift(pos[j] - pos[i], self._L)  # j's image nearest i
+                keep = (np.linalg.norm(pos[j] + shift - pos[i], axis=1) < self.radii[i] + self.radii[j] + near + cl) & \
                     (d.movable[i] | d.movable[j])
-                i, j, cl = i[keep], j[keep], cl[keep]
+                i, j, cl, shift = i[keep], j[keep], cl[keep], shift[keep]
                 if len(i):
-                    g = pair_gaps(W, i, j, pos, self.radii, near + float(cl.max()))[2].min(axis=1)
+                    g = pair_gaps(W, i, j, pos, self.radii, near + float(cl.max()), shift)[2].min(axis=1)
                     gaps.append(g)
                     closing.append(cl)
         x0, x1, y0, y1 = self.walls
@@ -394,11 +416,13 @@ class FluidContacts:
         f = rep.magnitude(gap)
         k = rep.stiffness(gap)
 
-        def gen(body):  # generalised normal (P, 3) of each pair's end on ``body``
-            r = point - x[np.maximum(body, 0), :2]
+        def gen(body, shift=0.0):  # generalised normal (P, 3) of each pair's end on ``body`` (at its image + shift)
+            r = point - x[np.maximum(body, 0), :2] - shift
             return np.column_stack([n, r[:, 0] * n[:, 1] - r[:, 1] * n[:, 0]])
 
-        ends = [(slot[a], gen(a)), (np.where(b >= 0, slot[np.maximum(b, 0)], -1), -gen(b))]
+        sb = self.dem.image_shift(a, np.where(b >= 0, b, a), x)  # b's image nearest a, where ``point`` lies
+
+        ends = [(slot[a], gen(a)), (np.where(b >= 0, slot[np.maximum(b, 0)], -1), -gen(b, sb))]
         F = np.zeros((nf, 3))
         for s_, g in ends:
             on = s_ >= 0

@@ -36,7 +36,8 @@ a force per length, i.e. a 3D Young's modulus (force/length²) times the unit de
 Modules: :mod:`~fluidem.dem.bodies` (shapes and mass properties),
 :mod:`~fluidem.dem.contact` (broad phase, overlap geometry, force law),
 :mod:`~fluidem.dem.integrate` (Gear predictor–corrector),
-:mod:`~fluidem.dem.system` (the DEM system: arrays of bodies, stepping, energies);
+:mod:`~fluidem.dem.system` (the DEM system: arrays of bodies, stepping, energies),
+:mod:`~fluidem.dem.periodic` (periodic boxes: the nearest image of each pair's partner);
 for bodies in a fluid :mod:`~fluidem.dem.repulsion` (short-range repulsion) and
 :mod:`~fluidem.dem.lubrication` (the squeeze-film correction below the mesh resolution).
 """

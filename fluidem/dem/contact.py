@@ -50,6 +50,8 @@ import numpy as np
 from fluidem import geometry as geo
 from fluidem import validate
 
+from .periodic import image_shift
+
 __all__ = ["ContactModel", "Contacts", "WALL_IDS", "grid_pairs", "clip_convex",
            "polygon_overlaps", "wall_overlaps", "contact_forces"]
 
@@ -140,6 +142,10 @@ class Contacts:
         Work done so far by the elastic normal force of the contact, force·length (J in
         SI): the stored normal
         elastic energy (trapezoidal rule of ``∫ (F_el/|S|) dA``, ``dA = |S| dδ``).
+    shift : (n, 2) float
+        In a periodic box, the shift of body ``j`` to its image nearest ``i``
+        (:mod:`fluidem.dem.periodic`), length; ``point`` lies at ``i``, so ``point − (x_j + shift)``
+        is the arm of ``j``'s force.  Zero for walls and outside periodic boxes.
     """
 
     i: np.ndarray
@@ -155,6 +161,11 @@ class Contacts:
     sliding: np.ndarray
     work: np.ndarray
     key: np.ndarray = field(repr=False, default=None)
+    shift: np.ndarray = field(repr=False, default=None)
+
+    def __post_init__(self):
+        if self.shift is None:
+            self.shift = np.zeros((len(self.i), 2))
 
     def __len__(self) -> int:
         return len(self.i)
@@ -164,7 +175,7 @@ class Contacts:
         z = np.zeros(0)
         z2 = np.zeros((0, 2))
         zi = np.zeros(0, dtype=np.int64)
-        return cls(zi, zi, z2, z2, z2, z2, z, z, z, z, np.zeros(0, bool), z, zi)
+        return cls(zi, zi, z2, z2, z2, z2, z, z, z, z, np.zeros(0, bool), z, zi, z2)
 
     def select(self, mask) -> "Contacts":
         return Contacts(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
@@ -185,7 +196,7 @@ def pair_key(i, j):
 # broad phase
 # ---------------------------------------------------------------------------------------
 def grid_pairs(centers: np.ndarray, radii: np.ndarray, cell: float, movable: np.ndarray,
-               skin: float = 0.0):
+               skin: float = 0.0, period: np.ndarray | None = None):
     """Candidate pairs whose bounding circles (grown by ``skin``) overlap.
 
     Parameters
@@ -200,6 +211,10 @@ def grid_pairs(centers: np.ndarray, radii: np.ndarray, cell: float, movable: np.
         Pairs of two non-movable bodies are skipped.
     skin : float
         Extra distance, length.
+    period : (2,) float or None
+        Periods of a periodic box along x and y (0 for a non-periodic axis), length: pairs are
+        found across the periodic sides and measured between nearest images
+        (:mod:`fluidem.dem.periodic`); the centres may be unwrapped.
 
     Returns
     -------
@@ -210,20 +225,34 @@ def grid_pairs(centers: np.ndarray, radii: np.ndarray, cell: float, movable: np.
     if n < 2:
         z = np.zeros(0, np.int64)
         return z, z
+    L = np.zeros(2) if period is None else np.asarray(period, float)
+    periodic = L > 0
     large = 2.0 * radii + skin > cell
     small = np.flatnonzero(~large)
     ii_all, jj_all = [], []
     if len(small) > 1:
         c = centers[small]
         ij = np.floor((c - c.min(axis=0)) / cell).astype(np.int64) + 1
-        nx = int(ij[:, 0].max()) + 2
+        m = np.zeros(2, np.int64)  # cells along a periodic axis (its indices wrap), 0 on the others
+        for a in np.flatnonzero(periodic):
+            m[a] = max(int(np.floor(L[a] / cell)), 1)  # cells of side L/m >= cell
+            ij[:, a] = np.floor(np.mod(c[:, a], L[a]) / (L[a] / m[a])).astype(np.int64) % m[a]
+        nx = int(m[0]) if periodic[0] else int(ij[:, 0].max()) + 2
         key = ij[:, 1] * nx + ij[:, 0]
         order = np.argsort(key, kind="stable")
         skey = key[order]
         uniq, start, counts = np.unique(skey, return_index=True, return_counts=True)
         ar = np.arange(len(small))
-        for off in (0, 1, nx - 1, nx, nx + 1):
-            nk = key + off
+        for off, (ox, oy) in zip((0, 1, nx - 1, nx, nx + 1), ((0, 0), (1, 0), (-1, 1), (0, 1), (1, 1))):
+            if periodic.any():  # wrapped neighbour cells (a cell may then be met twice: pairs made unique below)
+                cx, cy = ij[:, 0] + ox, ij[:, 1] + oy
+                if periodic[0]:
+                    cx = cx % m[0]
+                if periodic[1]:
+                    cy = cy % m[1]
+                nk = cy * nx + cx
+            else:
+                nk = key + off
             pos = np.searchsorted(uniq, nk)
             pos = np.minimum(pos, len(uniq) - 1)
             found = uniq[pos] == nk
@@ -234,8 +263,8 @@ def grid_pairs(centers: np.ndarray, radii: np.ndarray, cell: float, movable: np.
             a = np.repeat(ar, cnt)
             first = np.repeat(start[pos] - (np.cumsum(cnt) - cnt), cnt)
             b = order[first + np.arange(tot)]
-            if off == 0:
-                keep = a < b
+            if off == 0 or periodic.any():
+                keep = a < b if off == 0 else a != b
                 a, b = a[keep], b[keep]
             ii_all.append(small[a])
             jj_all.append(small[b])
@@ -252,7 +281,11 @@ def grid_pairs(centers: np.ndarray, radii: np.ndarray, cell: float, movable: np.
     i = np.concatenate(ii_all)
     j = np.concatenate(jj_all)
     i, j = np.minimum(i, j), np.maximum(i, j)
+    if periodic.any():  # a pair may have been met through more than one (wrapped) cell
+        ij = np.unique(i * n + j)
+        i, j = ij // n, ij % n
     d = centers[j] - centers[i]
+    d = d + image_shift(d, L)
     reach = radii[i] + radii[j] + skin
     keep = ((d * d).sum(axis=1) < reach * reach) & (movable[i] | movable[j])
     return i[keep], j[keep]
@@ -416,7 +449,7 @@ def _any_middle(b: np.ndarray) -> np.ndarray:
 
 
 def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.ndarray,
-                     j: np.ndarray):
+                     j: np.ndarray, shift: np.ndarray | None = None):
     """Overlap geometry of convex polygon pairs.
 
     Parameters
@@ -428,11 +461,15 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
         Centres of mass (coordinates are taken relative to ``pos[i]``).
     i, j : (P,) int
         Candidate pairs.
+    shift : (P, 2) float or None
+        Added to body ``j``'s vertices (its nearest periodic image, :mod:`fluidem.dem.periodic`),
+        length; None for none.
 
     Returns
     -------
     dict with, per overlapping pair (P' ≤ P rows): ``i``, ``j``, ``area`` (length²),
-    ``centroid`` (world), ``p1``, ``p2`` (intersection points, world), ``ncross``.
+    ``centroid`` (world, at ``i``), ``p1``, ``p2`` (intersection points, world), ``ncross``,
+    ``shift`` (P', 2).
     """
     K = verts.shape[1]
     # per body, in contiguous x / y arrays; edge k runs from vertex k to vertex k+1
@@ -443,7 +480,9 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
     EY = np.roll(VY, -1, axis=1) - VY
     px, py = pos[i, 0][:, None], pos[i, 1][:, None]
     AX, AY = VX[i] - px, VY[i] - py                  # relative to the centre of i
-    BX, BY = VX[j] - px, VY[j] - py
+    if shift is None:
+        shift = np.zeros((len(i), 2))
+    BX, BY = VX[j] - (px - shift[:, :1]), VY[j] - (py - shift[:, 1:])
     DXa, DYa, DXb, DYb = EX[i], EY[i], EX[j], EY[j]
     # side of every vertex of A for every edge of B: (P, K_B, K_A); an edge of B with all
     # of A outside separates the pair, an edge with all of A inside does not cut it
@@ -464,8 +503,8 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
     cuts &= ~_any_middle(both_out)
     keep = ~separated
     if not np.all(keep):
-        i, j, AX, AY, BX, BY, DXb, DYb, cuts = (
-            v[keep] for v in (i, j, AX, AY, BX, BY, DXb, DYb, cuts))
+        i, j, AX, AY, BX, BY, DXb, DYb, cuts, shift = (
+            v[keep] for v in (i, j, AX, AY, BX, BY, DXb, DYb, cuts, shift))
     nA = nv[i]
     n_cut = cuts.sum(axis=1)
     order = np.argsort(~cuts, axis=1, kind="stable")
@@ -481,7 +520,7 @@ def polygon_overlaps(verts: np.ndarray, nv: np.ndarray, pos: np.ndarray, i: np.n
     ok = (cnt >= 3) & (A > 0)
     oo = o[ok, 0, :]
     return dict(i=i[ok], j=j[ok], area=A[ok], centroid=cen[ok] + oo, p1=p1[ok] + oo,
-                p2=p2[ok] + oo, ncross=ncross[ok])
+                p2=p2[ok] + oo, ncross=ncross[ok], shift=shift[ok])
 
 
 # per wall (xmin, xmax, ymin, ymax): edge direction, whose left side (the kept side) is
@@ -546,7 +585,8 @@ def contact_forces(ov: dict, pos, vel, omega, mass, free, model: ContactModel, d
     Parameters
     ----------
     ov : dict
-        Output of :func:`polygon_overlaps` or :func:`wall_overlaps`.
+        Output of :func:`polygon_overlaps` or :func:`wall_overlaps` (with ``shift``, the
+        periodic image of ``j`` is taken).
     pos, vel : (N, 2) float
         Positions (length) and velocities (length/time) of the bodies.
     omega : (N,) float
@@ -570,9 +610,11 @@ def contact_forces(ov: dict, pos, vel, omega, mass, free, model: ContactModel, d
     i, j = ov["i"], ov["j"]
     wall = j < 0
     jb = np.where(wall, i, j)  # harmless index for walls
+    shift = ov["shift"] if "shift" in ov else np.zeros((len(i), 2))
+    pj = pos[jb] + shift  # j's centre, at its image nearest i
     c = ov["centroid"]
     ri_v = c - pos[i]
-    rj_v = c - pos[jb]
+    rj_v = c - pj
     ri = np.sqrt((ri_v**2).sum(axis=1))
     rj = np.sqrt((rj_v**2).sum(axis=1))
     # characteristic length, Matuttis & Chen: 1/l = (r_i + r_j)/(4 r_i r_j); wall: r_j → ∞
@@ -583,7 +625,7 @@ def contact_forces(ov: dict, pos, vel, omega, mass, free, model: ContactModel, d
     # normal: perpendicular to the chord, oriented from j towards i
     with np.errstate(invalid="ignore", divide="ignore"):
         n = _perp(S) / chord[:, None]
-    dji = pos[i] - pos[jb]
+    dji = pos[i] - pj
     bad = ~np.isfinite(n).all(axis=1) | (ov["ncross"] < 2)
     if np.any(bad):  # degenerate chord: fall back to the line of centres
         dn = np.sqrt((dji**2).sum(axis=1))[:, None]
@@ -635,4 +677,4 @@ def contact_forces(ov: dict, pos, vel, omega, mass, free, model: ContactModel, d
     xi = np.where(sliding, -ft / kt, xi)
     return Contacts(i=i, j=j, point=c, normal=n, normal_force=fn[:, None] * n,
                     tangential_force=ft[:, None] * t, area=A, length=length, chord=chord,
-                    xi=xi, sliding=sliding, work=work, key=key)
+                    xi=xi, sliding=sliding, work=work, key=key, shift=shift)

@@ -60,7 +60,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import validate
-from .repulsion import approach_geometry, pair_gaps, wall_approaches
+from .repulsion import _shift, approach_geometry, pair_gaps, wall_approaches
 
 __all__ = ["Lubrication", "equal_area_radius", "generalised_normals", "implicit_damping", "lubrication_pairs"]
 
@@ -154,7 +154,7 @@ def equal_area_radius(area: np.ndarray) -> np.ndarray:
 
 def lubrication_pairs(model: Lubrication, W: np.ndarray, pos: np.ndarray, i: np.ndarray, j: np.ndarray,
                       overlapping: np.ndarray, radius: np.ndarray, walls=None, movable: np.ndarray | None = None,
-                      gaps=None):
+                      gaps=None, period: np.ndarray | None = None):
     """The pairs and body–wall pairs within the cut-off and their damping coefficients (module docstring).
 
     Parameters
@@ -173,7 +173,11 @@ def lubrication_pairs(model: Lubrication, W: np.ndarray, pos: np.ndarray, i: np.
     walls, movable
         As in :func:`fluidem.dem.repulsion.repulsion_forces`.
     gaps : tuple or None
-        ``pair_gaps(W, i, j, ...)`` already computed with a reach ≥ ``model.range``.
+        ``pair_gaps(W, i, j, ...)`` already computed with a reach ≥ ``model.range`` (and the
+        periodic shifts).
+    period : (2,) float or None
+        Periods of a periodic box (0 for a non-periodic axis), length: every pair sees the
+        nearest image of its second body (:mod:`fluidem.dem.periodic`).
 
     Returns
     -------
@@ -182,19 +186,21 @@ def lubrication_pairs(model: Lubrication, W: np.ndarray, pos: np.ndarray, i: np.
     c : (M,) float
         Damping coefficient c(g), force per normal speed (uncapped).
     point : (M, 2) float
-        Where the film acts, length.
+        Where the film acts, length (in a periodic box at ``a``: see :func:`implicit_damping`).
     normal : (M, 2) float
         Unit vector from ``b`` (or the wall) towards ``a``.
     """
     rows = []
     rho = model.range
     if len(i):
-        p, q, d = gaps if gaps is not None else pair_gaps(W, i, j)
+        shift = _shift(pos, i, j, period)
+        p, q, d = gaps if gaps is not None else pair_gaps(W, i, j, shift=shift)
         gap = d.min(axis=1)
         near = (gap < rho) | overlapping
         if near.any():
             ii, jj, ov = i[near], j[near], overlapping[near]
-            point, normal = approach_geometry(p[near], q[near], d[near], rho, pos[ii] - pos[jj], ov)
+            line = pos[ii] - pos[jj] - (0.0 if shift is None else shift[near])
+            point, normal = approach_geometry(p[near], q[near], d[near], rho, line, ov)
             a_star = radius[ii] * radius[jj] / (radius[ii] + radius[jj])
             c = model.coefficient(np.where(ov, -np.inf, gap[near]), a_star)
             rows.append((ii, jj, c, point, normal))
@@ -206,19 +212,21 @@ def lubrication_pairs(model: Lubrication, W: np.ndarray, pos: np.ndarray, i: np.
     return tuple(np.concatenate(col) for col in zip(*rows))
 
 
-def generalised_normals(pos: np.ndarray, body: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """(M, 3) generalised normal ``(n, r × n)`` of each pair's end on ``body``, ``r = point − x_body``.
+def generalised_normals(pos: np.ndarray, body: np.ndarray, point: np.ndarray, normal: np.ndarray,
+                        shift=0.0) -> np.ndarray:
+    """(M, 3) generalised normal ``(n, r × n)`` of each pair's end on ``body``, ``r = point − (x_body + shift)``
+    (``shift`` (M, 2): the periodic image of ``body`` the pair sees, length; 0 for none).
 
     The rate of the gap of a pair is ``−(g_aᵀ V_a − g_bᵀ V_b)`` for the velocities ``V = (U_x, U_y, ω)`` of its
     two bodies, and a normal force ``f n`` on ``a`` (``−f n`` on ``b``) is the generalised load ``f g_a``
     (``−f g_b``): force and torque about the centre of mass.
     """
-    r = point - pos[body]
+    r = point - pos[body] - shift
     return np.column_stack([normal, r[:, 0] * normal[:, 1] - r[:, 1] * normal[:, 0]])
 
 
 def implicit_damping(pairs, pos: np.ndarray, velocity: np.ndarray, mass: np.ndarray, inertia: np.ndarray,
-                     free: np.ndarray, dt: float) -> np.ndarray:
+                     free: np.ndarray, dt: float, period: np.ndarray | None = None) -> np.ndarray:
     """Velocities after the film's damping over ``dt`` by backward Euler, (N, 3).
 
     The damping force of all pairs is ``F = −C V``, ``C = Σ c G Gᵀ`` with ``G`` the pair's generalised
@@ -245,6 +253,9 @@ def implicit_damping(pairs, pos: np.ndarray, velocity: np.ndarray, mass: np.ndar
     free : (N,) bool
     dt : float
         Time.
+    period : (2,) float or None
+        Periods of a periodic box (0 for a non-periodic axis), length: the arm of ``b`` is taken
+        about its image nearest ``a`` (:mod:`fluidem.dem.periodic`), where ``point`` lies.
     """
     a, b, c, point, normal = pairs
     V = np.array(velocity, float)
@@ -255,7 +266,8 @@ def implicit_damping(pairs, pos: np.ndarray, velocity: np.ndarray, mass: np.ndar
     wall = b < 0
     bb = np.where(wall, a, b)
     ga = generalised_normals(pos, a, point, normal)
-    gb = np.where(wall[:, None], 0.0, -generalised_normals(pos, bb, point, normal))
+    s = _shift(pos, a, bb, period)
+    gb = np.where(wall[:, None], 0.0, -generalised_normals(pos, bb, point, normal, 0.0 if s is None else s))
     # the bodies the film touches, numbered compactly: unknowns of the free ones, given the others
     body, slot = np.unique(np.concatenate([a, bb]), return_inverse=True)
     sa, sb = slot[: len(a)], slot[len(a):]

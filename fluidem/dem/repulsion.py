@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import validate
+from .periodic import image_shift
 
 __all__ = ["Repulsion", "approach_geometry", "pair_gaps", "repulsion_forces", "repulsion_pairs", "wall_approaches"]
 
@@ -109,7 +110,7 @@ def _point_segment(P, A, B):
 
 
 def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray | None = None,
-              radii: np.ndarray | None = None, reach: float = np.inf):
+              radii: np.ndarray | None = None, reach: float = np.inf, shift: np.ndarray | None = None):
     """Vertex–edge distances of body pairs, both ways.
 
     Parameters
@@ -126,16 +127,22 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray |
         exact.
     reach : float
         Length.
+    shift : (P, 2) float or None
+        Added to body ``j``'s outline and centre (its nearest periodic image,
+        :mod:`fluidem.dem.periodic`), length; None for none.
 
     Returns
     -------
     p, q : (P, 2K, 2) float
         For every vertex of ``i`` (first K) and of ``j`` (last K): the vertex and its closest
-        point on the other body's outline, ordered so that ``p`` lies on ``i`` and ``q`` on ``j``.
+        point on the other body's outline, ordered so that ``p`` lies on ``i`` and ``q`` on ``j``
+        (on its shifted image).
     d : (P, 2K) float
         Their distances, length.
     """
     Wi, Wj = W[i], W[j]
+    if shift is not None:
+        Wj = Wj + shift[:, None, :]
 
     def vertex_to_outline(V, other, c_other, r_other):  # V (P, K, 2) vertices, other (P, K, 2) outline
         P, K = V.shape[:2]
@@ -158,6 +165,8 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray |
     ci = cj = ri = rj = None
     if centres is not None and np.isfinite(reach):
         ci, cj, ri, rj = centres[i], centres[j], radii[i], radii[j]
+        if shift is not None:
+            cj = cj + shift
     Qj, dj = vertex_to_outline(Wi, Wj, cj, rj)  # vertices of i, feet on j
     Qi, di = vertex_to_outline(Wj, Wi, ci, ri)  # vertices of j, feet on i
     p = np.concatenate([Wi, Qi], axis=1)
@@ -167,7 +176,7 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray |
 
 def repulsion_pairs(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.ndarray, j: np.ndarray,
                     overlapping: np.ndarray, walls=None, movable: np.ndarray | None = None,
-                    radii: np.ndarray | None = None, gaps=None):
+                    radii: np.ndarray | None = None, gaps=None, period: np.ndarray | None = None):
     """The pairs and body–wall pairs within the repulsion's range, one row each.
 
     Parameters are those of :func:`repulsion_forces`.
@@ -180,7 +189,8 @@ def repulsion_pairs(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.ndar
         Gap between the outlines (0 for overlapping pairs, which act along their centre
         line), length.
     point : (P, 2) float
-        Where the force acts, length.
+        Where the force acts, length; in a periodic box at ``a`` (the arm of ``b`` is
+        ``point − (x_b + s)``, ``s`` the :func:`fluidem.dem.periodic.image_shift` of ``x_b − x_a``).
     direction : (P, 2) float
         Unit vector from ``b`` (or the wall) towards ``a``: the force on ``a`` is
         ``model.magnitude(gap) * direction``, the one on ``b`` its opposite.
@@ -188,12 +198,15 @@ def repulsion_pairs(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.ndar
     rows = []
     rho = model.range
     if len(i):
-        p, q, d = gaps if gaps is not None else pair_gaps(W, i, j, pos if radii is not None else None, radii, rho)
+        shift = _shift(pos, i, j, period)
+        p, q, d = gaps if gaps is not None else pair_gaps(W, i, j, pos if radii is not None else None, radii, rho,
+                                                          shift)
         gap = d.min(axis=1)
         near = gap < rho
         if near.any():
             ii, jj, ov = i[near], j[near], overlapping[near]
-            point, direction = approach_geometry(p[near], q[near], d[near], rho, pos[ii] - pos[jj], ov)
+            line = pos[ii] - pos[jj] - (0.0 if shift is None else shift[near])
+            point, direction = approach_geometry(p[near], q[near], d[near], rho, line, ov)
             rows.append((ii, jj, np.where(ov, 0.0, gap[near]), point, direction))
     if walls is not None:
         for k, gap, point, normal in wall_approaches(W, walls, rho, movable):
@@ -205,7 +218,7 @@ def repulsion_pairs(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.ndar
 
 def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.ndarray, j: np.ndarray,
                      overlapping: np.ndarray, walls=None, movable: np.ndarray | None = None,
-                     radii: np.ndarray | None = None, gaps=None):
+                     radii: np.ndarray | None = None, gaps=None, period: np.ndarray | None = None):
     """Repulsive forces and torques on every body (module docstring).
 
     Parameters
@@ -227,7 +240,12 @@ def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.nda
         Bounding radii about ``pos``: only vertices that can be within the range of the other
         body are measured (same result, less work for many-sided outlines).
     gaps : tuple or None
-        ``pair_gaps(W, i, j, ...)`` already computed with a reach ≥ ``model.range``.
+        ``pair_gaps(W, i, j, ...)`` already computed with a reach ≥ ``model.range`` (and the
+        periodic shifts).
+    period : (2,) float or None
+        Periods of a periodic box (0 for a non-periodic axis), length: every pair sees the
+        nearest image of its second body (:mod:`fluidem.dem.periodic`); walls then stand only
+        on the non-periodic sides (the caller's ``walls``).
 
     Returns
     -------
@@ -243,11 +261,13 @@ def repulsion_forces(model: Repulsion, W: np.ndarray, pos: np.ndarray, i: np.nda
     T = np.zeros(n)
     if model.force == 0.0:
         return F, T, 0
-    a, b, gap, point, direction = repulsion_pairs(model, W, pos, i, j, overlapping, walls, movable, radii, gaps)
+    a, b, gap, point, direction = repulsion_pairs(model, W, pos, i, j, overlapping, walls, movable, radii, gaps,
+                                                  period)
     f = model.magnitude(gap)[:, None] * direction
     _accumulate(F, T, pos, a, f, point)
     body = b >= 0
-    _accumulate(F, T, pos, b[body], -f[body], point[body])
+    s = _shift(pos, a[body], b[body], period)
+    _accumulate(F, T, pos, b[body], -f[body], point[body] - (0.0 if s is None else s))
     return F, T, int(len(a))
 
 
@@ -316,6 +336,13 @@ def wall_approaches(W, walls, reach, movable=None):
         normal = np.zeros((len(gap), 2))
         normal[:, axis] = sign
         yield mv[near], gap, point, normal
+
+
+def _shift(pos, i, j, period):
+    """The periodic shifts of pairs (:func:`fluidem.dem.periodic.image_shift`), or None outside a periodic box."""
+    if period is None or not np.any(np.asarray(period) > 0):
+        return None
+    return image_shift(pos[j] - pos[i], period)
 
 
 def _accumulate(F, T, pos, k, f, point):

@@ -38,9 +38,10 @@ from .contact import (Contacts, ContactModel, contact_forces, grid_pairs, polygo
                       wall_overlaps)
 from .integrate import GEAR_ORDERS, Gear
 from .lubrication import Lubrication, equal_area_radius, implicit_damping, lubrication_pairs
+from .periodic import as_period, check_pair_reach, image_shift
 from .repulsion import Repulsion, pair_gaps, repulsion_forces, repulsion_pairs
 
-__all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS"]
+__all__ = ["DEM", "StepCost", "COST_PARTS", "COST_COUNTS", "critical_sub_step", "stable_sub_step"]
 
 
 #: Deprecated alias of :class:`fluidem.cost.CostSplit`, the one cost-split type (kept for one version).
@@ -68,6 +69,19 @@ def _pad_vertices(bodies) -> tuple[np.ndarray, np.ndarray]:
 
 
 
+def critical_sub_step(mass, stiffness):
+    """The explicit sub-step ``0.1 π √(m / k)`` that resolves a spring of ``stiffness`` k
+    (force/length) on a body of ``mass`` m (Matuttis & Chen 2014, ch. 7), time units; scalars or arrays.
+
+    Examples
+    --------
+    >>> round(float(critical_sub_step(0.01, 1e4)), 7)
+    0.0003142
+    """
+    with np.errstate(all="ignore"):  # an absurd stiffness: 0, which the plan refuses
+        return 0.1 * np.pi * np.sqrt(np.asarray(mass, dtype=float) / stiffness)
+
+
 def stable_sub_step(mass: float, E: float, repulsion=None) -> tuple[float, str]:
     """The DEM's largest stable sub-step ``0.1 π √(m / k)`` (Matuttis & Chen 2014, ch. 7) and what sets it.
 
@@ -86,8 +100,8 @@ def stable_sub_step(mass: float, E: float, repulsion=None) -> tuple[float, str]:
         k = repulsion.max_stiffness
         by = (f"the repulsion's stiffness at contact 2c/(ερ) = {k:.3g} force/length (contact.repulsion_epsilon, "
               "repulsion_force, repulsion_range)")
-    with np.errstate(all="ignore"):  # an absurd stiffness: 0, which the plan refuses
-        return float(0.1 * np.pi * np.sqrt(mass / k)), by
+    return float(critical_sub_step(mass, k)), by
+
 
 class DEM:
     """Polygonal discrete element simulation.
@@ -98,7 +112,7 @@ class DEM:
         The particles (free, fixed or prescribed).
     walls : (xmin, xmax, ymin, ymax) or None
         Domain sides acting as rigid walls with the same contact law (length); a side may
-        be ``±inf`` to leave it open.
+        be ``±inf`` to leave it open.  Sides along a periodic axis never act.
     gravity : (2,) float
         Length/time² (m/s² in SI: the default ``(0, -9.81)``; give ``(0, -981)`` in CGS).
     contact : ContactModel
@@ -118,6 +132,15 @@ class DEM:
         The lubrication correction between outlines closer than its range (bodies in a fluid,
         :mod:`fluidem.dem.lubrication`): a normal damping, applied implicitly after each
         step, so it never shortens :attr:`dt_max`.
+    period : (L_x, L_y) or None
+        Periods of a periodic box, length: an entry for each axis, a positive period or None
+        where the axis is not periodic (``(1.0, None)``: the left and right sides are one).
+        Positions stay unwrapped (a body that crossed the right side has ``x > xmax``); every pair
+        (contacts, repulsion, lubrication, gaps) sees the nearest periodic image of its partner
+        (minimum-image convention, :mod:`fluidem.dem.periodic`), and walls act only on the
+        non-periodic sides: along a periodic axis ``walls`` must be ``±inf`` or span exactly one
+        period.  Every pair of bodies must satisfy ``r_i + r_j + near_range < L/2`` (bounding
+        radii): bodies narrower than half the period.
 
     Attributes
     ----------
@@ -154,8 +177,9 @@ class DEM:
     Raises
     ------
     fluidem.errors.InputError
-        (a ``ValueError``) A bad argument (named with its value), or bodies overlapping each
-        other or a wall beyond ``overlap_tolerance`` (naming the bodies and the overlap).
+        (a ``ValueError``) A bad argument (named with its value), bodies overlapping each
+        other or a wall beyond ``overlap_tolerance`` (naming the bodies and the overlap), a
+        ``period`` that does not match ``walls`` or bodies wider than half of it.
 
     Examples
     --------
@@ -169,7 +193,8 @@ class DEM:
 
     def __init__(self, bodies, walls=None, gravity=(0.0, -9.81), contact: ContactModel | None = None,
                  order: int = 2, skin: float | None = None, overlap_tolerance: float = 0.01,
-                 t0: float = 0.0, repulsion: Repulsion | None = None, lubrication: Lubrication | None = None):
+                 t0: float = 0.0, repulsion: Repulsion | None = None, lubrication: Lubrication | None = None,
+                 period=None):
         bodies = _check_bodies("DEM(bodies=...)", bodies)
         if not bodies:
             raise validate.fail("DEM(bodies=...)", bodies, "at least one fluidem.dem.Body")
@@ -177,6 +202,7 @@ class DEM:
         if not isinstance(self.model, ContactModel):
             raise validate.fail("DEM(contact=...)", _Shown(contact), "a fluidem.dem.ContactModel")
         self.gravity = _pair("DEM(gravity=...)", gravity)
+        self._L = as_period("DEM(period=...)", period)
         self.walls = walls
         self.order = int(validate.choice("DEM(order=...)", order, GEAR_ORDERS))
         self.overlap_tolerance = validate.nonnegative("DEM(overlap_tolerance=...)", overlap_tolerance)
@@ -197,15 +223,26 @@ class DEM:
         self._lub = (np.zeros(0, np.int64),) * 2 + (np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))
         self.cost = _new_cost()
         self.bodies: list[Body] = []
-        self._setup(bodies)
+        self._setup(bodies, key="DEM(period=...)")
         self._check_overlaps(np.arange(len(self.bodies)))
         self._initial_forces()
         self._fresh = True      # again at the first step, with the external forces set by then
 
+    def __setstate__(self, state: dict) -> None:
+        """Restore from a checkpoint; one written before periodic boxes gets none (``period`` None)."""
+        self.__dict__.update(state)
+        if "_L" not in state:
+            self._L = np.zeros(2)
+            self._wall_box = self._walls
+        C = self.__dict__.get("contacts")
+        if C is not None and getattr(C, "shift", None) is None:
+            C.shift = np.zeros((len(C.i), 2))
+
     # ---- set-up ------------------------------------------------------------------------
-    def _setup(self, bodies, state=None):
-        self.bodies = list(bodies)
-        B = self.bodies
+    def _setup(self, bodies, state=None, key="DEM(period=...)"):
+        B = list(bodies)
+        check_pair_reach(key, self._L, [b.radius for b in B], self.near_range)
+        self.bodies = B
         self.n = len(B)
         self._V, self._nv = _pad_vertices(B)
         self.mass = np.array([b.mass for b in B])
@@ -267,7 +304,40 @@ class DEM:
 
     @walls.setter
     def walls(self, walls):
-        self._walls = None if walls is None else _box("DEM(walls=...)", walls)
+        box = None if walls is None else _box("DEM(walls=...)", walls)
+        w = box
+        if w is not None and self._L.any():
+            for c in np.flatnonzero(self._L > 0):
+                lo, hi = w[2 * c], w[2 * c + 1]
+                if (np.isfinite(lo) or np.isfinite(hi)) and not abs((hi - lo) - self._L[c]) <= 1e-9 * self._L[c]:
+                    raise InputError(
+                        f"DEM(walls=...) = {walls!r}: along the periodic {'xy'[c]} axis the box sides span "
+                        f"{hi - lo:.6g}, not the period {self._L[c]:.6g} of DEM(period=...); expected sides "
+                        f"{'xy'[c]}max − {'xy'[c]}min = {self._L[c]:.6g} or ±inf")
+            # the sides along a periodic axis never act
+            w = tuple(-np.inf if self._L[k // 2] > 0 and k % 2 == 0 else
+                      np.inf if self._L[k // 2] > 0 else w[k] for k in range(4))
+            w = None if not np.isfinite(w).any() else w
+        self._walls = box
+        self._wall_box = w  # the sides that act
+
+    @property
+    def period(self):
+        """Periods ``(L_x, L_y)`` of a periodic box, length, None for a non-periodic axis (the
+        constructor's ``period``; :mod:`fluidem.dem.periodic`)."""
+        return tuple(float(v) if v > 0 else None for v in self._L)
+
+    def image_shift(self, i, j, poses=None) -> np.ndarray:
+        """(P, 2) shifts bringing bodies ``j`` (P,) to their periodic images nearest bodies ``i`` (P,),
+        length (zero outside a periodic box; :func:`fluidem.dem.periodic.image_shift`).
+
+        ``poses`` (N, 2 or 3), default the current ones: ``x_j + shift − x_i`` is the pair's
+        displacement, and the arm of ``j``'s force acting at ``point`` (at ``i``) is
+        ``point − (x_j + shift)``.
+        """
+        x = self.gear.X[0] if poses is None else np.asarray(poses, float)
+        i, j = np.asarray(i, np.int64), np.asarray(j, np.int64)
+        return image_shift(x[j, :2] - x[i, :2], self._L)
 
     @property
     def near_range(self) -> float:
@@ -341,11 +411,12 @@ class DEM:
             disp = pos - self._nbr_ref
             rebuild = float((disp * disp).sum(axis=1).max()) > (0.5 * self.skin) ** 2
         if rebuild:
-            self._nbr = grid_pairs(pos, self.radii, self._cell, self.movable, self.skin)
+            self._nbr = grid_pairs(pos, self.radii, self._cell, self.movable, self.skin, self._L)
             self._nbr_ref = pos.copy()
             self.cost.count("rebuilds")
         i, j = self._nbr
         d = pos[j] - pos[i]
+        d = d + image_shift(d, self._L)
         reach = self.radii[i] + self.radii[j] + extra
         keep = (d * d).sum(axis=1) < reach * reach
         self.cost.add("broad", time.perf_counter() - t0)
@@ -358,11 +429,11 @@ class DEM:
         W = self.world_vertices(x) if W is None else W
         ovs = []
         if len(i):
-            ovs.append(polygon_overlaps(W, self._nv, pos, i, j))
-        if self.walls is not None:
+            ovs.append(polygon_overlaps(W, self._nv, pos, i, j, image_shift(pos[j] - pos[i], self._L)))
+        if self._wall_box is not None:
             lo, hi = W.min(axis=1), W.max(axis=1)
             mv = np.flatnonzero(self.movable)
-            ow = wall_overlaps(W, self._nv, pos, lo, hi, self.walls, mv)
+            ow = wall_overlaps(W, self._nv, pos, lo, hi, self._wall_box, mv)
             if ow is not None:
                 ovs.append(ow)
         self.cost.add("narrow", time.perf_counter() - t0)
@@ -401,7 +472,7 @@ class DEM:
         T = rel[:, 0] * F[:, 1] - rel[:, 1] * F[:, 0]
         body = C.j >= 0
         jb = C.j[body]
-        relj = C.point[body] - pos[jb]
+        relj = C.point[body] - (pos[jb] + C.shift[body])  # the arm about j's image at the contact
         Fj = -F[body]
         Tj = relj[:, 0] * Fj[:, 1] - relj[:, 1] * Fj[:, 0]
         idx = np.concatenate([C.i, jb])
@@ -418,16 +489,18 @@ class DEM:
                 body = C.j >= 0
                 touching = np.isin(ri * n + rj, np.minimum(C.i, C.j)[body] * n + np.maximum(C.i, C.j)[body])
             active = self.lubrication is not None or self.repulsion.force > 0  # a zero force scale measures nothing
-            gaps = pair_gaps(W, ri, rj, pos, self.radii, self.near_range) if len(ri) and active else None
+            shift = image_shift(pos[rj] - pos[ri], self._L)
+            gaps = pair_gaps(W, ri, rj, pos, self.radii, self.near_range, shift) if len(ri) and active else None
             self.closest_gap_seen = min(self.closest_gap_seen, self._closest_gap(W, gaps))
             if self.repulsion is not None:
-                Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, W, pos, ri, rj, touching, self.walls,
-                                                                self.movable, self.radii, gaps=gaps)
+                Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, W, pos, ri, rj, touching,
+                                                                self._wall_box, self.movable, self.radii, gaps=gaps,
+                                                                period=self._L)
                 forces = forces + Fr
                 torques = torques + Tr
             if self.lubrication is not None:  # applied implicitly after the step (:meth:`_damp`)
                 self._lub = lubrication_pairs(self.lubrication, W, pos, ri, rj, touching, self.lubrication_radius,
-                                              self.walls, self.movable, gaps=gaps)
+                                              self._wall_box, self.movable, gaps=gaps, period=self._L)
                 self.lubrication_pairs = len(self._lub[0])
         order = np.argsort(C.key, kind="stable")
         self._hist = {"key": C.key[order], "xi": C.xi[order], "area": C.area[order],
@@ -523,7 +596,7 @@ class DEM:
             return
         x = self.gear.X[0]
         v0 = self.gear.X[1]
-        v1 = implicit_damping(pairs, x[:, :2], v0, self.mass, self.inertia, self.free, dt)
+        v1 = implicit_damping(pairs, x[:, :2], v0, self.mass, self.inertia, self.free, dt, self._L)
         moved = np.repeat(self.free[:, None], 3, axis=1) & (v1 != v0)
         if not moved.any():
             return
@@ -568,10 +641,10 @@ class DEM:
         """Smallest gap of the pairs measured (``gaps`` of :func:`pair_gaps`, or None) and of the movable
         bodies to the walls, length (``inf`` for none)."""
         g = float(gaps[2].min()) if gaps is not None and gaps[2].size else np.inf
-        if self.walls is not None:
+        if self._wall_box is not None:
             Wm = W[self.movable]
             if len(Wm):
-                x0, x1, y0, y1 = self.walls
+                x0, x1, y0, y1 = self._wall_box
                 lo, hi = Wm.min(axis=(0, 1)), Wm.max(axis=(0, 1))
                 g = min(g, lo[0] - x0, x1 - hi[0], lo[1] - y0, y1 - hi[1])
         return g
@@ -582,7 +655,8 @@ class DEM:
         No contact detection and no change of state: overlapping pairs are measured like the
         others (a fluid run stops on overlap).  Returns ``(a, b, gap, point, direction)`` of
         :func:`fluidem.dem.repulsion.repulsion_pairs` (``b = -1`` for a wall), empty without a
-        repulsion.
+        repulsion.  In a periodic box ``point`` lies at ``a``: the arm of ``b`` is
+        ``point − (x_b + image_shift(a, b))`` (:meth:`image_shift`).
         """
         x = np.asarray(poses, float).reshape(self.n, 3)
         if self.repulsion is None or self.repulsion.force == 0.0:
@@ -591,8 +665,8 @@ class DEM:
         W = self.world_vertices(x)
         pos = x[:, :2]
         ri, rj = self._neighbours(pos, self.repulsion.range)
-        return repulsion_pairs(self.repulsion, W, pos, ri, rj, np.zeros(len(ri), bool), self.walls, self.movable,
-                               self.radii)
+        return repulsion_pairs(self.repulsion, W, pos, ri, rj, np.zeros(len(ri), bool), self._wall_box, self.movable,
+                               self.radii, period=self._L)
 
     def set_motion(self, poses: np.ndarray, velocities: np.ndarray, time: float | None = None) -> None:
         """Replace every body's pose and velocity (e.g. to sub-step a fluid step from its state).
@@ -646,7 +720,7 @@ class DEM:
         te = np.concatenate([self.external_torque, np.zeros(len(new))])
         hist = self._hist
         cost = self.cost
-        self._setup(self.bodies + new, state=(x, v, a, fe, te))
+        self._setup(self.bodies + new, state=(x, v, a, fe, te), key="DEM.add_bodies(bodies=...)")
         # keep the higher Gear derivatives of the old bodies
         for k in range(3, self.gear.q):
             self.gear.X[k][:n0] = X[k]

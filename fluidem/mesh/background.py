@@ -17,8 +17,7 @@ import shapely
 
 from ..errors import InputError
 
-__all__ = ["SizeField", "UniformSize", "GradedSize", "as_size_field", "friedrichs_keller_grid",
-           "graded_background"]
+__all__ = ["SizeField", "UniformSize", "GradedSize", "as_size_field", "friedrichs_keller_grid"]
 
 
 class SizeField:
@@ -154,28 +153,3 @@ def friedrichs_keller_grid(domain, h: float) -> tuple[np.ndarray, np.ndarray]:
     b, c, d = a + 1, a + nx + 2, a + nx + 1
     tris = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
     return pts, tris
-
-
-def graded_background(domain, size, min_angle: float = 30.0, periodic=()) -> np.ndarray:
-    """Background nodes of a box graded by a size field (paper Sec. 2.3, Fig. 3).
-
-    A quality Delaunay refinement (Triangle) of the empty box with triangles no larger
-    than an equilateral triangle of the local size; only the nodes are returned.
-
-    Parameters
-    ----------
-    domain : (xmin, xmax, ymin, ymax)
-    size : float, SizeField or callable ``points (m, 2) -> h (m,)``
-    min_angle : float
-        Triangle's minimum-angle bound, degrees.
-    periodic : sequence of {"x", "y"}
-        Periodic axes: the nodes of the paired sides match (:mod:`fluidem.mesh.periodic`).
-        The Friedrichs–Keller grid matches them by construction.
-
-    Returns
-    -------
-    points : (n_nodes, 2) float
-    """
-    from .triangulate import triangulate_box  # local import: triangulate imports this module
-
-    return triangulate_box(domain, (), size=size, min_angle=min_angle, periodic=periodic).points

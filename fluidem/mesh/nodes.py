@@ -24,14 +24,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry import rigid_transform, to_body_frame, validate_polygon
-from .background import friedrichs_keller_grid, graded_background, subdivide_segment
+from .background import friedrichs_keller_grid, subdivide_segment
+from .kinds import CONTACT, CORNER, FREE, JUNCTION, OUTLINE, SIDE
+from .triangulate import graded_background
 
 __all__ = ["FREE", "SIDE", "CORNER", "OUTLINE", "JUNCTION", "CONTACT", "UID_OUTLINE", "UID_NEW",
            "FIRST_BODY_MARKER", "UidSource", "BodyOutlines", "BackgroundNodes", "body_vertices", "world",
            "to_body", "classify_box", "box_ring", "outline_nodes", "background_nodes", "mobility"]
 
-#: node kinds: free, box side (slides along it), box corner, body outline, junction, contact node
-FREE, SIDE, CORNER, OUTLINE, JUNCTION, CONTACT = 0, 1, 2, 3, 4, 5
 #: uid of outline table row ``i``: ``UID_OUTLINE + i``
 UID_OUTLINE = 1 << 40
 #: first uid of nodes created after the set-up

@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError, MeshError
+from .kinds import SIDE
 
 __all__ = ["AXES", "SIDE_PAIRS", "periodic_axes", "axes_of_sides", "match_side_nodes", "freeze_periodic_sides",
            "side_partners", "slide_in_pairs", "check_clearance", "check_matched"]
@@ -108,8 +109,6 @@ def match_side_nodes(points, kind, uid, box, axes, uids, merge: float = 0.0):
         The input with the missing partners appended (``SIDE`` nodes at the translated
         position: exactly ``xmax`` for a partner of a ``left`` node, and so on).
     """
-    from .nodes import SIDE
-
     points = np.asarray(points, dtype=float)
     if not axes:
         return points, kind, uid
@@ -152,8 +151,6 @@ def match_side_nodes(points, kind, uid, box, axes, uids, merge: float = 0.0):
 def freeze_periodic_sides(mobility, points, kind, box, axes) -> np.ndarray:
     """``mobility (n, 2)`` with the nodes of periodic sides fixed (they do not slide, so
     partners stay matched through relaxation and dragging)."""
-    from .nodes import SIDE
-
     if not axes:
         return mobility
     mob = mobility.copy()

@@ -24,7 +24,7 @@ from ..geometry import orient_ccw, point_in_polygon, polygon_area, triangle_area
 from .background import as_size_field, subdivide_segment
 from .periodic import periodic_axes
 
-__all__ = ["Obstacle", "BoxDomain", "TriangleMesh", "triangulate_box", "to_skfem", "SIDE_NAMES"]
+__all__ = ["Obstacle", "BoxDomain", "TriangleMesh", "triangulate_box", "graded_background", "to_skfem", "SIDE_NAMES"]
 
 #: boundary names of the box sides, in the order of their markers 1..4
 SIDE_NAMES = ("bottom", "right", "top", "left")
@@ -303,3 +303,26 @@ def _facet_lookup(m):
         return order[pos].astype(np.int32)
 
     return lookup
+
+
+def graded_background(domain, size, min_angle: float = 30.0, periodic=()) -> np.ndarray:
+    """Background nodes of a box graded by a size field (paper Sec. 2.3, Fig. 3).
+
+    A quality Delaunay refinement (Triangle) of the empty box with triangles no larger
+    than an equilateral triangle of the local size; only the nodes are returned.
+
+    Parameters
+    ----------
+    domain : (xmin, xmax, ymin, ymax)
+    size : float, SizeField or callable ``points (m, 2) -> h (m,)``
+    min_angle : float
+        Triangle's minimum-angle bound, degrees.
+    periodic : sequence of {"x", "y"}
+        Periodic axes: the nodes of the paired sides match (:mod:`fluidem.mesh.periodic`).
+        The Friedrichs–Keller grid matches them by construction.
+
+    Returns
+    -------
+    points : (n_nodes, 2) float
+    """
+    return triangulate_box(domain, (), size=size, min_angle=min_angle, periodic=periodic).points

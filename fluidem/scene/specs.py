@@ -957,6 +957,10 @@ class Scene:
         """A deep copy."""
         return copy.deepcopy(self)
 
+    def default_mesh_size(self) -> float:
+        """The mesh size ``mesh.h`` takes when not given (:func:`default_h`), length units."""
+        return default_h(self)
+
     # -- the plan -------------------------------------------------------------------------
     def plan(self) -> Plan:
         """The effects this scene needs and why, see :class:`fluidem.plan.Plan`."""

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from fluidem.mesh.background import GradedSize, friedrichs_keller_grid, graded_background
+from fluidem.mesh.background import GradedSize, friedrichs_keller_grid
+from fluidem.mesh.triangulate import graded_background
 from fluidem.mesh.junctions import junction_points, split_triangles
 from fluidem.mesh.quality import OscillationDetector, mesh_quality, triangle_angles
 from fluidem.mesh.relax import RelaxParams, mesh_topology, relax, signed_areas
