@@ -51,6 +51,7 @@ from .errors import InputError
 
 __all__ = [
     "minimum_image",
+    "wrap_into_box",
     "as_polygon",
     "polygon_area",
     "polygon_centroid",
@@ -469,3 +470,20 @@ def minimum_image(d, period) -> np.ndarray:
         if L:
             d[:, c] -= L * np.round(d[:, c] / L)
     return d
+
+
+def wrap_into_box(points, box, period) -> np.ndarray:
+    """``points (k, 2)`` wrapped into ``box = (xmin, xmax, ymin, ymax)`` along its periodic axes
+    (``period = (L_x, L_y)``, ``None`` for a non-periodic axis), length units.
+
+    Examples
+    --------
+    >>> wrap_into_box(np.array([[2.3, 0.5], [-0.25, 1.5]]), (0, 2, 0, 1), (2.0, None)).tolist()
+    [[0.2999999999999998, 0.5], [1.75, 1.5]]
+    """
+    p = np.array(points, dtype=float).reshape(-1, 2)
+    lo = (box[0], box[2])
+    for c, L in enumerate(period):
+        if L:
+            p[:, c] = lo[c] + np.mod(p[:, c] - lo[c], L)
+    return p

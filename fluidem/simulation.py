@@ -376,13 +376,21 @@ class Simulation:
         sc = self.scene
         pos, ang, vel, om = b.positions, b.angles, b.velocities, b.omegas
         if self.step_index % sc.output.history_every == 0 or last:
-            writer.history(self.step_index, self.t, pos, ang, vel, om, F, T, cnt)
+            writer.history(self.step_index, self.t, self._in_box(pos), ang, vel, om, F, T, cnt, unwrapped=pos)
             t_loads += self._record_sides(writer)
         # what run.json reports if a later step fails: this step, the last good one
         self._recorded = (self.step_index, self.t, pos, ang, vel, om, np.array(F, float), np.array(T, float))
         if fields:
             self._write_fields(writer)
         return t_loads
+
+    def _in_box(self, positions) -> np.ndarray:
+        """Body positions ``(n, 2)`` wrapped into the box across its periodic sides (the bodies keep
+        continuous, unwrapped positions: a body that crossed a side is in the box again here)."""
+        from .coupling.boundary import period_of_scene
+        from .geometry import wrap_into_box
+
+        return wrap_into_box(positions, self.scene.domain.box, period_of_scene(self.scene))
 
     def _record_sides(self, writer) -> float:
         """The force of the fluid on every wall, moving wall and inflow side into sides.csv (from step 1:
@@ -404,7 +412,7 @@ class Simulation:
     def _write_fields(self, writer) -> None:
         """Body outlines and (fluid scenes) the fields of the current state into the series."""
         sc, b = self.scene, self.bodies
-        pos, ang = b.positions, b.angles
+        pos, ang = self._in_box(b.positions), b.angles
         outlines = [sb.world_vertices(sc.default_segments(sb), pos[k], ang[k]) for k, sb in enumerate(sc.bodies)]
         if outlines:
             writer.bodies(self.step_index, self.t, outlines, b.velocities, b.omegas)

@@ -168,8 +168,6 @@ def freeze_periodic_sides(mobility, points, kind, box, axes) -> np.ndarray:
 def side_partners(points, kind, box, axes) -> np.ndarray:
     """Pairs ``(k, 2)`` of matched box side nodes (kind ``SIDE``, corners left out) across the
     periodic ``axes``: ``[low side node, high side node]`` at the same place along the side."""
-    from .nodes import SIDE
-
     if not axes:
         return np.zeros((0, 2), dtype=np.int64)
     xmin, xmax, ymin, ymax = box
