@@ -281,8 +281,10 @@ class MovingMesh:
     periodic : sequence of {"x", "y"}
         Periodic axes (``"x"``: the sides ``left`` and ``right`` are one; ``"y"``: ``bottom``
         and ``top``; :mod:`fluidem.mesh.periodic`).  Their nodes match in every
-        triangulation and do not slide; a body closer than ``h`` to a periodic side raises
-        :class:`~fluidem.errors.MeshError` (``InputError`` at the start).
+        triangulation and slide in matched pairs; bodies may cross them (their periodic
+        images are meshed, clipped at the box, :mod:`fluidem.mesh.seam`; ``poses`` may lie
+        outside the box along a periodic axis).  A body with a vertex half a period or more
+        from its origin raises ``InputError``.
     params : MeshParams or None
         Every other parameter (:class:`fluidem.mesh.params.MeshParams`, which documents
         them: ``retriangulate_every``, ``relax_iterations``, ``min_angle_trigger``,
