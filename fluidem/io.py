@@ -533,7 +533,8 @@ class OutputWriter:
             return
         with open(path) as f:
             lines = f.readlines()
-        if columns == HISTORY_COLUMNS and any(ln.strip() == ",".join(_HISTORY_COLUMNS_BEFORE_UNWRAPPED) for ln in lines):
+        before = ",".join(_HISTORY_COLUMNS_BEFORE_UNWRAPPED)
+        if columns == HISTORY_COLUMNS and any(ln.strip() == before for ln in lines):
             # written before the unwrapped columns: such a run never crossed a periodic side, so
             # they repeat x and y
             lines = [_history_header() if ln.strip() == ",".join(_HISTORY_COLUMNS_BEFORE_UNWRAPPED) else

@@ -544,7 +544,8 @@ class Simulation:
                 if ev_mesh.force_change is not None:
                     msg += f"; force change {100 * ev_mesh.force_change:.3g} %"
             writer.event(self.step_index, self.t, "retriangulation", msg)
-            if ev_mesh.reason == "seam" and self.scene.fluid.model != "stokes" and not self.__dict__.get("_seam_warned"):
+            inertial = self.scene.fluid.model != "stokes"
+            if ev_mesh.reason == "seam" and inertial and not self.__dict__.get("_seam_warned"):
                 self._seam_warned = True
                 warnings.warn(f"step {self.step_index}: a body crosses a periodic side in Navier–Stokes flow: the "
                               "forces of the steps it crosses carry an ALE error (a disk at Re 30: up to twice the "

@@ -128,7 +128,7 @@ import shapely
 from scipy.spatial import cKDTree
 
 from .. import validate
-from ..errors import InputError, MeshError
+from ..errors import InputError
 from .adaptation import adapt as adapt_nodes
 from .adaptation import cleanup_candidates
 from .background import GradedSize, SizeField, UniformSize

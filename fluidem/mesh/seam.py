@@ -30,6 +30,7 @@ Examples
 ...                       (0, 2, 0, 1), ("x",), margin=0.0)
 >>> img.body.tolist(), img.shift.tolist()
 ([0, 0], [[0.0, 0.0], [-2.0, 0.0]])
+>>> from fluidem.geometry import minimum_image
 >>> minimum_image(np.array([[1.9, 0.0]]), (2.0, None)).tolist()
 [[-0.10000000000000009, 0.0]]
 """
@@ -40,8 +41,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
-
-from ..geometry import minimum_image
 
 __all__ = ["SEAM_CODE", "SEAM_MERGE", "SEAM_BAND", "PeriodicImages", "periodic_images", "period_of",
            "clip_at_seams", "seam_nudge", "covered_side_nodes", "seam_positions"]
@@ -103,7 +102,7 @@ def periodic_images(poses, extent, box, axes, margin: float) -> PeriodicImages:
     n = len(poses)
     xmin, xmax, ymin, ymax = box
     L = period_of(box, axes)
-    lo, hi = np.array([xmin, ymin]), np.array([xmax, ymax])
+    lo = np.array([xmin, ymin])
     home = np.zeros((n, 2), dtype=np.int64)
     for c in range(2):
         if L[c]:
