@@ -10,6 +10,9 @@ the offending value and what is allowed, in one line.
   a triangulation that fails); also a :class:`RuntimeError`.
 * :class:`SolverError` — a linear or nonlinear solve failed (singular matrix, no
   convergence, stagnation); also a :class:`RuntimeError`.
+* :class:`RunStopped` — a run stopped before its end (interrupted, or a step failed), its
+  output closed at the last good step.
+* :class:`RunWarning` — not an error: something a run did that its output should say.
 
 Examples
 --------
@@ -23,7 +26,8 @@ SceneError True
 
 from __future__ import annotations
 
-__all__ = ["FluidemError", "InputError", "SceneError", "MeshError", "SolverError", "install_hint"]
+__all__ = ["FluidemError", "InputError", "SceneError", "MeshError", "SolverError", "RunStopped", "RunWarning",
+           "install_hint", "one_line"]
 
 
 def install_hint(extra: str) -> str:
@@ -35,6 +39,14 @@ def install_hint(extra: str) -> str:
     """
     return f'pip install "fluidem[{extra}]" (in an editable checkout: pip install -e ".[{extra}]")'
 
+
+def one_line(exc: BaseException) -> str:
+    r"""The message of ``exc`` on one line (its type's name when it has none), for events.log and run.json.
+
+    >>> one_line(OSError("disk\nfull")), one_line(MemoryError())
+    ('disk full', 'MemoryError')
+    """
+    return " ".join(str(exc).splitlines()) or type(exc).__name__
 
 
 class FluidemError(Exception):
@@ -66,3 +78,29 @@ class SolverError(FluidemError, RuntimeError):
     def __init__(self, message: str, info=None):
         super().__init__(message)
         self.info = info
+
+
+class RunStopped(FluidemError):
+    """A run stopped before its end: interrupted (SIGINT/SIGTERM) or a step failed.
+
+    The :class:`~fluidem.simulation.Simulation` itself is left where it stopped (after a failed
+    step: in the bad state); continue with a new one, ``Simulation(scene).run(out_dir, restart=True)``.
+
+    Attributes
+    ----------
+    status : {"interrupted", "failed"}
+    exit_status : int
+        130 (SIGINT), 143 (SIGTERM) or 3 (a failed step): the command line's exit status.
+    checkpoint : Path or None
+        The checkpoint of the last good step.
+    """
+
+    def __init__(self, message, status="failed", exit_status=3, checkpoint=None):
+        super().__init__(message)
+        self.status = status
+        self.exit_status = exit_status
+        self.checkpoint = checkpoint
+
+
+class RunWarning(UserWarning):
+    """Something a run did that its output should say: a damaged checkpoint skipped, a coarse mesh."""

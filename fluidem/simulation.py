@@ -18,7 +18,10 @@
   scenes are refused.
 
 The parts live in :mod:`fluidem.coupling` (bodies adapters, boundary conditions, loads, the
-fixed- and moving-mesh flows); this module is the loop.  Free bodies in a fluid need the
+fixed- and moving-mesh flows); this module is the loop.  What the loop writes is
+:mod:`fluidem.records`, continuing from a checkpoint :mod:`fluidem.restart`, stopping on a signal
+:mod:`fluidem.signals`, the verbose per-step lines :mod:`fluidem.progress`; :class:`RunStopped` and
+:class:`RunWarning` are :mod:`fluidem.errors`' (all importable from here as well).  Free bodies in a fluid need the
 coupled solver (a later version) and are refused with a ``ValueError`` that says so.
 
 Each step's wall time is a :class:`fluidem.cost.CostSplit` with parts ``bodies``, ``mesh``,
@@ -53,12 +56,19 @@ from pathlib import Path
 
 import numpy as np
 
+from . import restart as restart_
 from .coupling.bodies import DEMBodies, FlowBodies, KinematicBodies, LinearPath
 from .cost import CostSplit
-from .diagnostics import RunDiagnostics, oscillation_text
-from .errors import FluidemError, InputError
-from .geometry import orient_ccw
+from .diagnostics import RunDiagnostics
+from .errors import InputError, RunStopped, RunWarning
+from .progress import VerboseProgress, step_info, verbose_line
+from .records import TRANSIENT_FAILURES  # noqa: F401 (importable from here, as before the split)
+from .records import _ccw, check_owner, close_complete, close_stopped, log_mesh_event, open_output, record_step
+from .records import summary as run_summary
+from .restart import RESTART_MAY_CHANGE, scene_changes
+from .restart import scene_key  # noqa: F401 (importable from here, as before the split)
 from .scene import Scene
+from .signals import SignalGuard
 from .state_checks import StateCheck, StateError
 from .validate import integer
 
@@ -70,19 +80,11 @@ __all__ = ["Simulation", "RunResult", "StepTimes", "run", "LinearPath", "RunStop
 #: steps for cheap DEM steps of many bodies
 SNAPSHOT_RATIO = 20.0
 
-#: parts of a run's state whose sizes change as it goes (contact lists, spring histories, neighbour pairs)
-_VARIABLE_STATE = (".contacts", "._hist.", "._nbr[", "_pairs", ".springs")
-
 #: smallest triangle angle (degrees) of a freshly built mesh before a warning
 MIN_ANGLE = 5.0
 
 #: Former name of the per-step cost record (now :class:`fluidem.cost.CostSplit`; parts read as attributes).
 StepTimes = CostSplit
-
-
-#: Failures a restart from the last checkpoint can get past: they come from the machine (a full disk,
-#: an unwritable folder, memory), not from the scene and its state, which a restart replays exactly.
-TRANSIENT_FAILURES = (OSError, MemoryError)
 
 
 @dataclass
@@ -240,10 +242,10 @@ class Simulation:
         of the bodies must have their shapes (:func:`fluidem.checkpoint.mismatches`), and the
         restored bodies and flow must be finite and of the scene's sizes.  In a directory a
         checkpoint that fails (damaged, crafted or edited) is skipped with a
-        :class:`RunWarning` and the previous one is used.  The scene may differ from the
+        :class:`~fluidem.errors.RunWarning` and the previous one is used.  The scene may differ from the
         checkpoint's only in ``time.t_end``, ``[output]``, its name and description; when the
-        longer ``t_end`` switches contacts on, the DEM continues the closed-form motion.
-        Returns the checkpoint used.
+        longer ``t_end`` switches contacts on, the DEM continues the closed-form motion
+        (:func:`fluidem.restart.restore`).  Returns the checkpoint used.
 
         Raises
         ------
@@ -252,180 +254,7 @@ class Simulation:
             or a plan that needs another kind of flow; :class:`fluidem.checkpoint.CheckpointError`
             for a damaged or missing file, or a directory without a valid checkpoint.
         """
-        from .checkpoint import CheckpointError, checkpoint_files
-        from .io import latest_checkpoint, load_checkpoint
-
-        path = Path(checkpoint)
-        # what every checkpoint is checked against: the state of the scene as built, taken before any
-        # checkpoint (which may fail half-way) is applied
-        template = {"bodies": self.bodies.get_state(), "flow": self.flow.get_state() if self.flow else None}
-        if not path.is_dir():
-            self._apply_checkpoint(path, load_checkpoint(path, allow_pickle=allow_pickle), template)
-            return path
-        files = checkpoint_files(path) or [latest_checkpoint(path)]
-        bodies, counters = self.bodies, dict(self.counters)
-        skipped = []
-        for f in files:
-            try:
-                self._apply_checkpoint(f, load_checkpoint(f), template)
-            except CheckpointError as exc:
-                skipped.append(str(exc))
-                self.bodies, self.counters = bodies, dict(counters)  # the next one applies to the scene's own
-                continue
-            for why in skipped:
-                warnings.warn(f"{why}; continuing from the previous valid checkpoint {str(f)!r}", RunWarning,
-                              stacklevel=3)
-            return f
-        raise CheckpointError(f"no valid checkpoint in {str(path / 'checkpoints')!r}: " + "; ".join(skipped))
-
-    def _apply_checkpoint(self, path: Path, data: dict, template: dict) -> None:
-        """Set the run's state from a loaded checkpoint of this scene, checked against ``template``
-        (the fresh state: bodies and flow; see :meth:`restore`)."""
-        from .checkpoint import CheckpointError, mismatches
-
-        sc = self.scene
-        changes = scene_changes(data.get("scene") or {}, sc.to_dict())
-        if changes:
-            raise InputError(f"checkpoint {str(path)!r} belongs to a different scene: changed "
-                             + "; ".join(changes) + "; a restart may change only time.t_end and [output] (anything "
-                             "else is a new run: --overwrite or another --out)")
-        try:
-            step, t = int(data["step"]), float(data["t"])
-        except (KeyError, TypeError, ValueError):
-            raise CheckpointError(f"checkpoint {str(path)!r} has no valid step and time") from None
-        if step > self.plan.n_steps:
-            raise InputError(f"time.t_end = {sc.time.t_end:g}: the checkpoint {str(path)!r} is at t = {t:g} (step "
-                             f"{step}); expected a t_end of at least {t:g}")
-        flow_kind = type(self.flow).__name__ if self.flow is not None else None
-        old = data.get("plan") or {}
-        if old.get("flow", flow_kind) != flow_kind:
-            raise InputError(f"time.t_end = {sc.time.t_end:g}: the longer run needs a {self.plan.mesh!r} mesh, the "
-                             f"checkpoint {str(path)!r} holds a {old.get('mesh')!r} one; run the longer scene from the "
-                             "start (--overwrite)")
-        n, n_free = len(sc.bodies), sum(b.motion == "free" for b in sc.bodies)
-
-        def per_body(at, shape):  # arrays of the bodies keep their shape; contact lists vary
-            return (at.startswith(("state.bodies.", "state.flow.bodies.")) or at.endswith(".mm.poses")) and \
-                (n in shape or n_free in shape) and not any(v in at for v in _VARIABLE_STATE)
-
-        state = {k: data.get(k) for k in ("bodies", "flow")}
-        if isinstance(self.bodies, DEMBodies) != ("dem" in (state["bodies"] or {})):
-            template = {**template, "bodies": None}  # a longer t_end switched contacts on (or off): converted below
-        bad = mismatches(state, template, exact_shape=per_body)
-        if bad:
-            raise CheckpointError(f"checkpoint {str(path)!r} does not fit the scene: " + "; ".join(bad))
-        try:
-            self._set_state(state["bodies"], state["flow"], step)
-            self._check_restored()
-        except CheckpointError as exc:
-            raise CheckpointError(f"checkpoint {str(path)!r} does not fit the scene: {exc}") from None
-        except Exception as exc:  # a part that decodes but does not fit where it goes
-            raise CheckpointError(f"checkpoint {str(path)!r} does not fit the scene ({type(exc).__name__}: "
-                                  f"{_one_line(exc)[:120]})") from None
-        self.step_index = step
-        self.t = t
-        loads = data.get("loads")
-        if loads is not None:
-            self.last_loads = (np.asarray(loads[0], float), np.asarray(loads[1], float))
-
-    def _set_state(self, bs: dict, flow_state, step: int) -> None:
-        sc = self.scene
-        if isinstance(self.bodies, DEMBodies) and "dem" not in bs:
-            kin = KinematicBodies(sc)
-            kin.set_state(bs)
-            self.bodies = DEMBodies.from_kinematic(sc, kin)
-            self.events.append(("plan", f"from step {step} contacts are on: the DEM continues the closed-form motion"))
-        elif isinstance(self.bodies, KinematicBodies) and "dem" in bs:
-            dem = DEMBodies.__new__(DEMBodies)
-            dem.n = len(sc.bodies)
-            dem.set_state(bs)
-            self.bodies = dem
-        else:
-            self.bodies.set_state(bs)
-        if self.flow is not None:
-            self.flow.set_state(flow_state)
-
-    def _check_restored(self) -> None:
-        """The restored bodies and flow have the scene's sizes and finite values (else CheckpointError)."""
-        from .checkpoint import CheckpointError
-
-        n, b = len(self.scene.bodies), self.bodies
-        parts = [("positions", b.positions, (n, 2)), ("angles", b.angles, (n,)),
-                 ("velocities", b.velocities, (n, 2)), ("omegas", b.omegas, (n,))]
-        if self.flow is not None:
-            parts.append(("flow", self.flow.x, (int(self.flow.dofs),)))
-        for name, a, shape in parts:
-            a = np.asarray(a)
-            if a.shape != shape or a.dtype.kind != "f" or not np.isfinite(a).all():
-                raise CheckpointError(f"{name} of shape {a.shape}" + ("" if a.shape != shape or a.dtype.kind != "f"
-                                                                      else " with non-finite values")
-                                      + f" (expected finite numbers of shape {shape})")
-
-    def _record(self, writer, fields: bool, last: bool = False):
-        """Loads of the step just taken; with a writer its history rows and (``fields``) its fields.
-        Returns the seconds the loads took."""
-        b = self.bodies
-        F, T, cnt = b.loads()
-        tl = time.perf_counter()
-        if self.flow is not None and len(self.scene.bodies) and self.step_index > 0:
-            F, T = self.flow.loads()  # at step 0 the flow is only its initial data: no loads
-        t_loads = time.perf_counter() - tl
-        self.last_loads = (F, T)
-        if writer is None:
-            return t_loads
-        sc = self.scene
-        pos, ang, vel, om = b.positions, b.angles, b.velocities, b.omegas
-        if self.step_index % sc.output.history_every == 0 or last:
-            writer.history(self.step_index, self.t, self._in_box(pos), ang, vel, om, F, T, cnt, unwrapped=pos)
-            t_loads += self._record_sides(writer)
-        # what run.json reports if a later step fails: this step, the last good one
-        self._recorded = (self.step_index, self.t, pos, ang, vel, om, np.array(F, float), np.array(T, float))
-        if fields:
-            self._write_fields(writer)
-        return t_loads
-
-    def _in_box(self, positions) -> np.ndarray:
-        """Body positions ``(n, 2)`` wrapped into the box across its periodic sides (the bodies keep
-        continuous, unwrapped positions: a body that crossed a side is in the box again here)."""
-        from .coupling.boundary import period_of_scene
-        from .geometry import wrap_into_box
-
-        return wrap_into_box(positions, self.scene.domain.box, period_of_scene(self.scene))
-
-    def _record_sides(self, writer) -> float:
-        """The force of the fluid on every wall, moving wall and inflow side into sides.csv (from step 1:
-        at step 0 the flow is only its initial data).  Returns the seconds it took."""
-        if self.flow is None or self.step_index == 0:
-            return 0.0
-        names = [s for s in ("bottom", "right", "top", "left")
-                 if self.scene.domain.side(s).type in ("wall", "moving-wall", "inflow")]
-        if not names:
-            return 0.0
-        from .fluid.forces import side_loads
-
-        t0 = time.perf_counter()
-        F = side_loads(self.flow.space, self.flow.residual(), names, rho=self.scene.fluid.density)
-        seconds = time.perf_counter() - t0
-        writer.sides(self.step_index, self.t, names, F)
-        return seconds
-
-    def _write_fields(self, writer) -> None:
-        """Body outlines and (fluid scenes) the fields of the current state into the series."""
-        sc, b = self.scene, self.bodies
-        pos, ang = self._in_box(b.positions), b.angles
-        outlines = [sb.world_vertices(sc.default_segments(sb), pos[k], ang[k]) for k, sb in enumerate(sc.bodies)]
-        if outlines:
-            writer.bodies(self.step_index, self.t, outlines, b.velocities, b.omegas)
-        if self.flow is not None and sc.output.fields:
-            from .io import fluid_point_data, full_order_fields
-
-            m = self.flow.mesh
-            writer.fields(self.step_index, self.t, m.p[:, :m.nvertices].T, _ccw(m),
-                          fluid_point_data(self.flow.space, self.flow.x, sc.fluid.density))
-            if sc.output.full_order:
-                writer.fields_full(self.step_index, self.t,
-                                   *full_order_fields(self.flow.space, self.flow.x, sc.fluid.density))
-        self._fields_step = self.step_index
+        return restart_.restore(self, checkpoint, allow_pickle=allow_pickle)
 
     def _advance(self, dt: float, writer, check: StateCheck) -> CostSplit:
         """One step of the bodies and the flow, then the state checks; the step is not recorded yet."""
@@ -458,104 +287,10 @@ class Simulation:
         Returns
         -------
         dict
-            ``steps``, ``t`` (time), ``wall_s`` (wall seconds of the stepping loop of this run,
-            if given); fluid scenes: ``dofs``, ``triangles``, ``element``; ``bodies``: one entry
-            per body (by name, else ``body<k>``) with its final ``x``, ``y`` (length), ``angle``
-            (rad), ``vx``, ``vy`` (length/time), ``omega`` (rad/time) and the last recorded load
-            ``fx``, ``fy`` (force/depth) and ``torque`` (force*length/depth), the history.csv
-            convention.
+            Steps, time, ``wall_s`` (if given: wall seconds of the stepping loop), mesh size and each
+            body's final state and last load (:func:`fluidem.records.summary` lists them with units).
         """
-        rec = getattr(self, "_recorded", None) if getattr(self, "_failed", False) else None
-        if rec is None:  # the state now (after a failed step: the last step recorded)
-            b, n = self.bodies, len(self.scene.bodies)
-            F, T = getattr(self, "last_loads", (np.zeros((n, 2)), np.zeros(n)))
-            rec = (self.step_index, self.t, b.positions, b.angles, b.velocities, b.omegas, F, T)
-        step, t, pos, ang, vel, om, F, T = rec
-        out = {"steps": step, "t": t}
-        if wall_s is not None:
-            out["wall_s"] = wall_s
-        if self.flow is not None:
-            out.update(dofs=int(self.flow.dofs), triangles=int(self.flow.mesh.t.shape[1]),
-                       element=self.scene.fluid.element)
-        bodies = {}
-        for k, sb in enumerate(self.scene.bodies):
-            name = sb.name or f"body{k}"
-            bodies[name] = {"x": float(pos[k, 0]), "y": float(pos[k, 1]), "angle": float(ang[k]),
-                            "vx": float(vel[k, 0]), "vy": float(vel[k, 1]), "omega": float(om[k]),
-                            "fx": float(F[k, 0]), "fy": float(F[k, 1]), "torque": float(T[k])}
-        out["bodies"] = bodies
-        return out
-
-    def _run_record(self, out_dir, status: str, n_steps: int, checkpoint=None, message: str = "",
-                    totals: CostSplit | None = None, summary: dict | None = None) -> None:
-        from .version import __version__
-        from .io import HISTORY_UNITS, write_run_record
-
-        sc, dem = self.scene, self.dem_limit()
-        write_run_record(out_dir, {
-            "format": "fluidem-run-1", "scene": sc.name, "scene_key": scene_key(sc.to_dict()),
-            "source": sc.source, "fluidem": __version__, "status": status, "step": self.step_index, "t": self.t,
-            "n_steps": n_steps, "dt": sc.time.dt, "t_end": sc.time.t_end,
-            "checkpoint": None if checkpoint is None else str(Path(checkpoint).relative_to(out_dir)),
-            "message": message, "units": HISTORY_UNITS,
-            "pressure": "VTU 'pressure' is dynamic (fluid density x kinematic pressure), 'kinematic_pressure' "
-                        "beside it; history loads are dynamic too",
-            **({} if totals is None else {"cost": {"seconds": dict(totals.parts), "counts": dict(totals.counts),
-                                                   "note": "wall seconds per part summed over this run's steps"}}),
-            **({} if summary is None else {"summary": summary}),
-            **({} if dem is None else {"dem_sub_step": dem}),
-            **({} if self.flow is None or not self.diagnostics.enabled else
-               {"diagnostics": self.diagnostics.record()}),
-            **self._rheology_record(out_dir, status)})
-
-    def _rheology_record(self, out_dir, status: str) -> dict:
-        """``{"rheology": ...}`` for a complete run of a shear cell (:func:`fluidem.rheology.rheology`
-        over its sides.csv, restarts included), else ``{}``."""
-        from .rheology import rheology, shear_cell
-
-        if status != "complete" or shear_cell(self.scene)[0] is None:
-            return {}
-        from .io import read_sides
-
-        return {"rheology": rheology(self.scene, read_sides(out_dir))}
-
-    def _check_owner(self, out_dir) -> None:
-        """Refuse to continue, in ``out_dir``, a run of another scene."""
-        from .io import OutputDirError, read_run_record
-
-        rec = read_run_record(out_dir)
-        if rec.get("scene_key") and rec["scene_key"] != scene_key(self.scene.to_dict()):
-            raise OutputDirError(f"output directory {str(out_dir)!r} holds a run of another scene "
-                                 f"({rec.get('scene')!r}); continue it with its own scene ({str(out_dir)}/scene.toml) "
-                                 "or give another --out")
-
-    def _log_mesh_event(self, writer, ev_mesh) -> None:
-        """Event-log lines of this step's mesh update: re-triangulation (reason, size, field
-        transfer, interpolation noise and force change) and oscillating nodes."""
-        if ev_mesh.retriangulated:
-            msg = f"reason={ev_mesh.reason} nodes={ev_mesh.n_nodes} triangles={ev_mesh.n_triangles}"
-            if self.scene.fluid.model != "stokes":
-                how = ("ALE interpolation through the old mesh motion" if ev_mesh.history == "ale" else
-                       "interpolation, Eulerian step (old mesh not valid at the new positions)"
-                       if ev_mesh.history == "eulerian" else "interpolation")
-                msg += f"; fields transferred by {how}"
-                if ev_mesh.transfer_change is not None:
-                    msg += f"; interpolation noise {100 * ev_mesh.transfer_change:.3g} %"
-                if ev_mesh.force_change is not None:
-                    msg += f"; force change {100 * ev_mesh.force_change:.3g} %"
-            writer.event(self.step_index, self.t, "retriangulation", msg)
-            inertial = self.scene.fluid.model != "stokes"
-            if ev_mesh.reason == "seam" and inertial and not self.__dict__.get("_seam_warned"):
-                self._seam_warned = True
-                warnings.warn(f"step {self.step_index}: a body crosses a periodic side in Navier–Stokes flow: the "
-                              "forces of the steps it crosses carry an ALE error (a disk at Re 30: up to twice the "
-                              "drag at U dt = h/5, 6 % at h/20; docs: moving-mesh, bodies across periodic sides); "
-                              "Stokes flow across the sides is accurate", RunWarning, stacklevel=2)
-        if len(ev_mesh.oscillating):
-            h = self.diagnostics.last
-            swing = h.swing if h is not None and h.step == self.step_index else None
-            writer.event(self.step_index, self.t, "oscillation",
-                         oscillation_text(len(ev_mesh.oscillating), len(self.flow.mm.points), swing))
+        return run_summary(self, wall_s)
 
     def _health(self, writer, ev_mesh) -> None:
         """Close the step's health record (:class:`fluidem.diagnostics.RunDiagnostics`); a threshold
@@ -565,54 +300,19 @@ class Simulation:
         for w in d.check():
             if writer is not None:
                 writer.event(self.step_index, self.t, "health", w)
-            warnings.warn(w, RunWarning, stacklevel=4)
+            warnings.warn(w, RunWarning, stacklevel=6)  # at the caller of run()
 
     # -- per-step report -------------------------------------------------------------------------
-    def _linear_solver(self):
-        """The linear solver of the last flow step (coupled fluid-body, fluid or Stokes), or None."""
-        f = self.flow
-        for owner in (getattr(f, "coupled", None), getattr(f, "stepper", None), f):
-            s = getattr(owner, "solver", None)
-            if s is not None:
-                return s
-        return None
-
     def step_info(self) -> dict:
         """What the last step's solvers recorded, for a verbose progress line.
 
         Returns
         -------
         dict
-            ``step``, ``t`` (time); for a fluid scene also ``solver`` (method of the last
-            linear solve, :class:`fluidem.fluid.solvers.SolveInfo`), ``iterations`` (its Krylov
-            iterations; 0 for a direct solve), ``residual`` (its relative residual),
-            ``factorizations`` (LU factorisations so far, if the solver counts them) and ``cfl``
-            (Courant number max over elements of |u| Δt / h_e, h_e the longest edge, from the new
-            velocity; None for quasi-steady Stokes); for a DEM scene ``contacts`` (contacts at the
-            end of the step, body-body and body-wall); with contacts in a fluid ``dem_set_by`` (what
-            set the sub-steps of the step's last pass, :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`);
-            ``health`` when the step has something to say (:meth:`fluidem.diagnostics.StepHealth.text`:
-            the condition estimate of a new LU and its growth, the interpolation noise of a
-            re-triangulation, oscillating nodes).
+            Step, time, the last linear solve, CFL number, contacts, health
+            (:func:`fluidem.progress.step_info` lists the keys).
         """
-        out = {"step": self.step_index, "t": self.t}
-        if self.flow is not None:
-            s = self._linear_solver()
-            info = getattr(s, "last_info", None)
-            out.update(solver=getattr(info, "method", None), iterations=getattr(info, "iterations", None),
-                       residual=getattr(info, "relative_residual", None),
-                       factorizations=getattr(s, "factorizations", None))
-            st = getattr(self.flow, "stepper", None)
-            out["cfl"] = st._cfl(st.state.u) if st is not None and st.n_steps else None
-            h = self.diagnostics.last
-            if h is not None and h.step == self.step_index and h.text():
-                out["health"] = h.text()
-        if isinstance(self.bodies, DEMBodies):
-            out["contacts"] = len(self.bodies.dem.contacts.i)
-        contacts = getattr(self.flow, "contacts", None)
-        if contacts is not None and contacts.last_set_by:
-            out["dem_set_by"] = contacts.last_set_by
-        return out
+        return step_info(self)
 
     def _dem(self):
         """The DEM that moves the bodies (dry scenes) or sub-steps their contacts in a fluid, or None."""
@@ -690,7 +390,7 @@ class Simulation:
             if verbose is not True and not callable(getattr(verbose, "write", None)):
                 raise InputError(f"verbose = {verbose!r}: expected True, False or a text stream with a write method")
             stream = sys.stderr if verbose is True else verbose
-            progress = _Verbose(self, stream, progress)
+            progress = VerboseProgress(self, stream, progress)
         restarting = restart is not None and restart is not False
         if restarting and overwrite:
             raise InputError("restart and overwrite exclude each other: restart continues the run in the output "
@@ -720,391 +420,156 @@ class Simulation:
                 lock.release()
 
     def _run(self, out_dir, restart, progress, n_steps, overwrite: bool, allow_pickle: bool) -> RunResult:
-        """:meth:`run` with its arguments checked, holding the output directory's lock."""
-        from .io import OutputWriter, prepare_output_dir
-
-        sc = self.scene
+        """:meth:`run` with its arguments checked, holding the output directory's lock: restore the
+        checkpoint (a restart), open the output, step (:meth:`_steps`), close the output as complete or
+        stopped (:func:`fluidem.records.close_complete`, :func:`fluidem.records.close_stopped`)."""
         restarting = restart is not None and restart is not False
-        ck_used = None
+        ck_used, n_events = None, len(self.events)
         if restarting:
-            n_events = len(self.events)
             ck_used = self.restore(restart, allow_pickle=allow_pickle)  # lists any change of the scene
             if out_dir is not None and Path(out_dir).is_dir():
-                self._check_owner(out_dir)  # a checkpoint from elsewhere: the folder must be this scene's
+                check_owner(self, out_dir)  # a checkpoint from elsewhere: the folder must be this scene's
         N = self.plan.n_steps if n_steps is None else n_steps
-        xdmf = out_dir is not None and self.flow is not None and sc.output.fields and sc.output.xdmf
         writer = None
         if out_dir is not None:
-            prepare_output_dir(out_dir, "restart" if restarting else ("overwrite" if overwrite else "new"))
-            writer = OutputWriter(out_dir, restart_step=self.step_index if restarting else None)
-            sc.to_toml(Path(out_dir) / "scene.toml")  # the scene as run (on a restart: with its new t_end)
-            if not restarting:
-                for kind, msg in self.events:
-                    writer.event(0, 0.0, kind, msg)
-                if self.flow is not None:
-                    from .mesh.quality import mesh_quality
+            mode = "restart" if restarting else ("overwrite" if overwrite else "new")
+            writer = open_output(self, out_dir, mode, N, ck_used, n_events)
+        loop = _Loop.start(self.scene, N)
+        self._steps(writer, loop, progress)
+        if writer is not None and loop.stop is None:
+            close_complete(self, writer, out_dir, N, loop.last_ck, loop.totals, loop.wall0)
+        elif writer is not None:
+            close_stopped(self, writer, out_dir, N, loop.stop, loop.snap, loop.keep, loop.totals, loop.wall0)
+        if isinstance(self.bodies, DEMBodies):
+            self.counters["dem_substeps"] = self.bodies.substeps
+        elif getattr(self.flow, "contacts", None) is not None:
+            self.counters["dem_substeps"] = self.flow.contacts.substeps
+        return RunResult(self.step_index, self.t, None if out_dir is None else str(out_dir),
+                         time.perf_counter() - loop.wall0, self.flow.dofs if self.flow else 0, loop.totals,
+                         ("curved" if self.flow.curved else "polygonal") if self.flow else "")
 
-                    m = self.flow.mesh
-                    writer.mesh_quality(0, 0.0, mesh_quality(m.p[:, :m.nvertices].T, _ccw(m)))
-            else:
-                writer.event(self.step_index, self.t, "restart", f"from {ck_used}")
-                for kind, msg in self.events[n_events:]:
-                    writer.event(self.step_index, self.t, kind, msg)
-            self._run_record(out_dir, "running", N)
-        dt = sc.time.dt
-        ev = sc.output.every
-        ck, ck_wall = sc.output.checkpoint_every, sc.output.checkpoint_seconds
-        keep = None
-        if ck is None:  # the default cadence: about ten checkpoints a run, the newest three kept
-            ck, keep = max(1, -(-N // 10)), 3
-        check = StateCheck.for_scene(sc)
-        totals = CostSplit()
-        wall0 = time.perf_counter()
-        last_ck_wall = wall0
-        stop = None  # (kind, signal name, exception)
-        snap = None
-        last_ck = None
-        guard = _SignalGuard()
+    def _steps(self, writer, loop: _Loop, progress) -> None:
+        """Step to ``loop.n_steps`` under a :class:`~fluidem.signals.SignalGuard`.
+
+        With output, a signal, an error inside a step (the state is then the failed step's) or one
+        while recording it sets ``loop.stop`` and ends the loop; after a signal between steps the
+        state now is snapshotted (it is good).  Without output (``writer`` None) the error itself
+        propagates, and a signal as ``KeyboardInterrupt``.
+        """
+        guard = SignalGuard()
         try:
             with guard:
                 if self.step_index == 0 and writer is not None:
-                    self._record(writer, fields=True)
+                    record_step(self, writer, fields=True)
                 if writer is not None:
-                    snap = self._snapshot()
-                snap_s, since = 0.0, 0.0  # seconds of the last snapshot, of the steps since
-                while self.step_index < N:
+                    loop.snap = self._snapshot()
+                while self.step_index < loop.n_steps:
                     if guard.signal:
-                        stop = ("interrupt", guard.signal, None)
+                        loop.stop = ("interrupt", guard.signal, None)
                         break
                     t_step = time.perf_counter()
                     try:
-                        st = self._advance(dt, writer, check)
+                        st = self._advance(loop.dt, writer, loop.check)
                     except KeyboardInterrupt:
                         if writer is None:
                             raise
-                        stop = ("interrupt", "SIGINT", None)
+                        loop.stop = ("interrupt", "SIGINT", None)
                         break
                     except Exception as exc:
                         if writer is None:
                             raise
                         self._failed = True  # the state is the failed step's; the last good one is recorded
-                        stop = ("error", None, exc, self.step_index + 1)
+                        loop.stop = ("error", None, exc, self.step_index + 1)
                         break
-                    self.step_index += 1
-                    self.counters["steps"] += 1
-                    self.t = self.step_index * dt
-                    t0 = time.perf_counter()
-                    last = self.step_index == N
-                    t_loads = self._record(writer, fields=(self.step_index % ev == 0 or last), last=last)
-                    ev_mesh = getattr(self.flow, "last_event", None) if self.flow is not None else None
-                    if self.flow is not None:
-                        self._health(writer, ev_mesh)
-                    if ev_mesh is not None and writer is not None:  # after the loads: the force change is known
-                        self._log_mesh_event(writer, ev_mesh)
-                    if writer is not None and self.plan.mesh == "moving" and (self.step_index % ev == 0 or last):
-                        writer.mesh_quality(self.step_index, self.t, self.flow.mm.quality())
-                    if writer is not None:
-                        now = time.perf_counter()
-                        since += now - t_step
-                        due = (ck and self.step_index % ck == 0) or last or (ck_wall and now - last_ck_wall >= ck_wall)
-                        if due or since >= SNAPSHOT_RATIO * snap_s:  # snapshots cost at most ~5 % of the steps
-                            snap = self._snapshot()
-                            snap_s, since = time.perf_counter() - now, 0.0
-                        if due:
-                            last_ck = writer.checkpoint(self.step_index, self.t, header=self._header(),
-                                                        snapshot=snap[2], keep=keep)
-                            last_ck_wall = now
-                    st.add("loads", t_loads)
-                    st.add("output", time.perf_counter() - t0 - t_loads)
-                    st.count("steps")
-                    totals += st
-                    if progress is not None:
-                        progress(self.step_index, N, self.t, st)
-            if guard.signal and stop is None and self.step_index < N:
-                stop = ("interrupt", guard.signal, None)
-            if stop is not None and stop[0] == "interrupt" and writer is not None and snap[0] != self.step_index:
-                snap = self._snapshot()  # stopped between steps: the state now is good
-            if stop is not None and writer is None:
+                    self._after_step(writer, loop, st, t_step, progress)
+            if guard.signal and loop.stop is None and self.step_index < loop.n_steps:
+                loop.stop = ("interrupt", guard.signal, None)
+            if (loop.stop is not None and loop.stop[0] == "interrupt" and writer is not None
+                    and loop.snap[0] != self.step_index):
+                loop.snap = self._snapshot()  # stopped between steps: the state now is good
+            if loop.stop is not None and writer is None:
                 raise KeyboardInterrupt
         except BaseException as exc:  # outside a step (recording, output, progress)
             if writer is None or isinstance(exc, (SystemExit, GeneratorExit)):
                 if writer is not None:
                     writer.close()
                 raise
-            stop = ("interrupt", "SIGINT", None) if isinstance(exc, KeyboardInterrupt) else \
+            loop.stop = ("interrupt", "SIGINT", None) if isinstance(exc, KeyboardInterrupt) else \
                 ("error", None, exc, max(self.step_index, 1))  # recording the step failed
+
+    def _after_step(self, writer, loop: _Loop, st: CostSplit, t_step: float, progress) -> None:
+        """Count the step just taken (``t_step`` its start on the wall clock), record it (loads, history,
+        fields at output steps, health, mesh events and quality), checkpoint it when due, add its cost
+        ``st`` to the run's and report progress."""
+        self.step_index += 1
+        self.counters["steps"] += 1
+        self.t = self.step_index * loop.dt
+        t0 = time.perf_counter()
+        last = self.step_index == loop.n_steps
+        output_step = self.step_index % loop.every == 0 or last
+        t_loads = record_step(self, writer, fields=output_step, last=last)
+        ev_mesh = getattr(self.flow, "last_event", None) if self.flow is not None else None
+        if self.flow is not None:
+            self._health(writer, ev_mesh)
+        if ev_mesh is not None and writer is not None:  # after the loads: the force change is known
+            log_mesh_event(self, writer, ev_mesh)
+        if writer is not None and self.plan.mesh == "moving" and output_step:
+            writer.mesh_quality(self.step_index, self.t, self.flow.mm.quality())
         if writer is not None:
-            if stop is None:
-                if xdmf:
-                    from .io import write_xdmf
+            self._checkpoint_if_due(writer, loop, t_step, last)
+        st.add("loads", t_loads)
+        st.add("output", time.perf_counter() - t0 - t_loads)
+        st.count("steps")
+        loop.totals += st
+        if progress is not None:
+            progress(self.step_index, loop.n_steps, self.t, st)
 
-                    try:
-                        writer.event(self.step_index, self.t, "xdmf", str(write_xdmf(out_dir).name))
-                    except Exception as exc:  # the run's results stand; the series can be written later
-                        writer.event(self.step_index, self.t, "xdmf-failed", _one_line(exc))
-                        warnings.warn(f"the XDMF time series was not written: {_one_line(exc)}", RunWarning,
-                                      stacklevel=2)
-                writer.event(self.step_index, self.t, "end", f"{self.counters['steps']} steps this run")
-                writer.close()
-                self._run_record(out_dir, "complete" if self.step_index >= self.plan.n_steps else "stopped", N,
-                                 last_ck, totals=totals, summary=self.summary(time.perf_counter() - wall0))
-            else:
-                self._stop(writer, out_dir, N, stop, snap, keep, totals, wall0)
-        if isinstance(self.bodies, DEMBodies):
-            self.counters["dem_substeps"] = self.bodies.substeps
-        elif getattr(self.flow, "contacts", None) is not None:
-            self.counters["dem_substeps"] = self.flow.contacts.substeps
-        return RunResult(self.step_index, self.t, None if out_dir is None else str(out_dir),
-                         time.perf_counter() - wall0, self.flow.dofs if self.flow else 0, totals,
-                         ("curved" if self.flow.curved else "polygonal") if self.flow else "")
-
-    def _stop(self, writer, out_dir, n_steps, stop, snap, keep, totals, wall0):
-        """Close the outputs at the last good step (its fields written, if they were not), checkpoint
-        it, record the run's cost and summary, and raise :class:`RunStopped`."""
-        kind, sig, exc = stop[:3]
-        step, t, snapshot = snap if snap is not None else (self.step_index, self.t, None)
-        failed_at = stop[3] if kind == "error" else self.step_index + 1
-        try:
-            self._last_good_fields(writer, snap)
-        except Exception as err:  # e.g. the directory is read-only now
-            writer.event(step, t, "fields-failed", _one_line(err))
-        path = None
-        try:
-            if snapshot is not None:
-                path = writer.checkpoint(step, t, header=self._header(), snapshot=snapshot, keep=keep)
-        except Exception as err:  # the disk is full, say: the older checkpoints stay
-            writer.event(step, t, "checkpoint-failed", _one_line(err))
-        sc = self.scene
-        where = f"checkpoint {str(path)!r}" if path is not None else "no new checkpoint (see events.log)"
-        how = f"fluidem run {sc.source or str(Path(out_dir) / 'scene.toml')} --out {out_dir} --restart"
-        if kind == "interrupt":
-            msg = (f"interrupted by {sig} after step {step} of {n_steps} (t = {t:.6g}); the output holds steps 0 to "
-                   f"{step}; {where}; continue with: {how}")
-            status, code = "interrupted", 143 if sig == "SIGTERM" else 130
-        else:
-            what = _one_line(exc)
-            if isinstance(exc, OSError):
-                what = (f"writing the output failed ({exc.strerror or what}" + (f": {exc.filename!r}" if exc.filename
-                                                                                else "")
-                        + f"); expected a writable output directory {str(out_dir)!r} with free space")
-            msg = (f"step {failed_at} (t = {failed_at * sc.time.dt:.6g}) failed: {what}; the output holds steps 0 to "
-                   f"{failed_at - 1}, the last good state "
-                   + (f"saved (step {step}) " if step != failed_at - 1 else "") + f"is in {where}")
-            if isinstance(exc, TRANSIENT_FAILURES):  # the machine's, not the scene's: a restart may pass
-                msg += f"; continue with: {how}"
-            elif not isinstance(exc, StateError):
-                msg += ("; the failure depends only on the scene and the state, so a --restart from the "
-                        "checkpoint repeats it: change what the message names (or time.dt) first")
-            status, code = "failed", 3
-        writer.event(step, t, status, _one_line(msg))
-        writer.event(step, t, "end", f"{self.counters['steps']} steps this run")
-        writer.close()
-        self._run_record(out_dir, status, n_steps, path, _one_line(msg), totals=totals,
-                         summary=self.summary(time.perf_counter() - wall0))
-        err = RunStopped(msg, status=status, exit_status=code, checkpoint=path)
-        if exc is not None:
-            raise err from exc
-        raise err
+    def _checkpoint_if_due(self, writer, loop: _Loop, t_step: float, last: bool) -> None:
+        """A snapshot of the state when due (:data:`SNAPSHOT_RATIO`), and a checkpoint of it at the
+        cadence in steps or wall seconds and at the last step."""
+        now = time.perf_counter()
+        loop.since += now - t_step
+        due = (loop.ck and self.step_index % loop.ck == 0) or last or \
+            (loop.ck_wall and now - loop.last_ck_wall >= loop.ck_wall)
+        if due or loop.since >= SNAPSHOT_RATIO * loop.snap_s:  # snapshots cost at most ~5 % of the steps
+            loop.snap = self._snapshot()
+            loop.snap_s, loop.since = time.perf_counter() - now, 0.0
+        if due:
+            loop.last_ck = writer.checkpoint(self.step_index, self.t, header=self._header(), snapshot=loop.snap[2],
+                                             keep=loop.keep)
+            loop.last_ck_wall = now
 
 
-    def _last_good_fields(self, writer, snap) -> None:
-        """Write the fields of the last recorded step if its output step did not (after a failed step:
-        from the snapshot, when it is of that step)."""
-        if getattr(self, "_failed", False):
-            rec = getattr(self, "_recorded", None)
-            if snap is None or rec is None or snap[0] != rec[0]:
-                return
-            from .checkpoint import decode
+@dataclass
+class _Loop:
+    """The cadence and the running state of one run's stepping loop (:meth:`Simulation._steps`)."""
 
-            state = decode(*snap[2])
-            self._set_state(state["bodies"], state["flow"], snap[0])
-            self._failed = False
-        if getattr(self, "_fields_step", None) != self.step_index:
-            self._write_fields(writer)
+    n_steps: int
+    dt: float
+    every: int  # fields (and the moving mesh's quality) every this many steps
+    ck: int | None  # a checkpoint every this many steps
+    ck_wall: float | None  # ... and every this many wall-clock seconds
+    keep: int | None  # checkpoints kept (None: all)
+    check: StateCheck
+    totals: CostSplit = field(default_factory=CostSplit)
+    wall0: float = 0.0  # perf_counter() at the start of the steps
+    last_ck_wall: float = 0.0
+    stop: tuple | None = None  # ("interrupt", signal name, None) or ("error", None, exception, failed step)
+    snap: tuple | None = None  # the last snapshot: (step, t, (tree, arrays))
+    snap_s: float = 0.0  # seconds the last snapshot took
+    since: float = 0.0  # seconds of the steps since
+    last_ck: Path | None = None  # the last checkpoint written
 
-
-def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str:
-    """One line for a step: ``step k/N  t = ...  linear <method> it <n> res <r>  CFL <c>  <health>  <cost split>``
-    (``<health>``: ``cond1 <κ₁> (x<growth since the first LU>)`` at a new LU, ``noise <n> %`` at a
-    re-triangulation, ``osc <k> nodes``; :mod:`fluidem.diagnostics`);
-    with contacts in a fluid also ``DEM <n> sub-steps in <p> passes (<what set the last pass's>)``
-    (the sub-stepped passes over the step, each of at most ``ceil(dt / dt_max)`` sub-steps:
-    :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`; :meth:`Simulation.dem_limit` says what
-    sets ``dt_max``).
-
-    ``info`` as from :meth:`Simulation.step_info`; fields it lacks are left out."""
-    parts = [f"step {info['step']}/{n_steps}  t = {info['t']:.6g}"]
-    if info.get("solver") is not None:
-        lin = f"linear {info['solver']} it {info['iterations']}"
-        if info.get("residual") is not None:
-            lin += f" res {info['residual']:.2e}"
-        if info.get("factorizations") is not None:
-            lin += f" LU {info['factorizations']}"
-        parts.append(lin)
-    if info.get("cfl") is not None:
-        parts.append(f"CFL {info['cfl']:.3g}")
-    if "contacts" in info:
-        parts.append(f"contacts {info['contacts']}")
-    if info.get("health"):
-        parts.append(info["health"])
-    if cost is not None and cost.counts.get("dem_passes"):
-        dem = f"DEM {cost.counts['dem_substeps']} sub-steps in {cost.counts['dem_passes']} passes"
-        if cost.counts.get("dem_passes_redone"):
-            dem += f", {cost.counts['dem_passes_redone']} redone"
-        if info.get("dem_set_by"):
-            dem += f" ({info['dem_set_by']})"
-        if cost.counts.get("contact_unsettled"):
-            dem += ", contact load unsettled"
-        parts.append(dem)
-    if cost is not None:
-        parts.append(str(cost))
-    return "  ".join(parts)
-
-
-class _Verbose:
-    """A progress callback printing :func:`verbose_line` for every step (then calling ``inner``)."""
-
-    def __init__(self, sim: Simulation, stream, inner=None):
-        self.sim, self.stream, self.inner = sim, stream, inner
-
-    def __call__(self, k, n, t, cost):
-        print(verbose_line(self.sim.step_info(), n, cost), file=self.stream, flush=True)
-        if self.inner is not None:
-            self.inner(k, n, t, cost)
-
-
-class RunWarning(UserWarning):
-    """Something a run did that its output should say: a damaged checkpoint skipped, a coarse mesh."""
-
-
-class RunStopped(FluidemError):
-    """A run stopped before its end: interrupted (SIGINT/SIGTERM) or a step failed.
-
-    The :class:`Simulation` itself is left where it stopped (after a failed step: in the bad
-    state); continue with a new one, ``Simulation(scene).run(out_dir, restart=True)``.
-
-    Attributes
-    ----------
-    status : {"interrupted", "failed"}
-    exit_status : int
-        130 (SIGINT), 143 (SIGTERM) or 3 (a failed step): the command line's exit status.
-    checkpoint : Path or None
-        The checkpoint of the last good step.
-    """
-
-    def __init__(self, message, status="failed", exit_status=3, checkpoint=None):
-        super().__init__(message)
-        self.status = status
-        self.exit_status = exit_status
-        self.checkpoint = checkpoint
-
-
-class _SignalGuard:
-    """SIGINT and SIGTERM set :attr:`signal` (the run stops after the step in progress); a second
-    SIGINT raises ``KeyboardInterrupt`` at once.  Installed only in the main thread, and not for a
-    signal the process ignores."""
-
-    def __init__(self):
-        self.signal = None
-        self._old = {}
-
-    def __enter__(self):
-        import signal
-        import threading
-
-        if threading.current_thread() is not threading.main_thread():
-            return self
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            try:
-                old = signal.getsignal(sig)
-                if old is signal.SIG_IGN or old is None:
-                    continue
-                self._old[sig] = signal.signal(sig, self._handle)
-            except (ValueError, OSError):  # pragma: no cover - not allowed here
-                pass
-        return self
-
-    def _handle(self, signum, frame):
-        import signal
-
-        name = signal.Signals(signum).name
-        if self.signal is not None and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        self.signal = name
-        print(f"fluidem: {name}: stopping after this step (Ctrl-C again to stop at once)", file=sys.stderr,
-              flush=True)
-
-    def __exit__(self, *exc):
-        import signal
-
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
-        self._old = {}
-        return False
-
-
-# ---------------------------------------------------------------------------------------
-# restart rules
-# ---------------------------------------------------------------------------------------
-#: scene keys a restart may change (besides every key of [output])
-RESTART_MAY_CHANGE = ("name", "description", "time.t_end")
-
-
-def _flatten(d, prefix="") -> dict:
-    if isinstance(d, dict):
-        out = {}
-        for k, v in d.items():
-            out.update(_flatten(v, f"{prefix}.{k}" if prefix else str(k)))
-        return out
-    if isinstance(d, list) and prefix == "bodies":
-        out = {"bodies": f"{len(d)} bodies"}
-        for i, v in enumerate(d):
-            out.update(_flatten(v, f"bodies[{i}]"))
-        return out
-    return {prefix: d}
-
-
-def _fixed(flat: dict) -> dict:
-    return {k: v for k, v in flat.items() if k not in RESTART_MAY_CHANGE and k != "output" and
-            not k.startswith("output.")}
-
-
-def scene_changes(old: dict, new: dict) -> list:
-    """The changes between two scene dicts (:meth:`Scene.to_dict`) that a restart does not allow.
-
-    Returns ``"key old -> new"`` strings; ``time.t_end``, ``[output]``, ``name`` and
-    ``description`` may change, and ``[mesh]`` of a dry scene (which has no mesh).
-
-    Examples
-    --------
-    >>> scene_changes({"time": {"dt": 0.05, "t_end": 2.0}}, {"time": {"dt": 0.025, "t_end": 4.0}})
-    ['time.dt 0.05 -> 0.025']
-    """
-    a, b = _fixed(_flatten(old)), _fixed(_flatten(new))
-    if "fluid" not in old and "fluid" not in new:  # a dry scene has no mesh: [mesh] does not matter
-        a, b = ({k: v for k, v in x.items() if not k.startswith("mesh.")} for x in (a, b))
-    missing = "(absent)"
-    keys = list(a) + [k for k in b if k not in a]
-    return [f"{k} {a.get(k, missing)!r} -> {b.get(k, missing)!r}".replace("'(absent)'", missing)
-            for k in keys if a.get(k, missing) != b.get(k, missing)]
-
-
-def scene_key(d: dict) -> str:
-    """A digest of what a restart must keep of a scene dict (see :func:`scene_changes`)."""
-    import hashlib
-    import json
-
-    flat = _fixed(_flatten(d))
-    return hashlib.sha256(json.dumps(flat, sort_keys=True, default=str).encode()).hexdigest()[:16]
-
-
-def _one_line(exc) -> str:
-    return " ".join(str(exc).splitlines()) or type(exc).__name__
-
-
-def _ccw(mesh) -> np.ndarray:
-    """Triangles (m, 3) of a scikit-fem mesh, counter-clockwise (scikit-fem sorts vertex indices)."""
-    return orient_ccw(mesh.p.T, mesh.t.T)
+    @classmethod
+    def start(cls, sc: Scene, n_steps: int) -> _Loop:
+        """The loop of a run of scene ``sc`` to step ``n_steps``, its wall clock started."""
+        ck, keep = sc.output.checkpoint_every, None
+        if ck is None:  # the default cadence: about ten checkpoints a run, the newest three kept
+            ck, keep = max(1, -(-n_steps // 10)), 3
+        loop = cls(n_steps, sc.time.dt, sc.output.every, ck, sc.output.checkpoint_seconds, keep,
+                   StateCheck.for_scene(sc))
+        loop.wall0 = loop.last_ck_wall = time.perf_counter()
+        return loop
 
 
 def run(scene, out_dir="scene", restart=None, progress=None, overwrite: bool = False, verbose=False) -> RunResult:

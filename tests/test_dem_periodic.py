@@ -21,7 +21,8 @@ def _pair(pa, pb, period=(1.0, 1.0), walls=None, swap=False, **kw):
     """Two irregular polygons at ``pa``, ``pb``, turning and moving (tangential spring, damping)."""
     a = Body.polygon(VA, density=1.0, position=tuple(pa), angle=0.3, velocity=(-0.3, 0.1), omega=2.0)
     b = Body.polygon(VB, density=1.0, position=tuple(pb), angle=-0.2, velocity=(0.2, 0.0), omega=-1.0)
-    return DEM([b, a] if swap else [a, b], walls=walls, gravity=(0.0, 0.0), contact=MODEL, period=period, overlap_tolerance=0.05, **kw)
+    return DEM([b, a] if swap else [a, b], walls=walls, gravity=(0.0, 0.0), contact=MODEL, period=period,
+               overlap_tolerance=0.05, **kw)
 
 
 def _run_pair(pa, pb, steps=40, **kw):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from fluidem import Scene, Simulation, diagnostics
+from fluidem import Scene, Simulation, diagnostics, records
 from fluidem.cases.manufactured import saddle_point_problem
 from fluidem.diagnostics import (
     CONDITION_GROWTH,
@@ -224,7 +224,7 @@ def test_the_oscillation_event_says_what_it_counts():
     sim.diagnostics.last.swing = 0.004
     lines = []
     writer = SimpleNamespace(event=lambda step, t, kind, msg: lines.append((kind, msg)))
-    sim._log_mesh_event(writer, SimpleNamespace(retriangulated=False, oscillating=np.array([1, 2, 3])))
+    records.log_mesh_event(sim, writer, SimpleNamespace(retriangulated=False, oscillating=np.array([1, 2, 3])))
     assert lines == [("oscillation", f"{diagnostics.oscillation_text(3, n, 0.004)}")]
     assert f"3 of {n} mesh nodes" in lines[0][1] and "largest swing 0.4 % of the local mesh size h" in lines[0][1]
 
