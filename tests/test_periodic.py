@@ -216,18 +216,25 @@ def test_plan_notes_a_prescribed_body_that_would_reach_a_periodic_side():
     d = _scene(model="navier-stokes", bodies=[body]).to_dict()
     d["time"]["t_end"] = 1.0
     p = Scene.from_dict(d).plan()
-    assert any("body0 to the periodic side 'right'" in n for n in p.notes), p.notes
+    assert any("body0 across the periodic side 'right' (meshed as its images" in n for n in p.notes), p.notes
 
 
 @pytest.mark.parametrize("bodies, match", [
     ([{"shape": "rectangle", "width": 2.5, "height": 0.2, "position": [1.0, 0.5]}],
      r"bodies\[0\] has width 2.5 in x across the periodic sides left/right: allowed: narrower than the period 2"),
-    ([{"shape": "rectangle", "width": 0.4, "height": 0.2, "position": [0.1, 0.5]}],
-     r"bodies\[0\].position = \[0.1, 0.5\].*overlaps the periodic side 'left' at x = 0"),
+    ([{"shape": "rectangle", "width": 0.4, "height": 0.2, "position": [0.1, 0.5], "motion": "fixed"}],
+     r"bodies\[0\].position = \[0.1, 0.5\].*overlaps the periodic side 'left' at x = 0.*needs the moving mesh"),
 ])
 def test_scene_bad_periodic_bodies(bodies, match):
     with pytest.raises(SceneError, match=match):
         _scene(bodies=bodies)
+
+
+def test_a_free_body_may_start_across_a_periodic_side():
+    """The moving mesh holds it as its images on both sides (:mod:`fluidem.mesh.seam`)."""
+    sc = _scene(bodies=[{"shape": "rectangle", "width": 0.4, "height": 0.2, "position": [0.1, 0.5],
+                         "motion": "free"}])
+    assert not sc.plan().unsupported
 
 
 @pytest.mark.parametrize("element", PAIRS)
