@@ -105,8 +105,9 @@ def test_mean_gradient_carries_the_weight_of_the_cell_and_the_flux_is_zero(eleme
     whose discontinuous pressure conserves mass in every element so that the volume flux
     ∫ u_y dA / L_y held at zero is the side flux exactly, to round-off (measured ≤ 7.6e-16 of the
     faster disk's U times the side); Taylor–Hood conserves mass only weakly: measured 1.5e-8
-    (bottom, top) and 1.1e-5 (left, right) of U L; the loads on each body balance its weight and
-    the gradient's force on its volume, F + W − G A = 0 (round-off)."""
+    (bottom, top) and 6.4e-5 (left, right; 1.1e-5 on the mesh whose periodic side nodes did not
+    slide and which held no images of the disk 0.15 from the left side) of U L; the loads on each
+    body balance its weight and the gradient's force on its volume, F + W − G A = 0 (round-off)."""
     bodies = [_disk(0.15, (0.3, 0.5), density=3.0, segments=64), _disk(0.1, (0.7, 1.0), density=1.5, segments=48)]
     sc = _scene(bodies, element, box=(0.0, 1.0, 0.0, 1.5), zero_net_flux=True)
     fl = _flow(sc)
@@ -116,7 +117,7 @@ def test_mean_gradient_carries_the_weight_of_the_cell_and_the_flux_is_zero(eleme
     G = fl.mean_gradient
     assert abs(G[0]) < 1e-12 and abs(G[1] * 1.5 / W.sum() - 1.0) < 1e-10
     U = np.abs(fl.body_velocities[:, 1]).max()
-    tol = 5e-15 if element == "p2b" else 3.3e-5  # of U L
+    tol = 5e-15 if element == "p2b" else 1.6e-4  # of U L
     for side in ("bottom", "top", "left", "right"):
         assert abs(_side_flux(fl, side)) < tol * U, side
     F, _ = fl.loads()
