@@ -12,16 +12,20 @@ the box:
   shifted by the period crosses the partner side on the same segment, so the seam nodes of
   a side pair match to round-off, as the periodic degrees of freedom need;
 * box nodes inside an image (the seam under a body) are no boundary and are dropped, and so
-  are box nodes closer than ``seam_merge · h`` to a seam node (no sliver next to it);
+  are box nodes closer than ``SEAM_MERGE · h`` to a seam node or its partner (no sliver);
 * between re-triangulations a seam node slides along its side at the crossing of its
-  segment, whose ends move rigidly with their bodies (:func:`seam_positions`).
+  segment, whose ends move rigidly with their bodies (:func:`seam_positions`); a segment
+  that no longer crosses its side (an outline node passed the seam) re-triangulates;
+* a body with an outline node within ``SEAM_BAND · h`` of a seam line is held nudged off it
+  (:func:`seam_nudge`): an edge or a vertex exactly on the seam would be meshed on one side.
 
 An image outside the box is kept when it comes within ``margin`` of the box: the fluid by
 the seam then sees the bodies across it (purge, contacts, dragging).
 
 All images of a body carry its rigid motion: the velocity at a point ``x`` of image
 ``(i, j)`` is ``U + ω e_z × (x − X − (i L_x, j L_y))``, the minimum-image arm of
-:func:`minimum_image` when bodies are narrower than half the period.
+:func:`fluidem.geometry.minimum_image` when every vertex of a body lies within half a period
+of its centre.
 
 Examples
 --------
