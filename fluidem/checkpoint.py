@@ -59,6 +59,7 @@ FORMAT = "fluidem-checkpoint-npz-1"
 STATE_CLASSES = frozenset({
     "fluidem.cost:CostSplit",
     "fluidem.dem.bodies:Body",
+    "fluidem.mesh.seam:PeriodicImages",
     "fluidem.dem.contact:ContactModel",
     "fluidem.dem.contact:Contacts",
     "fluidem.dem.integrate:Gear",

@@ -50,6 +50,8 @@ from . import validate
 from .errors import InputError
 
 __all__ = [
+    "minimum_image",
+    "wrap_into_box",
     "as_polygon",
     "polygon_area",
     "polygon_centroid",
@@ -456,3 +458,32 @@ def point_in_polygon(points, vertices) -> np.ndarray:
         xcross = a[None, :, 0] + (py - ay) * (b[None, :, 0] - a[None, :, 0]) / (by - ay)
     hits = straddle & (px < xcross)
     return (hits.sum(axis=1) % 2) == 1
+
+
+def minimum_image(d, period) -> np.ndarray:
+    """Difference vectors ``d (k, 2)`` reduced to their nearest periodic image (length units).
+
+    ``period``: ``(L_x, L_y)`` with ``None`` for a non-periodic axis.
+    """
+    d = np.array(d, dtype=float)
+    for c, L in enumerate(period):
+        if L:
+            d[:, c] -= L * np.round(d[:, c] / L)
+    return d
+
+
+def wrap_into_box(points, box, period) -> np.ndarray:
+    """``points (k, 2)`` wrapped into ``box = (xmin, xmax, ymin, ymax)`` along its periodic axes
+    (``period = (L_x, L_y)``, ``None`` for a non-periodic axis), length units.
+
+    Examples
+    --------
+    >>> wrap_into_box(np.array([[2.3, 0.5], [-0.25, 1.5]]), (0, 2, 0, 1), (2.0, None)).tolist()
+    [[0.2999999999999998, 0.5], [1.75, 1.5]]
+    """
+    p = np.array(points, dtype=float).reshape(-1, 2)
+    lo = (box[0], box[2])
+    for c, L in enumerate(period):
+        if L:
+            p[:, c] = lo[c] + np.mod(p[:, c] - lo[c], L)
+    return p

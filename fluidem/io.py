@@ -99,7 +99,10 @@ __all__ = ["OutputWriter", "read_history", "read_sides", "SIDES_COLUMNS",
 
 PathLike = Union[str, os.PathLike]
 
-HISTORY_COLUMNS = ("step", "t", "id", "x", "y", "angle", "vx", "vy", "omega", "fx", "fy", "torque", "contacts")
+HISTORY_COLUMNS = ("step", "t", "id", "x", "y", "angle", "vx", "vy", "omega", "fx", "fy", "torque", "contacts",
+                   "x_unwrapped", "y_unwrapped")
+#: the columns before ``x_unwrapped``, ``y_unwrapped`` were added (a restart pads such rows)
+_HISTORY_COLUMNS_BEFORE_UNWRAPPED = HISTORY_COLUMNS[:-2]
 #: columns of sides.csv (``side`` is the side's name: bottom, right, top, left)
 SIDES_COLUMNS = ("step", "t", "side", "fx", "fy")
 CHECKPOINT_VERSION = 2  # 1: pickles (read only with allow_pickle=True); 2: npz + JSON (fluidem.checkpoint)
@@ -107,7 +110,8 @@ CHECKPOINT_VERSION = 2  # 1: pickles (read only with allow_pickle=True); 2: npz 
 #: unit of each history column, in the scene's own unit system (see the module docstring)
 HISTORY_UNITS = {"step": "1", "t": "time", "id": "1", "x": "length", "y": "length", "angle": "rad",
                  "vx": "length/time", "vy": "length/time", "omega": "rad/time", "fx": "force/depth",
-                 "fy": "force/depth", "torque": "force*length/depth", "contacts": "1"}
+                 "fy": "force/depth", "torque": "force*length/depth", "contacts": "1", "x_unwrapped": "length",
+                 "y_unwrapped": "length"}
 
 #: what a run writes into its output directory (and what overwriting it removes)
 OUTPUT_ENTRIES = ("history.csv", "sides.csv", "events.log", "mesh_quality.csv", "fields.pvd", "fields_full.pvd",
@@ -529,6 +533,14 @@ class OutputWriter:
             return
         with open(path) as f:
             lines = f.readlines()
+        before = ",".join(_HISTORY_COLUMNS_BEFORE_UNWRAPPED)
+        if columns == HISTORY_COLUMNS and any(ln.strip() == before for ln in lines):
+            # written before the unwrapped columns: such a run never crossed a periodic side, so
+            # they repeat x and y
+            lines = [_history_header() if ln.strip() == ",".join(_HISTORY_COLUMNS_BEFORE_UNWRAPPED) else
+                     ln.rstrip("\n") + "," + ",".join(ln.split(",")[3:5]) + "\n"
+                     if ln[:1].isdigit() and ln.strip().count(",") == len(_HISTORY_COLUMNS_BEFORE_UNWRAPPED) - 1
+                     else ln for ln in lines]
         keep = [ln for ln in lines if ln.startswith("#") or not ln[:1].isdigit()]  # comments and the column line
         keep += [ln for ln in lines if ln[:1].isdigit() and ln.strip().count(",") == len(columns) - 1
                  and int(ln.split(",", 1)[0]) <= step]  # rows up to the step (a half-written last row dropped)
@@ -537,7 +549,7 @@ class OutputWriter:
 
     # -- history ----------------------------------------------------------------------------
     def history(self, step: int, t: float, pos: ArrayLike, angle: ArrayLike, vel: ArrayLike, omega: ArrayLike,
-                force: ArrayLike, torque: ArrayLike, contacts: ArrayLike) -> None:
+                force: ArrayLike, torque: ArrayLike, contacts: ArrayLike, unwrapped: ArrayLike | None = None) -> None:
         """Append one row per body to history.csv (nothing for ``n = 0`` bodies).
 
         Parameters
@@ -546,7 +558,7 @@ class OutputWriter:
         t : float
             Time, s.
         pos : (n, 2) float
-            Body centres, m.
+            Body centres, m (in the box: across periodic sides, wrapped into it).
         angle : (n,) float
             Rotation angles, rad.
         vel : (n, 2) float
@@ -559,15 +571,19 @@ class OutputWriter:
             Torque about each centre, N.
         contacts : (n,) int
             Number of contacts of each body.
+        unwrapped : (n, 2) float or None
+            The centres not wrapped across periodic sides (continuous: displacements and
+            diffusivities), m; ``None``: ``pos``.
         """
         pos = np.asarray(pos, dtype=float).reshape(-1, 2)
         n = len(pos)
         if n == 0:
             return
+        unwrapped = pos if unwrapped is None else np.asarray(unwrapped, dtype=float).reshape(-1, 2)
         table = np.column_stack([np.full(n, step), np.full(n, t), np.arange(n), pos, angle, vel, omega, force, torque,
-                                 contacts])
+                                 contacts, unwrapped])
         buf = _io.StringIO()
-        np.savetxt(buf, table, fmt=["%d", "%.17g", "%d"] + ["%.17g"] * 9 + ["%d"], delimiter=",")
+        np.savetxt(buf, table, fmt=["%d", "%.17g", "%d"] + ["%.17g"] * 9 + ["%d", "%.17g", "%.17g"], delimiter=",")
         self._hist.write(buf.getvalue())
         self._hist.flush()
 

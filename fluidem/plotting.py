@@ -494,8 +494,14 @@ def _trajectory_figure(canvas: _Canvas, h: dict, ids: np.ndarray, last: list):
     for k in ids[:: max(1, len(ids) // 200)]:  # at most ~200 paths drawn
         sel = h["id"] == k
         xy = np.column_stack([h["x"][sel], h["y"][sel]])
-        segs.append(np.stack([xy[:-1], xy[1:]], axis=1))
-        times.append(0.5 * (h["t"][sel][:-1] + h["t"][sel][1:]))
+        seg = np.stack([xy[:-1], xy[1:]], axis=1)
+        tm = 0.5 * (h["t"][sel][:-1] + h["t"][sel][1:])
+        if "x_unwrapped" in h:  # no segment across the box where a body crossed a periodic side
+            uw = np.column_stack([h["x_unwrapped"][sel], h["y_unwrapped"][sel]])
+            same = (np.abs(np.diff(uw, axis=0) - np.diff(xy, axis=0)) <= 1e-9 * (1.0 + np.abs(uw[1:]))).all(axis=1)
+            seg, tm = seg[same], tm[same]
+        segs.append(seg)
+        times.append(tm)
         starts.append(xy[0])
         ends.append(xy[-1])
     for ax in axes:

@@ -105,8 +105,9 @@ def test_mean_gradient_carries_the_weight_of_the_cell_and_the_flux_is_zero(eleme
     whose discontinuous pressure conserves mass in every element so that the volume flux
     ∫ u_y dA / L_y held at zero is the side flux exactly, to round-off (measured ≤ 7.6e-16 of the
     faster disk's U times the side); Taylor–Hood conserves mass only weakly: measured 1.5e-8
-    (bottom, top) and 1.1e-5 (left, right) of U L; the loads on each body balance its weight and
-    the gradient's force on its volume, F + W − G A = 0 (round-off)."""
+    (bottom, top) and 6.4e-5 (left, right; 1.1e-5 on the mesh whose periodic side nodes did not
+    slide and which held no images of the disk 0.15 from the left side) of U L; the loads on each
+    body balance its weight and the gradient's force on its volume, F + W − G A = 0 (round-off)."""
     bodies = [_disk(0.15, (0.3, 0.5), density=3.0, segments=64), _disk(0.1, (0.7, 1.0), density=1.5, segments=48)]
     sc = _scene(bodies, element, box=(0.0, 1.0, 0.0, 1.5), zero_net_flux=True)
     fl = _flow(sc)
@@ -116,7 +117,7 @@ def test_mean_gradient_carries_the_weight_of_the_cell_and_the_flux_is_zero(eleme
     G = fl.mean_gradient
     assert abs(G[0]) < 1e-12 and abs(G[1] * 1.5 / W.sum() - 1.0) < 1e-10
     U = np.abs(fl.body_velocities[:, 1]).max()
-    tol = 5e-15 if element == "p2b" else 3.3e-5  # of U L
+    tol = 5e-15 if element == "p2b" else 1.6e-4  # of U L
     for side in ("bottom", "top", "left", "right"):
         assert abs(_side_flux(fl, side)) < tol * U, side
     F, _ = fl.loads()
@@ -139,6 +140,28 @@ def test_zero_flux_holds_while_the_disks_settle(tmp_path):
     assert fl.t == pytest.approx(2.0) and fl.poses[0, 1] < 0.5 - 0.001
     assert abs(fl.mean_gradient[1] / W - 1.0) < 1e-10
     assert abs(_side_flux(fl, "bottom")) < 1e-14 * np.abs(V0).max()
+
+
+def test_free_disk_settles_through_the_bottom_and_top_sides_at_the_sangani_acrivos_velocity(tmp_path):
+    """The disk of the φ = 0.1 cell starts across the bottom side (centre 0.15 above it, radius
+    0.178) and settles 0.39 in 12 steps of Δt = 8: through the seam it comes back at the top
+    (its images on both sides, :mod:`fluidem.mesh.seam`).  U K(φ) / (Δρ g π a² / μ) − 1 at every
+    step measured −6.7e-4 … −1.30e-3 (−7.0e-4 in the middle of the cell: 3.3e-3 is 2.5x the
+    worst); history.csv: y in the box, y_unwrapped continuous (its steps, U Δt = 0.0322, equal to 5.1e-4)."""
+    from fluidem import run
+    from fluidem.io import read_history
+
+    a = np.sqrt(0.1 / np.pi)
+    d = _scene([_disk(a, position=(0.5, 0.15))], zero_net_flux=True).to_dict()
+    d["time"] = {"dt": 8.0, "t_end": 96.0}
+    run(Scene.from_dict(d), tmp_path)
+    h = read_history(tmp_path)
+    ratio = -h["vy"] * K_SA[0.1] / (np.pi * a * a)
+    assert np.abs(ratio - 1.0).max() < 3.3e-3
+    assert ((h["y"] >= 0.0) & (h["y"] < 1.0)).all() and h["y"][-1] > 0.7  # came back at the top
+    step = np.diff(h["y_unwrapped"])
+    assert np.abs(step / step.mean() - 1.0).max() < 1.5e-3 and h["y_unwrapped"][-1] < -0.2  # measured 5.1e-4
+    assert np.array_equal(h["x_unwrapped"], h["x"])  # x never crossed
 
 
 def test_walled_channel_keeps_the_flux_zero_and_the_walls_carry_the_rest():

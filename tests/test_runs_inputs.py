@@ -168,12 +168,13 @@ def _copy(run, tmp_path):
 def test_plot_drops_a_half_written_last_history_row_with_a_warning(tiny_run, tmp_path, capsys):
     pytest.importorskip("matplotlib")
     run = _copy(tiny_run, tmp_path)
-    text = (run / "history.csv").read_text()
-    (run / "history.csv").write_text(text[:-20])  # the last row cut mid-number
+    lines = (run / "history.csv").read_text().splitlines(keepends=True)
+    lines[-1] = ",".join(lines[-1].split(",")[:13])  # the last row cut after its 13th value
+    (run / "history.csv").write_text("".join(lines))
     assert main(["plot", str(run)]) == 0
     out = capsys.readouterr()
-    assert out.err.strip() == (f"fluidem: warning: {run / 'history.csv'}: its last line 4 is half-written (12 "
-                               "values, expected 13; a run still writing, or stopped mid-row): drawn without it")
+    assert out.err.strip() == (f"fluidem: warning: {run / 'history.csv'}: its last line 4 is half-written (13 "
+                               "values, expected 15; a run still writing, or stopped mid-row): drawn without it")
     assert "history.png" in out.out
 
 
@@ -181,12 +182,13 @@ def test_plot_names_a_damaged_history_row(tiny_run, tmp_path, capsys):
     pytest.importorskip("matplotlib")
     run = _copy(tiny_run, tmp_path)
     lines = (run / "history.csv").read_text().splitlines(keepends=True)
-    lines[1] = "0,0,0,0.3,zz,0,0,0,0,0,0,0,0\n"
+    lines[1] = "0,0,0,0.3,zz,0,0,0,0,0,0,0,0,0.3,0\n"
     (run / "history.csv").write_text("".join(lines))
     assert main(["plot", str(run)]) == 2
-    assert _err(capsys) == (f"fluidem: error: {run / 'history.csv'}, line 2: 'zz' is not a number; expected 13 "
+    assert _err(capsys) == (f"fluidem: error: {run / 'history.csv'}, line 2: 'zz' is not a number; expected 15 "
                             "comma-separated numbers per row (step, t, id, x, y, angle, vx, vy, omega, fx, fy, torque, "
-                            "contacts): the file is damaged (only a half-written last line is skipped)")
+                            "contacts, x_unwrapped, y_unwrapped): the file is damaged (only a half-written last line is "
+                            "skipped)")
 
 
 def test_plot_names_a_truncated_vtu_file(tiny_run, tmp_path, capsys):

@@ -17,6 +17,13 @@ def periodic_axes_of(scene) -> tuple:
     return axes_of_sides({s: scene.domain.side(s).type for s in ("left", "right", "bottom", "top")})
 
 
+def period_of_scene(scene) -> tuple:
+    """``(L_x or None, L_y or None)``: the periods of the scene's periodic axes, length units."""
+    from ..mesh.seam import period_of
+
+    return period_of(scene.domain.box, periodic_axes_of(scene))
+
+
 def inflow_value(side: str, box, profile: dict):
     """Velocity ``(x, y, t) -> (2, n)`` of an inflow side, normal to it, pointing into the box.
 
@@ -59,6 +66,7 @@ def velocity_bcs(scene, centers):
     from ..fluid.space import RigidMotion, VelocityBC
 
     bcs = []
+    period = period_of_scene(scene)
     for s in ("left", "right", "bottom", "top"):
         side = scene.domain.side(s)
         if side.type == "wall":
@@ -71,7 +79,7 @@ def velocity_bcs(scene, centers):
         if b.motion == "fixed":
             bcs.append(VelocityBC(b.name, (0.0, 0.0)))
         else:
-            bcs.append(VelocityBC(b.name, RigidMotion(b.velocity, b.omega, tuple(map(float, c)))))
+            bcs.append(VelocityBC(b.name, RigidMotion(b.velocity, b.omega, tuple(map(float, c)), period)))
     return bcs
 
 

@@ -276,7 +276,8 @@ class FreeBodyFlow(MovingMeshFlow):
         first = len(self.problem.bcs) - len(self.scene.bodies)  # body conditions follow the sides'
         for j, k in enumerate(f):
             self.problem.bcs[first + k] = VelocityBC(self.names[k], RigidMotion(tuple(V_new[j, :2]), float(V_new[j, 2]),
-                                                                             tuple(X_new[j, :2])))
+                                                                             tuple(X_new[j, :2]),
+                                                                             self.rigid.period))
         self._hand_over(ev, rebuilt, old_space, dt, cost)
         t0 = time.perf_counter()
         st = self.stepper

@@ -30,6 +30,7 @@ from ..cost import CostSplit
 from ..fluid.solvers.lagged import MOVING_MESH_STEPPING
 from ..geometry import barycentric
 from .bodies import LinearPath
+from ..mesh.seam import period_of
 from .boundary import periodic_axes_of, velocity_bcs, viscous_form_of
 from .loads import FlowLoads
 
@@ -216,7 +217,7 @@ class MovingMeshFlow(FlowLoads):
         self.problem = FlowProblem(self.space, fl.viscosity, velocity_bcs(self.scene, self.centers), rho=fl.density,
                                    body_force=fl.body_force, moving=True, periodic=self.mm.periodic,
                                    viscous=viscous_form_of(self.scene))
-        self.rigid = RigidModes(self.space, self.names, self.centers)
+        self.rigid = RigidModes(self.space, self.names, self.centers, period=period_of(self.mm.box, self.mm.periodic))
 
     def _outline_dofs(self) -> np.ndarray:
         """Velocity DOFs on the body outlines (both components), (k,) int."""

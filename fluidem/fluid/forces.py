@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .space import FlowSpace
+from ..geometry import minimum_image
 
 __all__ = ["BodyLoad", "body_loads", "RigidModes", "SideLoads", "side_loads", "PeriodicStats", "periodic_stats"]
 
@@ -80,6 +81,9 @@ class RigidModes:
         Outline boundary names, one per body.
     centers : (n_bodies, 2) float
         Reference points of the torques, length units.
+    period : (L_x, L_y)
+        Periods of a periodic box (``None``: not periodic); a body across a periodic side
+        has outline DOFs on both sides, each with its arm to the nearest image of the centre.
 
     Examples
     --------
@@ -93,7 +97,8 @@ class RigidModes:
     (3, True)
     """
 
-    def __init__(self, space: FlowSpace, boundaries, centers):
+    def __init__(self, space: FlowSpace, boundaries, centers, period=(None, None)):
+        self.period = tuple(period)
         self.boundaries = list(boundaries)
         nb = len(self.boundaries)
         dx = [space.velocity_dofs(b, 0) for b in self.boundaries]  # one short list per body, once per mesh
@@ -117,7 +122,10 @@ class RigidModes:
         self.centers = np.asarray(centers, dtype=float).reshape(len(self.boundaries), 2)
         c = self.centers
         px, py = space.dof_locations(self._dx), space.dof_locations(self._dy)
-        data = np.concatenate([np.ones(self._n_trans), -(px[1] - c[self._bx, 1]), py[0] - c[self._by, 0]])
+        # arms to the nearest image of the centre (a body across a periodic side)
+        arm_y = minimum_image(np.column_stack([np.zeros(px.shape[1]), px[1] - c[self._bx, 1]]), self.period)[:, 1]
+        arm_x = minimum_image(np.column_stack([py[0] - c[self._by, 0], np.zeros(py.shape[1])]), self.period)[:, 0]
+        data = np.concatenate([np.ones(self._n_trans), -arm_y, arm_x])
         self.matrix.data[:] = data[self._order]
 
     def loads(self, residual: np.ndarray, rho: float = 1.0) -> tuple[np.ndarray, np.ndarray]:

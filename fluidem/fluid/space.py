@@ -29,12 +29,21 @@ class RigidMotion:
     velocity: Sequence[float] | Callable = (0.0, 0.0)
     omega: float | Callable = 0.0
     center: Sequence[float] = (0.0, 0.0)
+    #: ``(L_x, L_y)`` periods (``None``: not periodic): the arm ``x − X`` is taken to the
+    #: nearest image of X (a body across a periodic side, :mod:`fluidem.mesh.seam`)
+    period: tuple = (None, None)
 
     def __call__(self, x, y, t):
         U = np.asarray(self.velocity(t) if callable(self.velocity) else self.velocity, dtype=float)
         om = float(self.omega(t) if callable(self.omega) else self.omega)
         cx, cy = self.center
-        return np.array([U[0] - om * (y - cy), U[1] + om * (x - cx)])
+        dx, dy = np.asarray(x, dtype=float) - cx, np.asarray(y, dtype=float) - cy
+        Lx, Ly = self.period
+        if Lx:
+            dx = dx - Lx * np.round(dx / Lx)
+        if Ly:
+            dy = dy - Ly * np.round(dy / Ly)
+        return np.array([U[0] - om * dy, U[1] + om * dx])
 
 
 @dataclass(frozen=True)

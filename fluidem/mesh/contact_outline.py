@@ -215,7 +215,7 @@ def contact_pairs(polys, tree, distance: float) -> np.ndarray:
 
 
 def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float, min_gap: float,
-                    params, box=None) -> ContactOutline:
+                    params, box=None, wall_sides=None) -> ContactOutline:
     """The contact-outline policy (module docstring) at one configuration.
 
     Parameters
@@ -236,6 +236,9 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
     box : (xmin, xmax, ymin, ymax) or None
         The box: its sides closer than ``min_gap`` to a body join that body's cluster
         (``None``: walls are not looked at).
+    wall_sides : (4,) bool or None
+        Which sides (bottom, right, top, left) are walls; a periodic side is none (a body
+        across it is clipped there, :mod:`fluidem.mesh.seam`).  ``None``: all four.
     """
     n_bodies = len(polys)
     outline_world = outline_world
@@ -250,6 +253,8 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
     if box is not None and n_bodies:
         coords, vertex_body = shapely.get_coordinates(shapely.get_exterior_ring(polys), return_index=True)
         walls = wall_contacts(coords, vertex_body, n_bodies, box, min_gap)
+        if wall_sides is not None:
+            walls = walls[np.asarray(wall_sides, dtype=bool)[walls[:, 1]]]
     merge = params.contact_merge * h
     spacing = params.contact_node_spacing * h
     tol_box = 1e-7 * h

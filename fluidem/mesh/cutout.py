@@ -41,13 +41,13 @@ from .nodes import (
     JUNCTION,
     OUTLINE,
     SIDE,
-    UID_OUTLINE,
     BodyOutlines,
     UidSource,
     box_ring,
     to_body,
 )
 from .relax import MeshTopology, signed_areas
+from .seam import SEAM_CODE, clip_at_seams, covered_side_nodes
 
 __all__ = ["CutOut", "Triangulation", "cut_out", "triangulate"]
 
@@ -92,7 +92,11 @@ class Triangulation:
     contact_local : (n_contact, 2) float
         Body-frame positions of the contact nodes (in node order).
     contact_wall : (n_contact,) int
-        Box side a contact node slides along (a wall node), ``-1`` for the others.
+        Box side a contact node slides along (a wall node), ``SEAM_CODE + side`` for a seam
+        node (:mod:`fluidem.mesh.seam`), ``-1`` for the others.
+    seam_outer_body, seam_outer_local : (n_contact,) int, (n_contact, 2) float
+        For a seam node the body and body-frame position of the outer end of its segment
+        (``contact_local`` holds the inner end); ``-1`` and zeros for other contact nodes.
     junction_nodes : (k,) int
     junction_verts : (k, 3) int
         The triangle of outline nodes each junction node split.
@@ -114,6 +118,8 @@ class Triangulation:
     junction_verts: np.ndarray
     junction_bary: np.ndarray
     contact_wall: np.ndarray = None
+    seam_outer_body: np.ndarray = None
+    seam_outer_local: np.ndarray = None
 
 
 def cut_out(cand, cand_kind, h_cand, table, purge: float, gap_purge: float, box) -> CutOut:
@@ -142,8 +148,48 @@ def cut_out(cand, cand_kind, h_cand, table, purge: float, gap_purge: float, box)
     return CutOut(keep=keep & movable, n_purged=n_purged)
 
 
+def _on_periodic_sides(points, box, axes) -> np.ndarray:
+    """Mask ``(k,)``: ``points (k, 2)`` on a side of the periodic ``axes``."""
+    xmin, xmax, ymin, ymax = box
+    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
+    on = np.zeros(len(points), dtype=bool)
+    if "x" in axes:
+        on |= (np.abs(points[:, 0] - xmin) < tol) | (np.abs(points[:, 0] - xmax) < tol)
+    if "y" in axes:
+        on |= (np.abs(points[:, 1] - ymin) < tol) | (np.abs(points[:, 1] - ymax) < tol)
+    return on
+
+
+def _partners(points, box, axes) -> np.ndarray:
+    """The partners ``(k, 2)`` across the side pair of the ``points`` on a periodic side."""
+    xmin, xmax, ymin, ymax = box
+    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
+    out = []
+    for c, (lo, hi) in ((0, (xmin, xmax)), (1, (ymin, ymax))):
+        if "xy"[c] not in axes:
+            continue
+        for a, b in ((lo, hi), (hi, lo)):
+            q = points[np.abs(points[:, c] - a) < tol].copy()
+            q[:, c] = b
+            out.append(q)
+    return np.vstack(out) if out else np.zeros((0, 2))
+
+
+def _hole_points(solids, box) -> np.ndarray:
+    """One point ``(k, 2)`` inside every part of the ``solids`` within the box."""
+    xmin, xmax, ymin, ymax = box
+    inner = shapely.intersection(np.asarray(solids, dtype=object), shapely.box(xmin, ymin, xmax, ymax))
+    tiny = (1e-6 * max(xmax - xmin, ymax - ymin)) ** 2  # slivers along a side are no hole (a body edge on it)
+    parts = [p for g in inner for p in shapely.get_parts(g)
+             if shapely.get_type_id(p) == 3 and shapely.area(p) > tiny]
+    if not parts:
+        return np.zeros((0, 2))
+    return shapely.get_coordinates(shapely.point_on_surface(np.asarray(parts, dtype=object)))
+
+
 def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contact: ContactOutline, poses, polys,
-                tree, box, uids: UidSource, junctions: bool, junction_clearance: float, target) -> Triangulation:
+                tree, box, uids: UidSource, junctions: bool, junction_clearance: float, target,
+                seams: tuple | None = None) -> Triangulation:
     """Constrained Delaunay triangulation of the kept candidate nodes and the outlines, then
     junction points.
 
@@ -168,6 +214,10 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         Multiple of ``h`` a junction node keeps from the bodies.
     target : callable
         Target size ``points (k, 2) -> (k,)``.
+    seams : (axes, merge) or None
+        Periodic axes across which bodies may reach, and the distance (length units) within
+        which box nodes next to a seam node are dropped: the outlines are clipped at the box
+        (:mod:`fluidem.mesh.seam`).  ``None``: every outline lies in the box.
 
     Raises
     ------
@@ -195,27 +245,82 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         points, kind, uid = points[~drop], kind[~drop], uid[~drop]
     contact_points, contact_body = contact.contact_points, contact.contact_body
     keep_outline = contact.keep_outline
-    # assemble nodes: [candidates | outline | contact nodes | junctions]
     outline_rows = np.flatnonzero(keep_outline)
-    nodes = np.vstack([points, outline_world[keep_outline], contact_points])
-    n_cand = len(points)
-    # map of outline table index -> node index
+    # outline and contact nodes (the outline PSLG), numbered from 0
+    oc_nodes = np.vstack([outline_world[keep_outline], contact_points])
+    n_oc_outline = len(outline_rows)
     node_of_row = np.full(n_outline + len(contact_points), -1, dtype=np.int64)
-    node_of_row[outline_rows] = n_cand + np.arange(len(outline_rows))
-    node_of_row[n_outline:] = n_cand + len(outline_rows) + np.arange(len(contact_points))
-    outline_segments = node_of_row[contact.segments]
-    if (outline_segments < 0).any():
+    node_of_row[outline_rows] = np.arange(len(outline_rows))
+    node_of_row[n_outline:] = len(outline_rows) + np.arange(len(contact_points))
+    oc_segments = node_of_row[contact.segments]
+    if (oc_segments < 0).any():
         raise MeshError("outline segment refers to a removed outline node")
-    kind = np.concatenate([kind, np.full(len(outline_rows), OUTLINE, np.int8),
-                           np.full(len(contact_points), CONTACT, np.int8)])
-    body_of = np.concatenate([np.full(n_cand, -1), outlines.body[outline_rows], contact_body])
-    outline_row = np.concatenate([np.full(n_cand, -1), outline_rows, np.full(len(contact_points), -1)])
-    uid = np.concatenate([uid, UID_OUTLINE + outline_rows, uids.take(len(contact_points))])
-    # contact nodes: body coordinates for rigid motion
+    oc_body = np.concatenate([outlines.body[outline_rows], contact_body]).astype(np.int64)
     contact_local = to_body(contact_points, poses[contact_body]) if len(contact_points) else np.zeros((0, 2))
-    first_contact = n_cand + len(outline_rows)
-    wall_nodes = first_contact + np.flatnonzero(contact.contact_wall >= 0)
+    oc_local = np.vstack([outlines.local[outline_rows], contact_local])
+    oc_row = np.concatenate([outline_rows, np.full(len(contact_points), -1)])
+    oc_uid = np.concatenate([outlines.row_uid(outline_rows), uids.take(len(contact_points))])
+    oc_wall = np.concatenate([np.full(len(outline_rows), -2), contact.contact_wall]).astype(np.int64)
+    oc_outer_body = np.full(len(oc_nodes), -1, dtype=np.int64)
+    oc_outer_local = np.zeros((len(oc_nodes), 2))
+    if seams is not None and len(oc_nodes):
+        # bodies across periodic sides: outlines clipped at the box, seam nodes where they leave it
+        axes, merge = seams
+        clip = clip_at_seams(oc_nodes, oc_segments, box, axes)
+        if len(clip.seam_points) or not clip.keep.all():
+            k = len(clip.seam_points)
+            keep = np.concatenate([clip.keep, np.ones(k, dtype=bool)])
+            oc_nodes = np.vstack([oc_nodes, clip.seam_points])
+            oc_body = np.concatenate([oc_body, oc_body[clip.seam_inner]])
+            oc_local = np.vstack([oc_local, oc_local[clip.seam_inner]])
+            oc_row = np.concatenate([oc_row, np.full(k, -1)])
+            oc_uid = np.concatenate([oc_uid, uids.take(k)])
+            oc_wall = np.concatenate([oc_wall, SEAM_CODE + clip.seam_side])
+            oc_outer_body = np.concatenate([oc_outer_body, oc_body[clip.seam_outer]])
+            oc_outer_local = np.vstack([oc_outer_local, oc_local[clip.seam_outer]])
+            remap = np.cumsum(keep) - 1
+            oc_segments = remap[clip.segments]
+            oc_nodes, oc_body, oc_local, oc_row, oc_uid = (oc_nodes[keep], oc_body[keep], oc_local[keep],
+                                                          oc_row[keep], oc_uid[keep])
+            oc_wall, oc_outer_body, oc_outer_local = oc_wall[keep], oc_outer_body[keep], oc_outer_local[keep]
+            n_oc_outline = int((oc_row >= 0).sum())
+            # box nodes on periodic sides under a body or next to a seam node (on both sides
+            # of the pair) are no boundary
+            ends = clip.seam_points
+            ends = np.vstack([ends, _partners(ends, box, axes)])
+            on_periodic = _on_periodic_sides(points, box, axes) & ((kind == SIDE) | (kind == CORNER))
+            if on_periodic.any():
+                drop = np.zeros(len(points), dtype=bool)
+                drop[on_periodic] = covered_side_nodes(points[on_periodic], contact.solids, ends, merge, box)
+                points, kind, uid = points[~drop], kind[~drop], uid[~drop]
+    # assemble nodes: [candidates | outline | contact and seam nodes | junctions]
+    n_cand = len(points)
+    nodes = np.vstack([points, oc_nodes])
+    outline_segments = n_cand + oc_segments
+    n_contact = len(oc_nodes) - n_oc_outline
+    kind = np.concatenate([kind, np.full(n_oc_outline, OUTLINE, np.int8), np.full(n_contact, CONTACT, np.int8)])
+    body_of = np.concatenate([np.full(n_cand, -1), oc_body])
+    outline_row = np.concatenate([np.full(n_cand, -1), oc_row])
+    uid = np.concatenate([uid, oc_uid])
+    # contact nodes: body coordinates for rigid motion
+    contact_local = oc_local[n_oc_outline:]
+    contact_wall_all = oc_wall[n_oc_outline:]
+    seam_outer_body, seam_outer_local = oc_outer_body[n_oc_outline:], oc_outer_local[n_oc_outline:]
+    first_contact = n_cand + n_oc_outline
+    wall_nodes = first_contact + np.flatnonzero(contact_wall_all >= 0)
     ring_seg, ring_mark = box_ring(nodes, kind, box, extra=wall_nodes)
+    if seams is not None and (contact_wall_all >= SEAM_CODE).any():
+        # the seam under a body is no boundary: ring segments lying wholly on a body
+        mid = 0.5 * (nodes[ring_seg[:, 0]] + nodes[ring_seg[:, 1]])
+        under = np.zeros(len(ring_seg), dtype=bool)
+        on_periodic = np.flatnonzero(_on_periodic_sides(mid, box, seams[0]))
+        if len(on_periodic) and len(contact.solids):
+            tol = 1e-9 * max(box[1] - box[0], box[3] - box[2])
+            u = shapely.buffer(shapely.union_all(np.asarray(contact.solids, dtype=object)), tol)
+            lines = shapely.linestrings(np.stack([nodes[ring_seg[on_periodic, 0]], nodes[ring_seg[on_periodic, 1]]],
+                                                 axis=1))
+            under[on_periodic] = shapely.covers(u, lines)
+        ring_seg, ring_mark = ring_seg[~under], ring_mark[~under]
     if len(wall_nodes):
         # the box segments under a body in contact are no fluid boundary
         mid_pts = shapely.points(0.5 * (nodes[ring_seg[:, 0]] + nodes[ring_seg[:, 1]]))
@@ -225,7 +330,7 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         for solid in contact.wall_solids:
             covered |= shapely.distance(solid, mid_pts) < tol
         ring_seg, ring_mark = ring_seg[~covered], ring_mark[~covered]
-    contact_wall = contact.contact_wall.copy()
+    contact_wall = contact_wall_all.copy()
     mid = 0.5 * (nodes[outline_segments[:, 0]] + nodes[outline_segments[:, 1]])
     if len(outline_segments):
         owner = body_of[outline_segments[:, 0]]
@@ -242,8 +347,12 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         "segments": np.vstack([ring_seg, outline_segments]).astype(np.int32),
         "segment_markers": np.concatenate([ring_mark, outline_markers]).astype(np.int32)[:, None],
     }
-    if len(contact.holes):
-        pslg["holes"] = contact.holes
+    holes = contact.holes
+    if seams is not None and (contact_wall_all >= SEAM_CODE).any():
+        # hole points inside the parts of the bodies in the box
+        holes = _hole_points(contact.solids, box)
+    if len(holes):
+        pslg["holes"] = holes
     out = tr.triangulate(pslg, "pQn")
     t = out["triangles"].astype(np.int64)
     neighbors = out["neighbors"].astype(np.int64)
@@ -262,8 +371,9 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         t = remap[t]
         boundary_segments = remap[boundary_segments]
         nodes, kind, body_of, outline_row, uid = nodes[used], kind[used], body_of[used], outline_row[used], uid[used]
-        contact_used = used[first_contact: first_contact + len(contact_points)]
+        contact_used = used[first_contact: first_contact + n_contact]
         contact_local, contact_wall = contact_local[contact_used], contact_wall[contact_used]
+        seam_outer_body, seam_outer_local = seam_outer_body[contact_used], seam_outer_local[contact_used]
     # Triangle returns counter-clockwise triangles; make sure (swap vertices 1, 2 and
     # the neighbours opposite them together)
     cw = signed_areas(nodes, t) < 0
@@ -300,4 +410,4 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         topo=MeshTopology(t, edges, edge_tris, edge_tris[:, 0] != edge_tris[:, 1]),
         boundary_segments=boundary_segments, boundary_markers=boundary_markers, contact_local=contact_local,
         junction_nodes=junction_nodes, junction_verts=junction_verts, junction_bary=junction_bary,
-        contact_wall=contact_wall)
+        contact_wall=contact_wall, seam_outer_body=seam_outer_body, seam_outer_local=seam_outer_local)

@@ -128,7 +128,7 @@ import shapely
 from scipy.spatial import cKDTree
 
 from .. import validate
-from ..errors import InputError, MeshError
+from ..errors import InputError
 from .adaptation import adapt as adapt_nodes
 from .adaptation import cleanup_candidates
 from .background import GradedSize, SizeField, UniformSize
@@ -149,7 +149,9 @@ from .nodes import (
     FIRST_BODY_MARKER,
     FREE,
     JUNCTION,
+    OUTLINE,
     SIDE,
+    UID_OUTLINE,
     BackgroundNodes,
     BodyOutlines,
     UidSource,
@@ -159,7 +161,9 @@ from .nodes import (
     outline_nodes,
     world,
 )
-from .periodic import check_clearance, freeze_periodic_sides, match_side_nodes, periodic_axes
+from .periodic import match_side_nodes, periodic_axes, side_partners, slide_in_pairs
+from .seam import (SEAM_BAND, SEAM_CODE, SEAM_MERGE, PeriodicImages, period_of, periodic_images, seam_nudge,
+                   seam_positions)
 from .params import PARAM_NAMES, STRATEGIES, MeshParams, mesh_params
 from .proximity import PolygonTable
 from .quality import MeshQuality, OscillationDetector, mesh_quality
@@ -277,8 +281,10 @@ class MovingMesh:
     periodic : sequence of {"x", "y"}
         Periodic axes (``"x"``: the sides ``left`` and ``right`` are one; ``"y"``: ``bottom``
         and ``top``; :mod:`fluidem.mesh.periodic`).  Their nodes match in every
-        triangulation and do not slide; a body closer than ``h`` to a periodic side raises
-        :class:`~fluidem.errors.MeshError` (``InputError`` at the start).
+        triangulation and slide in matched pairs; bodies may cross them (their periodic
+        images are meshed, clipped at the box, :mod:`fluidem.mesh.seam`; ``poses`` may lie
+        outside the box along a periodic axis).  A body with a vertex half a period or more
+        from its origin raises ``InputError``.
     params : MeshParams or None
         Every other parameter (:class:`fluidem.mesh.params.MeshParams`, which documents
         them: ``retriangulate_every``, ``relax_iterations``, ``min_angle_trigger``,
@@ -369,14 +375,15 @@ class MovingMesh:
         if len(set(names)) != len(names) or set(names) & set(SIDE_NAMES):
             names = [f"body{i}" for i in range(len(verts))]
         self.body_names = names
-        self.n_bodies = len(verts)
-        self._verts_local = verts
-        self._nv = np.array([len(v) for v in verts], dtype=np.int64)
-        self._vcat = np.vstack(verts) if verts else np.zeros((0, 2))
-        self._vbody = np.repeat(np.arange(self.n_bodies), self._nv)
-        self.poses = self._check_poses(poses)
-
-        self.outlines: BodyOutlines = outline_nodes(verts, self.poses, self._size, self.h)
+        self.n_real = len(verts)
+        self._body_verts = verts
+        self._real_nv = np.array([len(v) for v in verts], dtype=np.int64)
+        self._real_vcat = np.vstack(verts) if verts else np.zeros((0, 2))
+        self._real_vbody = np.repeat(np.arange(self.n_real), self._real_nv)
+        self._check_widths()
+        self.body_poses = self._check_poses(poses)
+        self._real_outlines: BodyOutlines = outline_nodes(verts, self.body_poses, self._size, self.h)
+        self._set_images(self._image_set(self.body_poses))
         self.background_candidates = background_nodes(self.box, self.h, self._size, self.background_kind,
                                                      periodic=self.periodic)
         self.step_count = 0
@@ -448,6 +455,16 @@ class MovingMesh:
         if "params" not in state:
             state = _state_before_split(state)
         state.setdefault("periodic", ())
+        if "images" not in state:  # pickled before bodies could cross periodic sides
+            n = state["n_bodies"]
+            state.update(n_real=n, body_poses=state["poses"], _body_verts=state["_verts_local"],
+                         _real_nv=state["_nv"], _real_vcat=state["_vcat"], _real_vbody=state["_vbody"],
+                         _real_outlines=state["outlines"],
+                         images=PeriodicImages(body=np.arange(n), cell=np.zeros((n, 2), dtype=np.int64),
+                                               shift=np.zeros((n, 2))))
+            nc = len(state.get("_contact_idx", ()))
+            state.setdefault("_seam_outer_body", np.full(nc, -1, dtype=np.int64))
+            state.setdefault("_seam_outer_local", np.zeros((nc, 2)))
         self.__dict__.update(state)
 
     # ------------------------------------------------------------------ set-up
@@ -475,14 +492,15 @@ class MovingMesh:
             p = np.asarray(poses, dtype=float)
         except (TypeError, ValueError) as exc:
             raise InputError(f"poses must be an (n_bodies, 3) array of numbers, got {poses!r}") from exc
-        if self.n_bodies == 0 and p.size == 0:
+        if self.n_real == 0 and p.size == 0:
             return np.zeros((0, 3))
-        if p.shape != (self.n_bodies, 3) or not np.all(np.isfinite(p)):
-            raise InputError(f"poses must be a finite ({self.n_bodies}, 3) array of x, y, angle; got shape {p.shape}")
-        w = world(self._vcat, self._vbody, p)
+        if p.shape != (self.n_real, 3) or not np.all(np.isfinite(p)):
+            raise InputError(f"poses must be a finite ({self.n_real}, 3) array of x, y, angle; got shape {p.shape}")
+        w = world(self._real_vcat, self._real_vbody, p)
         # a body may touch a wall or overlap it (the overlap is meshed as contact, the body with
-        # the wall as one outline), as deep as allowed_wall_overlap
-        depth = -wall_depths(w, self._vbody, self.n_bodies, self.box)  # (n_bodies, 4): > 0 outside
+        # the wall as one outline), as deep as allowed_wall_overlap; periodic sides are no walls
+        depth = -wall_depths(w, self._real_vbody, self.n_real, self.box)  # (n_bodies, 4): > 0 outside
+        depth[:, ~self._wall_sides] = -np.inf
         allowed = self.allowed_wall_overlap(p)
         bad = np.flatnonzero((depth > allowed).any(axis=1))
         if len(bad):
@@ -499,32 +517,113 @@ class MovingMesh:
                 f"wall_overlap_fraction · its extent across the wall) (the overlap is meshed as contact): a "
                 f"resting overlap this deep means a contact law too soft for the load (raise [contact] E) or a "
                 f"pose outside the box")
-        check_clearance(w, self._vbody, self.body_names, p, self.box, self.periodic, self.h,
-                        error=InputError if self.__dict__.get("step_count") is None else MeshError)
         return p
+
+    @property
+    def _wall_sides(self) -> np.ndarray:
+        """(4,) bool: which sides (bottom, right, top, left) are walls (not periodic)."""
+        ax = self.__dict__.get("periodic", ())
+        return np.array(["y" not in ax, "x" not in ax, "y" not in ax, "x" not in ax])
+
+    def _check_widths(self) -> None:
+        """Every vertex of a body lies less than half the period from its origin: the arm of a
+        point of a body across a periodic side is then the one to the nearest image of its
+        origin (:func:`fluidem.geometry.minimum_image`)."""
+        L = period_of(self.box, self.periodic)
+        for c, Lc in enumerate(L):
+            if not Lc or not self.n_real:
+                continue
+            r = np.zeros(self.n_real)
+            np.maximum.at(r, self._real_vbody, np.linalg.norm(self._real_vcat, axis=1))
+            b = int(np.argmax(r))
+            if r[b] >= 0.5 * Lc:
+                raise InputError(f"body {b} ({self.body_names[b]}) has a vertex {r[b]:.4g} from its origin, across "
+                                 f"periodic sides of period {Lc:.4g} in {'xy'[c]}: allowed: less than half the "
+                                 f"period, {0.5 * Lc:.4g} (the arms of its rigid motion go to its nearest image)")
+
+    # ------------------------------------------------------------------ periodic images
+    def _extent(self, body_poses) -> np.ndarray:
+        """Per real body ``(dx_min, dx_max, dy_min, dy_max)`` of its outline about its position."""
+        w = world(self._real_vcat, self._real_vbody, body_poses) - body_poses[self._real_vbody, :2]
+        ext = np.zeros((self.n_real, 4))
+        ext[:, [0, 2]], ext[:, [1, 3]] = np.inf, -np.inf
+        for c in range(2):
+            np.minimum.at(ext[:, 2 * c], self._real_vbody, w[:, c])
+            np.maximum.at(ext[:, 2 * c + 1], self._real_vbody, w[:, c])
+        return ext
+
+    def _image_set(self, body_poses) -> PeriodicImages:
+        """The periodic images to mesh at ``body_poses`` (:func:`fluidem.mesh.seam.periodic_images`);
+        without periodic sides every body once."""
+        if not self.periodic or not self.n_real:
+            n = self.n_real
+            return PeriodicImages(body=np.arange(n), cell=np.zeros((n, 2), dtype=np.int64), shift=np.zeros((n, 2)))
+        margin = (self.params.drag_reach + 1.0) * self.h
+        return periodic_images(body_poses, self._extent(body_poses), self.box, self.periodic, margin)
+
+    def _set_images(self, images: PeriodicImages, nudge: bool = False) -> None:
+        """Make ``images`` the bodies the mesh holds: per image its outline, vertices and pose
+        (``nudge``: bodies with an outline node on a periodic side line are held nudged off it,
+        :func:`fluidem.mesh.seam.seam_nudge`)."""
+        if nudge and self.periodic and self.n_real:
+            ol = self._real_outlines
+            pts = world(ol.local, ol.body, self.body_poses)
+            shift = seam_nudge(pts, ol.body, self.n_real, self.box, self.periodic, SEAM_BAND * self.h)
+            images = PeriodicImages(body=images.body, cell=images.cell, shift=images.shift + shift[images.body])
+        self.images = images
+        nb = len(images.body)
+        self.n_bodies = nb
+        self._verts_local = [self._body_verts[b] for b in images.body]
+        self._nv = self._real_nv[images.body]
+        self._vcat = np.vstack(self._verts_local) if nb else np.zeros((0, 2))
+        self._vbody = np.repeat(np.arange(nb), self._nv)
+        ol = self._real_outlines
+        if nb == self.n_real and np.array_equal(images.body, np.arange(nb)) and not images.cell.any():
+            self.outlines = ol
+        else:
+            # every image carries its body's outline rows; uids per (row, image cell)
+            first = np.concatenate([[0], np.cumsum(np.bincount(ol.body, minlength=self.n_real))])
+            counts = first[images.body + 1] - first[images.body]
+            start = np.concatenate([[0], np.cumsum(counts)])[:-1]
+            rows = np.concatenate([np.arange(first[b], first[b + 1]) for b in images.body]) if nb else \
+                np.zeros(0, dtype=np.int64)
+            img = np.repeat(np.arange(nb), counts)
+            nxt = ol.next[rows] - np.repeat(first[images.body], counts) + np.repeat(start, counts)
+            code = (images.cell[:, 0] + 512) * 1024 + (images.cell[:, 1] + 512)
+            uid = UID_OUTLINE + rows + len(ol.body) * (np.repeat(code, counts) - (512 * 1024 + 512))
+            self.outlines = BodyOutlines(local=ol.local[rows], body=img, next=nxt, uid=uid)
+        self.poses = self._image_poses(self.body_poses)
+
+    def _image_poses(self, body_poses) -> np.ndarray:
+        """Poses ``(n_images, 3)`` of the images held, for real ``body_poses (n, 3)``."""
+        im = self.images
+        out = np.asarray(body_poses, dtype=float)[im.body].copy()
+        out[:, :2] += im.shift
+        return out
 
     def allowed_wall_overlap(self, poses=None) -> np.ndarray:
         """Deepest overlap ``(n_bodies, 4)`` of each body with each box side (bottom, right, top,
         left) that is meshed as contact, length units: ``max(wall_overlap · h,
         wall_overlap_fraction · e)``, ``e`` the body's extent across the side at ``poses``
         (default: the current ones; :class:`MeshParams`)."""
-        poses = self.poses if poses is None else np.asarray(poses, dtype=float)
+        poses = self.body_poses if poses is None else np.asarray(poses, dtype=float)
         p = self.params
-        w = world(self._vcat, self._vbody, poses)
-        ext = np.zeros((self.n_bodies, 2))
+        w = world(self._real_vcat, self._real_vbody, poses)
+        ext = np.zeros((self.n_real, 2))
         for axis in range(2):
-            hi = np.full(self.n_bodies, -np.inf)
-            lo = np.full(self.n_bodies, np.inf)
-            np.maximum.at(hi, self._vbody, w[:, axis])
-            np.minimum.at(lo, self._vbody, w[:, axis])
+            hi = np.full(self.n_real, -np.inf)
+            lo = np.full(self.n_real, np.inf)
+            np.maximum.at(hi, self._real_vbody, w[:, axis])
+            np.minimum.at(lo, self._real_vbody, w[:, axis])
             ext[:, axis] = hi - lo
         across = ext[:, [1, 0, 1, 0]]  # bottom/top: the height, right/left: the width
         return np.maximum(p.wall_overlap * self.h, p.wall_overlap_fraction * across)
 
     def _outside(self, pose) -> bool:
-        """The reference point of a body at ``pose`` lies outside the box."""
+        """The reference point of a body at ``pose`` lies outside the box (across a wall)."""
         xmin, xmax, ymin, ymax = self.box
-        return not (xmin <= pose[0] <= xmax and ymin <= pose[1] <= ymax)
+        ax = self.__dict__.get("periodic", ())
+        return not (("x" in ax or xmin <= pose[0] <= xmax) and ("y" in ax or ymin <= pose[1] <= ymax))
 
     def _movable_count(self) -> int:
         """Free and box nodes of the current mesh (what the adaptation adds and removes)."""
@@ -579,6 +678,8 @@ class MovingMesh:
         """Contacts + cut-out (+ adaptation) + CDT + junctions + relaxation + clean-up from
         candidate nodes (Sec. 2.1); returns the counts of :class:`MeshEvent`."""
         p = self.params
+        if self.periodic:
+            self._set_images(self._image_set(self.body_poses), nudge=True)
         poses = self.poses
         outline_world = self.outlines.world(poses)
         polys = self._polygons(poses)
@@ -588,7 +689,8 @@ class MovingMesh:
         def target(q):
             return self._target(q, outline_world)
 
-        contact = contact_outline(polys, tree, outline_world, self.outlines, self.h, self.min_gap, p, box=self.box)
+        contact = contact_outline(polys, tree, outline_world, self.outlines, self.h, self.min_gap, p, box=self.box,
+                                  wall_sides=self._wall_sides)
         self.contacts = contact.contacts
         self.walls = contact.walls
         self.pore_areas = contact.pore_areas
@@ -615,13 +717,15 @@ class MovingMesh:
         final_shape = None
         for attempt in range(p.cleanup_passes + 1):
             kept_points, kept_kind, kept_uid = match_side_nodes(kept_points, kept_kind, kept_uid, self.box,
-                                                                self.periodic, self._uids)
+                                                                self.periodic, self._uids, merge=0.25 * self.h)
             tri = triangulate(kept_points, kept_kind, kept_uid, outline_world, self.outlines, contact, poses, polys,
-                              tree, self.box, self._uids, p.junctions, p.junction_clearance, target)
+                              tree, self.box, self._uids, p.junctions, p.junction_clearance, target,
+                              seams=(self.periodic, SEAM_MERGE * self.h) if self.periodic else None)
             self._install(tri, outline_world)
             if n_relax:
                 self.points, _ = relax(self.points, self.topo, self.h_node, self._mobility, n_relax,
                                        p.relax_params, bounds=self.box)
+                self.points = slide_in_pairs(self.points, self._side_pairs, self.box)
             if attempt == p.cleanup_passes:
                 break
             # clean-up: bad elements outside narrow gaps lose their free nodes, or get one
@@ -660,9 +764,14 @@ class MovingMesh:
         self._contact_idx = np.flatnonzero(tri.kind == CONTACT)
         self._contact_wall = (np.full(len(self._contact_idx), -1, dtype=np.int64) if tri.contact_wall is None
                               else tri.contact_wall)
+        nc = len(self._contact_idx)
+        self._seam_outer_body = (np.full(nc, -1, dtype=np.int64) if tri.seam_outer_body is None
+                                 else tri.seam_outer_body)
+        self._seam_outer_local = np.zeros((nc, 2)) if tri.seam_outer_local is None else tri.seam_outer_local
         self.h_node = self._target(tri.points, outline_world)
-        self._mobility = freeze_periodic_sides(mobility(tri.kind, tri.points, self.box), tri.points, tri.kind,
-                                               self.box, self.periodic)
+        # periodic side nodes slide along their side in matched pairs (:func:`slide_in_pairs`)
+        self._mobility = mobility(tri.kind, tri.points, self.box)
+        self._side_pairs = side_partners(tri.points, tri.kind, self.box, self.periodic)
         # junction nodes are dragged (they are not relaxed)
         self._drag_mobility = self._mobility.copy()
         self._drag_mobility[tri.kind == JUNCTION] = 1.0
@@ -693,7 +802,11 @@ class MovingMesh:
             nodes, contacts, pores, timing).
         """
         t0 = time.perf_counter()
-        new = self._check_poses(poses)
+        real = self._check_poses(poses)
+        hist = self.__dict__.get("_body_pose_history", (None, None))
+        self._body_pose_history = (self.body_poses, hist[0])  # body poses at t^n, t^{n-1}
+        self.body_poses = real
+        new = self._image_poses(real)
         self.step_count += 1
         ev = MeshEvent(step=self.step_count)
         self._prev_points = self.points.copy()
@@ -731,13 +844,22 @@ class MovingMesh:
                                self.junction_bary, self.poses, new, p.drag_halvings, self._harmonic_drag(),
                                wall_side=self.__dict__.get("_contact_wall"), box=self.box)
         self.poses = new
+        if self.periodic:
+            seam_broken = self._place_seam_nodes(xd, new)
+            if seam_broken or self._needs_new_images():
+                # an outline left its seam or a body reached a side without its image: the
+                # clipped outlines change (:mod:`fluidem.mesh.seam`)
+                self.points = xd
+                self._steps_since += 1
+                self._retriangulate_step(ev, "seam")
+                return
         # nodes dragged out of the box: movable ones are put back on it; a fixed one (an outline
         # node of a body pressed into a wall) cannot be: no relaxation, re-triangulate now
         # (the outline is rebuilt with the wall, :mod:`fluidem.mesh.contact_outline`)
         xmin, xmax, ymin, ymax = self.box
         lo, hi = np.array([xmin, ymin]), np.array([xmax, ymax])
         outside = ((xd < lo) | (xd > hi)).any(axis=1)
-        pressed = False
+        pressed = seam = False
         if outside.any():
             movable = outside & self._mobility.any(axis=1)
             xd[movable] = np.clip(xd[movable], lo, hi)
@@ -756,6 +878,14 @@ class MovingMesh:
                     xd[over] = np.clip(xd[over], lo, hi)
                 else:
                     pressed = True
+                    if ((past > 0) & ~self._wall_sides[None, :]).any():
+                        seam = True
+        if pressed and seam:
+            # an outline node passed a periodic side: the body is clipped anew there
+            self.points = xd
+            self._steps_since += 1
+            self._retriangulate_step(ev, "seam")
+            return
         if pressed:
             self.points = xd
             self._steps_since += 1
@@ -766,6 +896,7 @@ class MovingMesh:
             return
         # relaxation with the per-step iteration limit (Sec. 3.3)
         damp = self.drag.relax_damping if self._damping is None else self.drag.relax_damping * self._damping
+        xd = slide_in_pairs(xd, self.__dict__.get("_side_pairs", np.zeros((0, 2), dtype=np.int64)), self.box)
         xr, nb = relax(xd, self.topo, self.h_node, self._mobility, self.relax_iterations, p.relax_params,
                        bounds=self.box, damping=damp)
         ev.n_blocked = nb
@@ -775,7 +906,7 @@ class MovingMesh:
                 self._damping = np.ones(len(xd))
             self._damping[osc] *= 0.5
         ev.oscillating = osc
-        self.points = xr
+        self.points = slide_in_pairs(xr, self.__dict__.get("_side_pairs", np.zeros((0, 2), dtype=np.int64)), self.box)
         self._steps_since += 1
         # re-triangulate?  (one pass over the elements gives areas and angle cosines)
         shape = element_shape(xr, self.topo)
@@ -793,6 +924,45 @@ class MovingMesh:
         ev.retriangulated, ev.reason = True, reason
         ev.n_purged, ev.n_removed, ev.n_inserted = info["n_purged"], info["n_removed"], info["n_inserted"]
         ev.n_junctions = info["n_junctions"]
+
+    def _place_seam_nodes(self, xd, poses) -> bool:
+        """Put the seam nodes of ``xd (n, 2)`` at the crossings of their segments at ``poses``
+        (:func:`fluidem.mesh.seam.seam_positions`); ``True`` if a segment no longer crosses its
+        side (its inner end left the box or its outer end came in): re-triangulate."""
+        wall = self.__dict__.get("_contact_wall")
+        if wall is None:
+            return False
+        sel = wall >= SEAM_CODE
+        if not sel.any():
+            return False
+        idx = self._contact_idx[sel]
+        p_in = world(self._contact_local[sel], self.body_of[idx], poses)
+        p_out = world(self._seam_outer_local[sel], self._seam_outer_body[sel], poses)
+        side = wall[sel] - SEAM_CODE
+        xd[idx] = seam_positions(p_in, p_out, side, self.box, xd[idx])
+        xmin, xmax, ymin, ymax = self.box
+        level = np.select([side == 0, side == 1, side == 2, side == 3], [ymin, xmax, ymax, xmin])
+        c = np.where((side == 1) | (side == 3), 0, 1)
+        k = np.arange(len(side))
+        outward = np.where((side == 1) | (side == 2), 1.0, -1.0)
+        inner_in = outward * (level - p_in[k, c]) > 0.0
+        outer_out = outward * (p_out[k, c] - level) > 0.0
+        return bool(not (inner_in & outer_out).all())
+
+    def _needs_new_images(self) -> bool:
+        """A body reaches into the box through a periodic side where the mesh holds no image of it."""
+        need = self._image_set(self.body_poses)
+        ext = self._extent(self.body_poses)
+        p = self._image_poses_of(need)
+        xmin, xmax, ymin, ymax = self.box
+        inside = ((p[:, 0] + ext[need.body, 1] > xmin) & (p[:, 0] + ext[need.body, 0] < xmax)
+                  & (p[:, 1] + ext[need.body, 3] > ymin) & (p[:, 1] + ext[need.body, 2] < ymax))
+        return bool(np.setdiff1d(need.key()[inside], self.images.key()).size)
+
+    def _image_poses_of(self, images: PeriodicImages) -> np.ndarray:
+        out = np.asarray(self.body_poses, dtype=float)[images.body].copy()
+        out[:, :2] += images.shift
+        return out
 
     def _harmonic_drag(self) -> HarmonicDrag | None:
         """The harmonic extension of this connectivity (``drag_field="harmonic"``), factorised
@@ -820,6 +990,7 @@ class MovingMesh:
         around ``min_gap`` does not re-trigger every step)."""
         if self.n_bodies:
             depth = wall_depths(world(self._vcat, self._vbody, self.poses), self._vbody, self.n_bodies, self.box)
+            depth[:, ~self._wall_sides] = np.inf
             before = self.__dict__.get("walls", np.zeros((0, 2), dtype=np.int64))
             was = np.zeros(depth.shape, dtype=bool)
             was[before[:, 0], before[:, 1]] = True
@@ -828,8 +999,8 @@ class MovingMesh:
             # a wall node held on its side while its body lifted off there (a body rocking on
             # the wall): the closed outline no longer fits
             wall = self.__dict__.get("_contact_wall")
-            if wall is not None and (wall >= 0).any():
-                sel = wall >= 0
+            if wall is not None and ((wall >= 0) & (wall < SEAM_CODE)).any():
+                sel = (wall >= 0) & (wall < SEAM_CODE)
                 idx = self._contact_idx[sel]
                 rigid = world(self._contact_local[sel], self.body_of[idx], self.poses)
                 if (np.abs(rigid - self.points[idx]).max() > self._contact_slack()):
@@ -877,8 +1048,12 @@ class MovingMesh:
         bnd = {}
         for k, name in enumerate(SIDE_NAMES):
             bnd[name] = look(self.boundary_segments[self.boundary_markers == k + 1])
+        real = self.images.body  # an image's outline is its body's
+        owner = np.where(self.boundary_markers >= FIRST_BODY_MARKER,
+                         real[np.clip(self.boundary_markers - FIRST_BODY_MARKER, 0, max(len(real) - 1, 0))]
+                         if len(real) else -1, -1)
         for b, name in enumerate(self.body_names):
-            bnd[name] = look(self.boundary_segments[self.boundary_markers == FIRST_BODY_MARKER + b])
+            bnd[name] = look(self.boundary_segments[owner == b])
         return m.with_boundaries(bnd)
 
     # ------------------------------------------------------------------ node trajectories (ALE)
@@ -923,6 +1098,41 @@ class MovingMesh:
 
         ev.history = "ale"
         self._trajectory = (pull(x_n), pull(x_nm1))
+        if self.periodic:
+            self._rigid_history()
+
+    def _rigid_history(self) -> None:
+        """Trajectories of the body nodes a re-triangulation created (nodes of an image entering
+        the box, seam nodes): the rigid motion of their body (the crossing of their segment for
+        seam nodes), not the old mesh's motion, which does not reach them (they lie beyond the
+        old clipped outline)."""
+        hist = self.__dict__.get("_body_pose_history", (None, None))
+        prev = self._prev_uid
+        new = np.ones(len(self.uid), dtype=bool)
+        if prev is not None and len(prev):
+            new = ~np.isin(self.uid, prev)
+        traj = list(self._trajectory)
+        for level, body_poses in enumerate(hist):
+            if body_poses is None or traj[level] is None:
+                continue
+            poses = self._image_poses(body_poses)
+            x = traj[level]
+            ol = np.flatnonzero(new & (self.kind == OUTLINE))
+            if len(ol):
+                rows = self.outline_row[ol]
+                x[ol] = world(self.outlines.local[rows], self.outlines.body[rows], poses)
+            ci = self._contact_idx
+            sel = new[ci]
+            if sel.any():
+                wall = self._contact_wall[sel]
+                idx = ci[sel]
+                x[idx] = world(self._contact_local[sel], self.body_of[idx], poses)
+                seam = wall >= SEAM_CODE
+                if seam.any():
+                    p_out = world(self._seam_outer_local[sel][seam], self._seam_outer_body[sel][seam], poses)
+                    x[idx[seam]] = seam_positions(x[idx[seam]], p_out, wall[seam] - SEAM_CODE, self.box,
+                                                  self.points[idx[seam]])
+        self._trajectory = tuple(traj)
 
     def node_history(self) -> tuple[np.ndarray | None, np.ndarray | None]:
         """Positions ``(x_n, x_nm1)``, each ``(n_nodes, 2)`` or None, of the current nodes' trajectories

@@ -65,11 +65,20 @@ class BodyOutlines:
         Body of every row.
     next : (n_outline,) int
         Row of the next node along the (counter-clockwise) outline of the same body.
+    uid : (n_outline,) int or None
+        Node uid of every row (periodic images of one body need their own); ``None``:
+        ``UID_OUTLINE + row``.
     """
 
     local: np.ndarray
     body: np.ndarray
     next: np.ndarray
+    uid: np.ndarray | None = None
+
+    def row_uid(self, rows) -> np.ndarray:
+        """Node uids ``(k,)`` of outline table ``rows (k,)``."""
+        rows = np.asarray(rows, dtype=np.int64)
+        return UID_OUTLINE + rows if self.uid is None else self.uid[rows]
 
     def world(self, poses) -> np.ndarray:
         """Positions ``(n_outline, 2)`` at ``poses`` ``(n_bodies, 3)``."""

@@ -1,4 +1,4 @@
-"""Periodic pairs of box sides on the meshes: matching nodes, and how close a body may come.
+"""Periodic pairs of box sides on the meshes: matching nodes that slide in pairs.
 
 A box ``(xmin, xmax, ymin, ymax)`` may be periodic in ``x`` (the sides ``left`` and
 ``right`` are one: a node at ``(xmin, y)`` has its partner at ``(xmax, y)``) and/or in ``y``
@@ -9,13 +9,13 @@ in every mesh the package builds:
 * fixed meshes and graded backgrounds (:func:`fluidem.mesh.triangulate.triangulate_box`):
   one side of a pair is subdivided, the other gets the same points translated by the
   period, and Triangle adds no points on boundary segments (switch ``Y``);
-* the moving mesh (:class:`fluidem.mesh.MovingMesh`): the nodes of periodic sides do not
-  slide (:func:`freeze_periodic_sides`, relaxation and dragging keep them), and the node
-  set handed to every re-triangulation gets the partner of every periodic side node it
-  lacks (:func:`match_side_nodes`, e.g. after a refinement inserted a node on one side).
+* the moving mesh (:class:`fluidem.mesh.MovingMesh`): the nodes of periodic sides slide along
+  them in matched pairs (:func:`side_partners`, :func:`slide_in_pairs`), and the node set
+  handed to every re-triangulation gets the partner of every periodic side node it lacks
+  (:func:`match_side_nodes`, e.g. after a refinement inserted a node on one side).
 
-Bodies must keep clear of periodic sides (a body crossing one would have to reappear on
-the other side): :func:`check_clearance` names the body, its position and the side.
+Bodies may cross periodic sides: the moving mesh holds them as periodic images clipped at the
+box (:mod:`fluidem.mesh.seam`).
 
 Examples
 --------
@@ -35,8 +35,8 @@ import numpy as np
 from ..errors import InputError, MeshError
 from .kinds import SIDE
 
-__all__ = ["AXES", "SIDE_PAIRS", "periodic_axes", "axes_of_sides", "match_side_nodes", "freeze_periodic_sides",
-           "check_clearance", "check_matched"]
+__all__ = ["AXES", "SIDE_PAIRS", "periodic_axes", "axes_of_sides", "match_side_nodes", "side_partners",
+           "slide_in_pairs", "check_matched"]
 
 #: the periodic directions: ``"x"`` pairs left/right, ``"y"`` bottom/top
 AXES = ("x", "y")
@@ -81,7 +81,7 @@ def _tolerance(box) -> float:
     return 1e-9 * max(xmax - xmin, ymax - ymin)
 
 
-def match_side_nodes(points, kind, uid, box, axes, uids):
+def match_side_nodes(points, kind, uid, box, axes, uids, merge: float = 0.0):
     """The node set with the partner of every periodic side node that lacks one.
 
     Parameters
@@ -97,6 +97,11 @@ def match_side_nodes(points, kind, uid, box, axes, uids):
         Periodic axes.
     uids : UidSource
         Source of the uids of added partners.
+    merge : float
+        A node whose partner place lies closer than this (length units) to a node of the
+        other side is moved to that node's place instead (side nodes slide in pairs: a pair
+        broken by a re-triangulation would otherwise leave two nodes almost on top of each
+        other).
 
     Returns
     -------
@@ -121,9 +126,16 @@ def match_side_nodes(points, kind, uid, box, axes, uids):
             so = np.sort(s[other])
             if len(so):
                 pos = np.searchsorted(so, s[mine])
-                d = np.minimum(np.abs(so[np.clip(pos - 1, 0, len(so) - 1)] - s[mine]),
-                               np.abs(so[np.clip(pos, 0, len(so) - 1)] - s[mine]))
-                lack = mine[d > tol]
+                below = so[np.clip(pos - 1, 0, len(so) - 1)]
+                above = so[np.clip(pos, 0, len(so) - 1)]
+                nearest = np.where(np.abs(below - s[mine]) <= np.abs(above - s[mine]), below, above)
+                d = np.abs(nearest - s[mine])
+                snap = (d > tol) & (d < merge) & (kind[mine] == SIDE)
+                if snap.any():
+                    points = points.copy()
+                    points[mine[snap], 1 - c] = nearest[snap]
+                    s = points[:, 1 - c]
+                lack = mine[(d > tol) & ~snap]
             else:
                 lack = mine
             q = points[lack].copy()
@@ -136,56 +148,47 @@ def match_side_nodes(points, kind, uid, box, axes, uids):
             np.concatenate([uid, uids.take(len(add))]))
 
 
-def freeze_periodic_sides(mobility, points, kind, box, axes) -> np.ndarray:
-    """``mobility (n, 2)`` with the nodes of periodic sides fixed (they do not slide, so
-    partners stay matched through relaxation and dragging)."""
+def side_partners(points, kind, box, axes) -> np.ndarray:
+    """Pairs ``(k, 2)`` of matched box side nodes (kind ``SIDE``, corners left out) across the
+    periodic ``axes``: ``[low side node, high side node]`` at the same place along the side."""
     if not axes:
-        return mobility
-    mob = mobility.copy()
+        return np.zeros((0, 2), dtype=np.int64)
     xmin, xmax, ymin, ymax = box
     tol = _tolerance(box)
-    on = np.zeros(len(points), dtype=bool)
-    if "x" in axes:
-        on |= (np.abs(points[:, 0] - xmin) < tol) | (np.abs(points[:, 0] - xmax) < tol)
-    if "y" in axes:
-        on |= (np.abs(points[:, 1] - ymin) < tol) | (np.abs(points[:, 1] - ymax) < tol)
-    mob[on & (kind == SIDE)] = 0.0
-    return mob
+    out = []
+    for a in axes:
+        c = 0 if a == "x" else 1
+        lo, hi = (xmin, xmax) if a == "x" else (ymin, ymax)
+        side = kind == SIDE
+        low = np.flatnonzero(side & (np.abs(points[:, c] - lo) < tol))
+        high = np.flatnonzero(side & (np.abs(points[:, c] - hi) < tol))
+        if not len(low) or not len(high):
+            continue
+        s_hi = points[high, 1 - c]
+        order = np.argsort(s_hi)
+        pos = np.clip(np.searchsorted(s_hi[order], points[low, 1 - c]), 0, len(high) - 1)
+        j = high[order[pos]]
+        ok = np.abs(points[j, 1 - c] - points[low, 1 - c]) < tol
+        out.append(np.column_stack([low[ok], j[ok]]))
+    return np.vstack(out) if out else np.zeros((0, 2), dtype=np.int64)
 
 
-def check_clearance(vertices, vbody, names, poses, box, axes, clearance: float, error=MeshError) -> None:
-    """Raise ``error`` if a body comes within ``clearance`` of a periodic side.
-
-    Parameters
-    ----------
-    vertices : (m, 2) float
-        World outline vertices of all bodies; ``vbody (m,)`` their body.
-    names : sequence of str
-        Body names; ``poses (n_bodies, 3)`` their poses (named in the message).
-    box : (xmin, xmax, ymin, ymax)
-    axes : tuple of {"x", "y"}
-    clearance : float
-        Smallest distance allowed, length units (the moving mesh: one target edge length,
-        so that one layer of elements fits between the body and the fixed side nodes).
-    error : exception class
-        :class:`~fluidem.errors.MeshError` during a run, ``InputError`` at the start.
-    """
-    if not axes or not len(vertices):
-        return
+def slide_in_pairs(points, pairs, box) -> np.ndarray:
+    """``points (n, 2)`` with every pair of matched side nodes ``pairs (k, 2)`` put at the mean
+    of their places along the side (each slid with its own neighbourhood; the pair stays
+    matched exactly, as the periodic degrees of freedom need)."""
+    if not len(pairs):
+        return points
+    p = np.array(points, dtype=float)
     xmin, xmax, ymin, ymax = box
-    checks = []
-    if "x" in axes:
-        checks += [("left", vertices[:, 0] - xmin), ("right", xmax - vertices[:, 0])]
-    if "y" in axes:
-        checks += [("bottom", vertices[:, 1] - ymin), ("top", ymax - vertices[:, 1])]
-    for side, d in checks:
-        close = np.flatnonzero(d < clearance)
-        if len(close):
-            k = close[np.argmin(d[close])]
-            b = int(vbody[k])
-            raise error(f"body {b} ({names[b]}) at position {np.round(poses[b][:2], 6).tolist()} comes "
-                        f"{d[k]:.4g} from the periodic side {side!r}: allowed: at least {clearance:.4g} "
-                        "(bodies crossing a periodic side are not supported)")
+    tol = _tolerance(box)
+    on_x = np.abs(p[pairs[:, 0], 0] - xmin) < tol  # a left/right pair slides in y
+    along = np.where(on_x, 1, 0)
+    k = np.arange(len(pairs))
+    mean = 0.5 * (p[pairs[:, 0], :][k, along] + p[pairs[:, 1], :][k, along])
+    p[pairs[k, 0], along] = mean
+    p[pairs[k, 1], along] = mean
+    return p
 
 
 def check_matched(points, box, axes, boundary_nodes=None) -> None:

@@ -47,16 +47,19 @@ def _candidates(mesh, x, k: int):
     e1, e2 = b - a, d - a
     r = np.asarray(x)[:, :, None] - a
     det = e1[0] * e2[1] - e1[1] * e2[0]
-    l1 = (r[0] * e2[1] - r[1] * e2[0]) / det
-    l2 = (e1[0] * r[1] - e1[1] * r[0]) / det
+    with np.errstate(divide="ignore", invalid="ignore"):  # a collapsed cell scores -inf below
+        l1 = (r[0] * e2[1] - r[1] * e2[0]) / det
+        l2 = (e1[0] * r[1] - e1[1] * r[0]) / det
     return cand, l1, l2
 
 
 def _best_candidate(mesh, x, k: int):
     """The candidate triangle of largest smallest barycentric coordinate per point: cells, bary (n, 3), score."""
     cand, l1, l2 = _candidates(mesh, x, k)
-    l0 = 1 - l1 - l2
-    score = np.minimum(np.minimum(l0, l1), l2)  # (n, k): ≥ 0 inside
+    with np.errstate(invalid="ignore"):
+        l0 = 1 - l1 - l2
+        score = np.minimum(np.minimum(l0, l1), l2)  # (n, k): ≥ 0 inside
+    score = np.where(np.isfinite(score), score, -np.inf)
     j = np.argmax(score, axis=1)
     n = np.arange(len(j))
     bary = np.stack([l0[n, j], l1[n, j], l2[n, j]], axis=-1)
@@ -128,10 +131,12 @@ def locate_near(mesh, x, hint, k: int = 12) -> tuple[np.ndarray, np.ndarray]:
         e1, e2 = b - a, d - a
         r = x[:, pts, None] - a
         det = e1[0] * e2[1] - e1[1] * e2[0]
-        l1 = (r[0] * e2[1] - r[1] * e2[0]) / det
-        l2 = (e1[0] * r[1] - e1[1] * r[0]) / det
-        l0 = 1 - l1 - l2
-        score = np.where(valid, np.minimum(np.minimum(l0, l1), l2), -np.inf)
+        with np.errstate(divide="ignore", invalid="ignore"):  # a collapsed cell (a dragged seam node on its inner node)
+            l1 = (r[0] * e2[1] - r[1] * e2[0]) / det
+            l2 = (e1[0] * r[1] - e1[1] * r[0]) / det
+            l0 = 1 - l1 - l2
+            score = np.minimum(np.minimum(l0, l1), l2)
+        score = np.where(valid & np.isfinite(score), score, -np.inf)
         j = np.argmax(score, axis=1)  # largest smallest coordinate, the first of equals
         i = np.arange(len(pts))
         ok = score[i, j] >= -1e-12

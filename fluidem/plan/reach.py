@@ -116,10 +116,11 @@ def prescribed_collisions(scene: Scene) -> list:
         reach = [s for s, hit in (("left", lo[k, 0] <= x0), ("right", hi[k, 0] >= x1), ("bottom", lo[k, 1] <= y0),
                                   ("top", hi[k, 1] >= y1)) if hit]
         periodic = [s for s in reach if scene.domain.side(s).type == "periodic"]
+        walls = [s for s in reach if scene.domain.side(s).type != "periodic"]
         if periodic:
-            out.append(f"{B[k].name} to the periodic side {periodic[0]!r} (crossing a periodic side is not "
-                       "supported: the run stops when the body comes closer than mesh.h to it)")
-        elif reach:
+            out.append(f"{B[k].name} across the periodic side {periodic[0]!r} (meshed as its images on both "
+                       "sides; a re-triangulation whenever an outline node passes it)")
+        if walls:
             out.append(f"{B[k].name} to a side of the box")
         others = [j for j, b in enumerate(B) if j != k and b.motion != "free"]
         if others:

@@ -867,6 +867,8 @@ class Scene:
         polys = self.world_outlines()
         lo = np.array([p.min(axis=0) for p in polys])
         hi = np.array([p.max(axis=0) for p in polys])
+        # the moving mesh meshes a body across a periodic side as its images on both sides
+        moving_mesh = self.fluid is not None and any(b.outline_moves for b in self.bodies)
         for c, (s0, s1), (b0, b1) in ((0, ("left", "right"), (x0, x1)), (1, ("bottom", "top"), (y0, y1))):
             if self.domain.side(s0).type != "periodic":
                 continue
@@ -877,20 +879,23 @@ class Scene:
                 raise SceneError(f"bodies[{i}] has width {width[i]:.4g} in {'xy'[c]} across the periodic sides "
                                  f"{s0}/{s1}: allowed: narrower than the period {b1 - b0:.4g}")
             cross = np.flatnonzero((lo[:, c] <= b0) | (hi[:, c] >= b1))
-            if len(cross):
+            if len(cross) and not moving_mesh:
                 i = int(cross[0])
                 side = s0 if lo[i, c] <= b0 else s1
                 raise SceneError(f"bodies[{i}].position = {list(self.bodies[i].position)}: the body (extent "
                                  f"{'xy'[c]} {lo[i, c]:.4g}..{hi[i, c]:.4g}) overlaps the periodic side {side!r} "
                                  f"at {'xy'[c]} = {b0 if side == s0 else b1:g}; allowed: every vertex strictly "
-                                 "inside the box (bodies crossing a periodic side are not supported)")
+                                 "inside the box (a body across a periodic side needs the moving mesh: a fluid "
+                                 "scene with a free or moving body)")
         # a body whose outline moves in a fluid is meshed by the moving mesh, which merges a body
         # touching a wall with the wall: touching is fine there, overlapping is not
         touch = np.array([self.fluid is not None and b.outline_moves for b in self.bodies])
         tol = 1e-12 * max(x1 - x0, y1 - y0)
         below = np.where(touch, -tol, 0.0)
-        out = np.flatnonzero((lo[:, 0] - x0 <= below) | (x1 - hi[:, 0] <= below) | (lo[:, 1] - y0 <= below)
-                             | (y1 - hi[:, 1] <= below))
+        px = moving_mesh and self.domain.side("left").type == "periodic"
+        py = moving_mesh and self.domain.side("bottom").type == "periodic"
+        out = np.flatnonzero((~px & ((lo[:, 0] - x0 <= below) | (x1 - hi[:, 0] <= below)))
+                             | (~py & ((lo[:, 1] - y0 <= below) | (y1 - hi[:, 1] <= below))))
         if len(out):
             i = int(out[0])
             allowed = ("every vertex inside the box or on a wall (a moving body may touch a wall)" if touch[i]
