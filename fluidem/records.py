@@ -406,11 +406,8 @@ def close_stopped(sim, writer, out_dir, n_steps, stop, snap, keep, totals, wall0
 
     Parameters
     ----------
-    sim : fluidem.simulation.Simulation
-    writer : fluidem.io.OutputWriter
-    out_dir : str or Path
-    n_steps : int
-        The steps this run was to go to.
+    sim, writer, out_dir, n_steps, totals, wall0
+        As for :func:`close_complete` (``n_steps``: the steps this run was to go to).
     stop : tuple
         What stopped it: ``("interrupt", signal name, None)`` or ``("error", None, exception,
         failed step)``.
@@ -418,9 +415,6 @@ def close_stopped(sim, writer, out_dir, n_steps, stop, snap, keep, totals, wall0
         The last snapshot of a good state, ``(step, t, (tree, arrays))``.
     keep : int or None
         Checkpoints kept.
-    totals : fluidem.cost.CostSplit
-    wall0 : float
-        ``time.perf_counter()`` at the start of the steps.
 
     Raises
     ------

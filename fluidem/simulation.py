@@ -237,22 +237,8 @@ class Simulation:
     def restore(self, checkpoint, allow_pickle: bool = False) -> Path:
         """Continue from a checkpoint file, or from the newest valid checkpoint of an output directory.
 
-        What the checkpoint holds is checked against the scene before the run continues: each
-        part must be of the kind and fluidem class a fresh state of this scene has, the arrays
-        of the bodies must have their shapes (:func:`fluidem.checkpoint.mismatches`), and the
-        restored bodies and flow must be finite and of the scene's sizes.  In a directory a
-        checkpoint that fails (damaged, crafted or edited) is skipped with a
-        :class:`~fluidem.errors.RunWarning` and the previous one is used.  The scene may differ from the
-        checkpoint's only in ``time.t_end``, ``[output]``, its name and description; when the
-        longer ``t_end`` switches contacts on, the DEM continues the closed-form motion
-        (:func:`fluidem.restart.restore`).  Returns the checkpoint used.
-
-        Raises
-        ------
-        fluidem.errors.InputError
-            A different scene (the message lists each change), a checkpoint beyond ``t_end``,
-            or a plan that needs another kind of flow; :class:`fluidem.checkpoint.CheckpointError`
-            for a damaged or missing file, or a directory without a valid checkpoint.
+        The checks, what the scene may change and the errors are those of
+        :func:`fluidem.restart.restore`.  Returns the checkpoint used.
         """
         return restart_.restore(self, checkpoint, allow_pickle=allow_pickle)
 

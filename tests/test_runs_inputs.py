@@ -187,8 +187,8 @@ def test_plot_names_a_damaged_history_row(tiny_run, tmp_path, capsys):
     assert main(["plot", str(run)]) == 2
     assert _err(capsys) == (f"fluidem: error: {run / 'history.csv'}, line 2: 'zz' is not a number; expected 15 "
                             "comma-separated numbers per row (step, t, id, x, y, angle, vx, vy, omega, fx, fy, torque, "
-                            "contacts, x_unwrapped, y_unwrapped): the file is damaged (only a half-written last line is "
-                            "skipped)")
+                            "contacts, x_unwrapped, y_unwrapped): the file is damaged (only a half-written last "
+                            "line is skipped)")
 
 
 def test_plot_names_a_truncated_vtu_file(tiny_run, tmp_path, capsys):
