@@ -443,3 +443,27 @@ def test_disk_driven_through_a_periodic_side_keeps_its_stokes_drag(tmp_path):
     assert np.ptp(fx) < 3.5e-4 * abs(fx.mean())
     assert np.abs(fy).max() < 1.2e-4 * abs(fx.mean())
     assert h["x_unwrapped"][-1] == pytest.approx(2.4) and ((h["x"] >= 0) & (h["x"] < 1.5)).all()
+
+
+def test_side_nodes_of_a_pair_are_grouped_into_matched_places():
+    """Places closer than ``merge`` are one (the mean), one node per side there, its first
+    member keeping its uid; a place with a node on one side only gets a partner."""
+    from fluidem.mesh.nodes import SIDE, UidSource
+    from fluidem.mesh.periodic import match_side_nodes
+
+    pts = np.array([[0.0, 0.300], [1.0, 0.301], [1.0, 0.2995], [0.0, 0.7]])
+    kind = np.full(4, SIDE, np.int8)
+    p, k, u = match_side_nodes(pts, kind, np.arange(4), (0, 1, 0, 1), ("x",), UidSource(), merge=0.01)
+    check_matched(p, (0, 1, 0, 1), ("x",))
+    left = np.sort(p[p[:, 0] == 0.0, 1])
+    assert len(p) == 4 and left.tolist() == pytest.approx([0.3001666666666667, 0.7], abs=1e-15)
+    assert sorted(u[:3].tolist()) == [0, 2, 3]  # the right node at 0.2995 (first along the side) kept, 0.301 dropped
+
+
+def test_seam_nodes_are_made_partners_or_get_a_box_node_across():
+    from fluidem.mesh.seam import pair_seam_nodes
+
+    pts = np.array([[1.0, 0.40], [0.0, 0.40 + 2e-6], [1.0, 0.60]])
+    p, lonely = pair_seam_nodes(pts, np.array([1, 3, 1]), (0, 1, 0, 1), 1e-5)
+    assert p[0, 1] == p[1, 1] == pytest.approx(0.400001, abs=1e-15)
+    assert lonely.tolist() == [[0.0, 0.6]]

@@ -47,7 +47,7 @@ from .nodes import (
     to_body,
 )
 from .relax import MeshTopology, signed_areas
-from .seam import SEAM_CODE, clip_at_seams, covered_side_nodes
+from .seam import SEAM_CODE, clip_at_seams, covered_side_nodes, pair_seam_nodes
 
 __all__ = ["CutOut", "Triangulation", "cut_out", "triangulate"]
 
@@ -270,7 +270,9 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         if len(clip.seam_points) or not clip.keep.all():
             k = len(clip.seam_points)
             keep = np.concatenate([clip.keep, np.ones(k, dtype=bool)])
-            oc_nodes = np.vstack([oc_nodes, clip.seam_points])
+            # partners across a side pair at one place; a seam node without one gets a box node there
+            seam_points, lonely = pair_seam_nodes(clip.seam_points, clip.seam_side, box, 1e-3 * merge)
+            oc_nodes = np.vstack([oc_nodes, seam_points])
             oc_body = np.concatenate([oc_body, oc_body[clip.seam_inner]])
             oc_local = np.vstack([oc_local, oc_local[clip.seam_inner]])
             oc_row = np.concatenate([oc_row, np.full(k, -1)])
@@ -286,13 +288,16 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
             n_oc_outline = int((oc_row >= 0).sum())
             # box nodes on periodic sides under a body or next to a seam node (on both sides
             # of the pair) are no boundary
-            ends = clip.seam_points
-            ends = np.vstack([ends, _partners(ends, box, axes)])
+            ends = np.vstack([seam_points, _partners(seam_points, box, axes)])
             on_periodic = _on_periodic_sides(points, box, axes) & ((kind == SIDE) | (kind == CORNER))
             if on_periodic.any():
                 drop = np.zeros(len(points), dtype=bool)
                 drop[on_periodic] = covered_side_nodes(points[on_periodic], contact.solids, ends, merge, box)
                 points, kind, uid = points[~drop], kind[~drop], uid[~drop]
+            if len(lonely):
+                points = np.vstack([points, lonely])
+                kind = np.concatenate([kind, np.full(len(lonely), SIDE, dtype=kind.dtype)])
+                uid = np.concatenate([uid, uids.take(len(lonely))])
     # assemble nodes: [candidates | outline | contact and seam nodes | junctions]
     n_cand = len(points)
     nodes = np.vstack([points, oc_nodes])

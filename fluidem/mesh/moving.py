@@ -725,7 +725,7 @@ class MovingMesh:
             if n_relax:
                 self.points, _ = relax(self.points, self.topo, self.h_node, self._mobility, n_relax,
                                        p.relax_params, bounds=self.box)
-                self.points = slide_in_pairs(self.points, self._side_pairs, self.box)
+                self.points = slide_in_pairs(self.points, self._side_pairs, self.box, lead=self.kind == CONTACT)
             if attempt == p.cleanup_passes:
                 break
             # clean-up: bad elements outside narrow gaps lose their free nodes, or get one
@@ -896,7 +896,8 @@ class MovingMesh:
             return
         # relaxation with the per-step iteration limit (Sec. 3.3)
         damp = self.drag.relax_damping if self._damping is None else self.drag.relax_damping * self._damping
-        xd = slide_in_pairs(xd, self.__dict__.get("_side_pairs", np.zeros((0, 2), dtype=np.int64)), self.box)
+        xd = slide_in_pairs(xd, self.__dict__.get("_side_pairs", np.zeros((0, 2), dtype=np.int64)), self.box,
+                            lead=self.kind == CONTACT)
         xr, nb = relax(xd, self.topo, self.h_node, self._mobility, self.relax_iterations, p.relax_params,
                        bounds=self.box, damping=damp)
         ev.n_blocked = nb
@@ -906,7 +907,8 @@ class MovingMesh:
                 self._damping = np.ones(len(xd))
             self._damping[osc] *= 0.5
         ev.oscillating = osc
-        self.points = slide_in_pairs(xr, self.__dict__.get("_side_pairs", np.zeros((0, 2), dtype=np.int64)), self.box)
+        self.points = slide_in_pairs(xr, self.__dict__.get("_side_pairs", np.zeros((0, 2), dtype=np.int64)), self.box,
+                                     lead=self.kind == CONTACT)
         self._steps_since += 1
         # re-triangulate?  (one pass over the elements gives areas and angle cosines)
         shape = element_shape(xr, self.topo)

@@ -25,7 +25,7 @@ Examples
 >>> kind = np.array([SIDE, FREE, SIDE], np.int8)
 >>> p, k, u = match_side_nodes(pts, kind, np.arange(3), (0, 1, 0, 1), ("x",), UidSource())
 >>> p[3:].tolist(), k[3:].tolist()
-([[1.0, 0.25], [0.0, 0.5]], [1, 1])
+([[0.0, 0.5], [1.0, 0.25]], [1, 1])
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError, MeshError
-from .kinds import SIDE
+from .kinds import CONTACT, SIDE
 
 __all__ = ["AXES", "SIDE_PAIRS", "periodic_axes", "axes_of_sides", "match_side_nodes", "side_partners",
            "slide_in_pairs", "check_matched"]
@@ -82,7 +82,12 @@ def _tolerance(box) -> float:
 
 
 def match_side_nodes(points, kind, uid, box, axes, uids, merge: float = 0.0):
-    """The node set with the partner of every periodic side node that lacks one.
+    """The node set with the side nodes of every periodic side pair matched.
+
+    Along each pair the places of the ``SIDE`` nodes of both sides are grouped (places closer
+    than ``merge`` are one group, sorted, vectorised); each group becomes one place, the mean
+    of its members, with one node on each side: the side's first member moved there (it keeps
+    its uid), its other members dropped, a new node added where the side had none.
 
     Parameters
     ----------
@@ -98,59 +103,69 @@ def match_side_nodes(points, kind, uid, box, axes, uids, merge: float = 0.0):
     uids : UidSource
         Source of the uids of added partners.
     merge : float
-        A node whose partner place lies closer than this (length units) to a node of the
-        other side is moved to that node's place instead (side nodes slide in pairs: a pair
-        broken by a re-triangulation would otherwise leave two nodes almost on top of each
-        other).
+        Places of side nodes closer than this are one (length units; side nodes slide in
+        pairs, and a pair broken by a re-triangulation would otherwise leave two nodes almost
+        on top of each other).  At most the matching tolerance (1e-9 of the box) by default.
 
     Returns
     -------
     points, kind, uid
-        The input with the missing partners appended (``SIDE`` nodes at the translated
-        position: exactly ``xmax`` for a partner of a ``left`` node, and so on).
+        The matched node set (``SIDE`` partners exactly at ``xmax`` for a ``left`` node, and so
+        on).
     """
-    points = np.asarray(points, dtype=float)
+    points = np.array(points, dtype=float)
+    kind, uid = np.asarray(kind), np.asarray(uid)
     if not axes:
         return points, kind, uid
     xmin, xmax, ymin, ymax = box
     tol = _tolerance(box)
-    add = []
+    gap = max(merge, tol)
     for a in axes:
         c = 0 if a == "x" else 1  # the coordinate fixed on the side
         lo, hi = (xmin, xmax) if a == "x" else (ymin, ymax)
         on_side = kind == SIDE
-        s = points[:, 1 - c]  # position along the side
         low = np.flatnonzero(on_side & (np.abs(points[:, c] - lo) < tol))
         high = np.flatnonzero(on_side & (np.abs(points[:, c] - hi) < tol))
-        for mine, other, target in ((low, high, hi), (high, low, lo)):
-            so = np.sort(s[other])
-            if len(so):
-                pos = np.searchsorted(so, s[mine])
-                below = so[np.clip(pos - 1, 0, len(so) - 1)]
-                above = so[np.clip(pos, 0, len(so) - 1)]
-                nearest = np.where(np.abs(below - s[mine]) <= np.abs(above - s[mine]), below, above)
-                d = np.abs(nearest - s[mine])
-                snap = (d > tol) & (d < merge) & (kind[mine] == SIDE)
-                if snap.any():
-                    points = points.copy()
-                    points[mine[snap], 1 - c] = nearest[snap]
-                    s = points[:, 1 - c]
-                lack = mine[(d > tol) & ~snap]
-            else:
-                lack = mine
-            q = points[lack].copy()
-            q[:, c] = target
+        idx = np.concatenate([low, high])
+        if not len(idx):
+            continue
+        side = np.concatenate([np.zeros(len(low), dtype=np.int64), np.ones(len(high), dtype=np.int64)])
+        along = points[idx, 1 - c]
+        order = np.argsort(along, kind="stable")
+        idx, side, along = idx[order], side[order], along[order]
+        group = np.concatenate([[0], np.cumsum(np.diff(along) > gap)])
+        n_groups = int(group[-1]) + 1
+        place = np.bincount(group, weights=along, minlength=n_groups) / np.bincount(group, minlength=n_groups)
+        # the first member of each (group, side) stays and moves to the group's place
+        key = group * 2 + side
+        _, first = np.unique(key, return_index=True)
+        keep = np.zeros(len(idx), dtype=bool)
+        keep[first] = True
+        points[idx[keep], 1 - c] = place[group[keep]]
+        drop = idx[~keep]
+        # groups without a node on a side get one there
+        has = np.zeros((n_groups, 2), dtype=bool)
+        has[group[keep], side[keep]] = True
+        add = []
+        for sd, level in ((0, lo), (1, hi)):
+            g = np.flatnonzero(~has[:, sd])
+            q = np.zeros((len(g), 2))
+            q[:, c] = level
+            q[:, 1 - c] = place[g]
             add.append(q)
-    add = np.vstack(add) if add else np.zeros((0, 2))
-    if not len(add):
-        return points, kind, uid
-    return (np.vstack([points, add]), np.concatenate([kind, np.full(len(add), SIDE, dtype=kind.dtype)]),
-            np.concatenate([uid, uids.take(len(add))]))
+        add = np.vstack(add)
+        alive = np.ones(len(points), dtype=bool)
+        alive[drop] = False
+        points = np.vstack([points[alive], add])
+        kind = np.concatenate([kind[alive], np.full(len(add), SIDE, dtype=kind.dtype)])
+        uid = np.concatenate([uid[alive], uids.take(len(add))])
+    return points, kind, uid
 
 
 def side_partners(points, kind, box, axes) -> np.ndarray:
-    """Pairs ``(k, 2)`` of matched box side nodes (kind ``SIDE``, corners left out) across the
-    periodic ``axes``: ``[low side node, high side node]`` at the same place along the side."""
+    """Pairs ``(k, 2)`` of matched nodes of periodic sides (kinds ``SIDE`` and ``CONTACT``, the
+    seam nodes of :mod:`fluidem.mesh.seam`; corners left out) across the periodic ``axes``:
+    ``[low side node, high side node]`` at the same place along the side."""
     if not axes:
         return np.zeros((0, 2), dtype=np.int64)
     xmin, xmax, ymin, ymax = box
@@ -159,7 +174,7 @@ def side_partners(points, kind, box, axes) -> np.ndarray:
     for a in axes:
         c = 0 if a == "x" else 1
         lo, hi = (xmin, xmax) if a == "x" else (ymin, ymax)
-        side = kind == SIDE
+        side = (kind == SIDE) | (kind == CONTACT)
         low = np.flatnonzero(side & (np.abs(points[:, c] - lo) < tol))
         high = np.flatnonzero(side & (np.abs(points[:, c] - hi) < tol))
         if not len(low) or not len(high):
@@ -173,10 +188,11 @@ def side_partners(points, kind, box, axes) -> np.ndarray:
     return np.vstack(out) if out else np.zeros((0, 2), dtype=np.int64)
 
 
-def slide_in_pairs(points, pairs, box) -> np.ndarray:
+def slide_in_pairs(points, pairs, box, lead=None) -> np.ndarray:
     """``points (n, 2)`` with every pair of matched side nodes ``pairs (k, 2)`` put at the mean
     of their places along the side (each slid with its own neighbourhood; the pair stays
-    matched exactly, as the periodic degrees of freedom need)."""
+    matched exactly, as the periodic degrees of freedom need).  ``lead (n,)`` bool: nodes
+    placed by their bodies (seam nodes); a pair with one takes its place."""
     if not len(pairs):
         return points
     p = np.array(points, dtype=float)
@@ -185,7 +201,11 @@ def slide_in_pairs(points, pairs, box) -> np.ndarray:
     on_x = np.abs(p[pairs[:, 0], 0] - xmin) < tol  # a left/right pair slides in y
     along = np.where(on_x, 1, 0)
     k = np.arange(len(pairs))
-    mean = 0.5 * (p[pairs[:, 0], :][k, along] + p[pairs[:, 1], :][k, along])
+    a, b = p[pairs[:, 0], :][k, along], p[pairs[:, 1], :][k, along]
+    mean = 0.5 * (a + b)
+    if lead is not None:
+        la, lb = lead[pairs[:, 0]], lead[pairs[:, 1]]
+        mean = np.where(la & ~lb, a, np.where(lb & ~la, b, mean))
     p[pairs[k, 0], along] = mean
     p[pairs[k, 1], along] = mean
     return p

@@ -47,7 +47,7 @@ import numpy as np
 import shapely
 
 __all__ = ["SEAM_CODE", "SEAM_MERGE", "SEAM_BAND", "PeriodicImages", "periodic_images", "period_of",
-           "clip_at_seams", "seam_nudge", "covered_side_nodes", "seam_positions"]
+           "clip_at_seams", "seam_nudge", "pair_seam_nodes", "covered_side_nodes", "seam_positions"]
 
 #: box nodes closer than this many ``h`` to a seam node are dropped (no sliver element)
 SEAM_MERGE = 0.4
@@ -237,6 +237,45 @@ def seam_nudge(points, body, n_bodies: int, box, axes, band: float) -> np.ndarra
             out[ok, c] = k * band
             todo &= ~ok
     return out
+
+
+def pair_seam_nodes(points, side, box, tol: float):
+    """Seam nodes ``points (k, 2)`` on their ``side (k,)`` put exactly on the place of their
+    partner across the side pair (the mean of the two), and the places ``(m, 2)`` on the other
+    side where a seam node has none within ``tol`` (length units).
+
+    The two images of a body cross a side pair on the same segment, so partners agree to
+    round-off; the closed outline of bodies in contact across a seam is built from each
+    side's bodies and may differ by more (a simplification step on other coordinates): the
+    partners are then made equal here, and a seam node without one gets a box node at its
+    partner's place (:func:`fluidem.mesh.periodic.check_matched` needs every node matched).
+    """
+    xmin, xmax, ymin, ymax = box
+    p = np.array(points, dtype=float)
+    side = np.asarray(side)
+    lonely = []
+    for lo_side, hi_side, c, (lo, hi) in ((3, 1, 1, (xmin, xmax)), (0, 2, 0, (ymin, ymax))):
+        a = np.flatnonzero(side == lo_side)
+        b = np.flatnonzero(side == hi_side)
+        paired_b = np.zeros(len(b), dtype=bool)
+        if len(a) and len(b):
+            d = np.abs(p[a, c][:, None] - p[b, c][None, :])  # along the side: few seam nodes
+            j = np.argmin(d, axis=1)
+            ok = d[np.arange(len(a)), j] <= tol
+            mean = 0.5 * (p[a[ok], c] + p[b[j[ok]], c])
+            p[a[ok], c] = mean
+            p[b[j[ok]], c] = mean
+            paired_b[j[ok]] = True
+            a_alone = a[~ok]
+        else:
+            a_alone = a
+        across = 1 - c  # the coordinate across the side
+        for idx, target in ((a_alone, hi), (b[~paired_b], lo)):
+            q = p[idx].copy()
+            q[:, across] = target
+            lonely.append(q)
+    lonely = np.vstack(lonely) if lonely else np.zeros((0, 2))
+    return p, lonely
 
 
 def covered_side_nodes(points, solids, seam_points, merge, box) -> np.ndarray:
