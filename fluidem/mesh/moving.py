@@ -594,9 +594,9 @@ class MovingMesh:
             self.outlines = BodyOutlines(local=ol.local[rows], body=img, next=nxt, uid=uid)
         self.poses = self._image_poses(self.body_poses)
 
-    def _image_poses(self, body_poses) -> np.ndarray:
-        """Poses ``(n_images, 3)`` of the images held, for real ``body_poses (n, 3)``."""
-        im = self.images
+    def _image_poses(self, body_poses, images: PeriodicImages | None = None) -> np.ndarray:
+        """Poses ``(n_images, 3)`` of ``images`` (default: the images held), for real ``body_poses (n, 3)``."""
+        im = self.images if images is None else images
         out = np.asarray(body_poses, dtype=float)[im.body].copy()
         out[:, :2] += im.shift
         return out
@@ -955,16 +955,11 @@ class MovingMesh:
         """A body reaches into the box through a periodic side where the mesh holds no image of it."""
         need = self._image_set(self.body_poses)
         ext = self._extent(self.body_poses)
-        p = self._image_poses_of(need)
+        p = self._image_poses(self.body_poses, need)
         xmin, xmax, ymin, ymax = self.box
         inside = ((p[:, 0] + ext[need.body, 1] > xmin) & (p[:, 0] + ext[need.body, 0] < xmax)
                   & (p[:, 1] + ext[need.body, 3] > ymin) & (p[:, 1] + ext[need.body, 2] < ymax))
         return bool(np.setdiff1d(need.key()[inside], self.images.key()).size)
-
-    def _image_poses_of(self, images: PeriodicImages) -> np.ndarray:
-        out = np.asarray(self.body_poses, dtype=float)[images.body].copy()
-        out[:, :2] += images.shift
-        return out
 
     def _harmonic_drag(self) -> HarmonicDrag | None:
         """The harmonic extension of this connectivity (``drag_field="harmonic"``), factorised
