@@ -552,14 +552,15 @@ class MovingMesh:
             np.maximum.at(ext[:, 2 * c + 1], self._real_vbody, w[:, c])
         return ext
 
-    def _image_set(self, body_poses) -> PeriodicImages:
-        """The periodic images to mesh at ``body_poses`` (:func:`fluidem.mesh.seam.periodic_images`);
-        without periodic sides every body once."""
+    def _image_set(self, body_poses, extent=None) -> PeriodicImages:
+        """The periodic images to mesh at ``body_poses`` (:func:`fluidem.mesh.seam.periodic_images`;
+        ``extent``: :meth:`_extent` at them, if the caller has it); without periodic sides every body once."""
         if not self.periodic or not self.n_real:
             n = self.n_real
             return PeriodicImages(body=np.arange(n), cell=np.zeros((n, 2), dtype=np.int64), shift=np.zeros((n, 2)))
         margin = (self.params.drag_reach + 1.0) * self.h
-        return periodic_images(body_poses, self._extent(body_poses), self.box, self.periodic, margin)
+        ext = self._extent(body_poses) if extent is None else extent
+        return periodic_images(body_poses, ext, self.box, self.periodic, margin)
 
     def _set_images(self, images: PeriodicImages, nudge: bool = False) -> None:
         """Make ``images`` the bodies the mesh holds: per image its outline, vertices and pose
@@ -953,8 +954,8 @@ class MovingMesh:
 
     def _needs_new_images(self) -> bool:
         """A body reaches into the box through a periodic side where the mesh holds no image of it."""
-        need = self._image_set(self.body_poses)
-        ext = self._extent(self.body_poses)
+        ext = self._extent(self.body_poses)  # once per step: the image set and the test below
+        need = self._image_set(self.body_poses, ext)
         p = self._image_poses(self.body_poses, need)
         xmin, xmax, ymin, ymax = self.box
         inside = ((p[:, 0] + ext[need.body, 1] > xmin) & (p[:, 0] + ext[need.body, 0] < xmax)
