@@ -232,7 +232,8 @@ def _add_fill_command(sub) -> None:
     fl.add_argument("--side-gap", type=float, dest="side_gap", metavar="G",
                     help="smallest distance from an outline to a side of the box (default: --min-gap)")
     fl.add_argument("--periodic", default="", metavar="AXES", help="periodic axes of the box: x, y or xy (bodies "
-                    "keep at least half --min-gap from those sides too: none may cross them)")
+                    "are placed across those sides too, gaps measured to the nearest image; a fluid scene meshes "
+                    "them on the moving mesh)")
     fl.add_argument("--segments", type=int, metavar="N", help="outline vertices of the disks (default: the "
                     "scene's choice, a curved circle in a fluid scene)")
     fl.add_argument("--attempts", type=int, default=DEFAULT_ATTEMPTS, metavar="N",

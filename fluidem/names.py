@@ -123,6 +123,8 @@ REGISTRY: dict[str, Kind] = {
         "dkt": "drafting, kissing and tumbling of two disks settling in a channel (Glowinski et al. 2001)",
         "suspension": "105 disks, rectangles, triangles and hexagons settling into a bed in a closed box of fluid "
                       "(a 'fluidem fill' body table)",
+        "sheared-suspension": "20 free disks at area fraction 0.1 crossing the periodic sides of a Stokes shear cell; "
+                              "the effective viscosity in run.json",
     }),
     "schur": Kind("Schur-complement approximation", {
         "auto": "cahouet-chabard when a time step is given, mass otherwise",

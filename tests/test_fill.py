@@ -149,17 +149,57 @@ def test_a_thousand_bodies_in_well_under_a_few_seconds():
     assert elapsed < 8.0  # measured 0.23-0.48 s on one core (a margin for a loaded machine)
 
 
-def test_periodic_axes_keep_half_the_gap_from_their_sides():
-    kw = dict(area_fraction=0.25, radius=0.015, min_gap=0.01, side_gap=0.0, seed=1)
-    p = fill(BOX, periodic="x", **kw)
-    gap, (left, right, bottom, top) = _gaps(p.bodies, BOX)
-    assert min(left, right) >= 0.005 * (1 - 1e-9)  # measured 0.00548
-    assert min(bottom, top) < 0.001  # walls: side_gap 0 (measured 0.00059)
-    # two bodies facing each other across the periodic side are min_gap apart through it
+def _periodic_gap(bodies, period):
+    """Smallest distance between two outlines, each pair taken through its nearest periodic images
+    (every body shifted by -1, 0, +1 periods along the periodic axes, exact shapely distances)."""
+    cores, bufs, _, _ = _geometry(bodies)
+    Lx, Ly = period
+    best = np.inf
+    for sx in ((-1, 0, 1) if Lx else (0,)):
+        for sy in ((-1, 0, 1) if Ly else (0,)):
+            shifted = shapely.transform(cores, lambda c, sx=sx, sy=sy: c + [sx * (Lx or 0.0), sy * (Ly or 0.0)])
+            i, j = np.triu_indices(len(bodies), 0 if (sx, sy) != (0, 0) else 1)
+            keep = i != j
+            d = shapely.distance(cores[i[keep]], shifted[j[keep]]) - bufs[i[keep]] - bufs[j[keep]]
+            best = min(best, float(d.min()))
+    return best
+
+
+@pytest.mark.parametrize("axes, period", [("x", (1.0, None)), ("xy", (1.0, 1.0))])
+def test_periodic_axes_place_bodies_across_their_sides_with_every_gap_held_through_them(axes, period):
+    kw = dict(area_fraction=0.3, shapes=MIXED, radius=(0.02, 0.035), min_gap=0.01, side_gap=0.005, seed=3)
+    p = fill(BOX, periodic=axes, **kw)
+    assert abs(p.area_fraction - 0.3) < 0.01
+    assert _periodic_gap(p.bodies, period) >= 0.01 * (1 - 1e-9)  # measured 0.01007 (x), 0.01055 (xy)
     _, _, lo, hi = _geometry(p.bodies)
-    assert lo[:, 0].min() + (1.0 - hi[:, 0].max()) >= 0.01 * (1 - 1e-9)
-    _, (left, right, _, _) = _gaps(fill(BOX, **kw).bodies, BOX)
-    assert min(left, right) < 0.005  # without the periodic axis: measured 0.00048
+    centres = np.array([b["position"] for b in p.bodies])
+    assert ((centres >= 0.0) & (centres < 1.0)).all()  # positions in the box
+    crossing = (lo[:, 0] < 0.0) | (hi[:, 0] > 1.0)
+    assert crossing.sum() >= 3  # bodies across the periodic side: measured 7 (x), 9 (xy)
+    _, (left, right, bottom, top) = _gaps(p.bodies, BOX)
+    if axes == "x":
+        assert min(bottom, top) >= 0.005 * (1 - 1e-9)  # the walls keep side_gap (measured 0.0157)
+    else:
+        assert ((lo[:, 1] < 0.0) | (hi[:, 1] > 1.0)).sum() >= 3  # measured 8
+    # without the periodic axis every side keeps side_gap and no body crosses
+    _, sides = _gaps(fill(BOX, **kw).bodies, BOX)
+    assert min(sides) >= 0.005 * (1 - 1e-9)  # measured 0.00504
+
+
+def test_a_periodic_fill_gives_a_scene_the_moving_mesh_accepts():
+    p = fill((0.0, 2.0, -0.5, 0.5), n=20, area_fraction=0.1, periodic="x", seed=7)
+    bodies = [dict(b, motion="free") for b in p.bodies]
+    scene = Scene.from_dict({"fluid": {"model": "stokes", "viscosity": 1.0},
+                             "domain": {"box": [0.0, 2.0, -0.5, 0.5], "left": "periodic", "right": "periodic",
+                                        "bottom": {"type": "moving-wall", "velocity": [-1.0, 0.0]},
+                                        "top": {"type": "moving-wall", "velocity": [1.0, 0.0]}},
+                             "bodies": bodies, "mesh": {"h": 0.04}, "time": {"dt": 0.02, "t_end": 0.02}})
+    assert len(scene.bodies) == 20
+
+
+def test_a_body_wider_than_half_the_period_is_refused_in_one_line():
+    with pytest.raises(InputError, match=r"^radius = 0\.3: expected a radius up to 0\.25: .*half the period"):
+        fill(BOX, n=2, radius=0.3, periodic="x")
 
 
 def test_cli_round_trip_through_a_scene(tmp_path, capsys):
@@ -258,3 +298,22 @@ def test_example_body_table_is_the_documented_command(tmp_path, capsys):
     r = np.array([b.radius if b.shape == "disk" else math.sqrt(shapely.area(shapely.Polygon(v)) / math.pi)
                   for b, v in zip(scene.bodies, scene.world_outlines())])
     assert r.min() >= 0.025 and r.max() <= 0.04 and scene.mesh.h == pytest.approx(r.mean() / 3, rel=0.1)
+
+
+def test_sheared_suspension_body_table_is_the_documented_command(tmp_path, capsys):
+    """sheared-suspension.csv is what the command in the comment of its scene writes: 20 equal disks at area
+    fraction 0.1, some across the periodic side, every gap (through the side too) at least mesh.h."""
+    toml = (SCENE_DIR / "sheared-suspension.toml").read_text()
+    line = next(ln.lstrip("# ").strip() for ln in toml.splitlines() if ln.lstrip("# ").startswith("fluidem fill"))
+    command = line.split()
+    assert command[:3] == ["fluidem", "fill", "sheared-suspension.csv"]
+    assert main(["fill", str(tmp_path / "t.csv")] + command[3:]) == 0
+    assert (tmp_path / "t.csv").read_text() == (SCENE_DIR / "sheared-suspension.csv").read_text()
+    scene = Scene.from_toml(SCENE_DIR / "sheared-suspension.toml")
+    bodies = [{"shape": "disk", "radius": b.radius, "position": b.position} for b in scene.bodies]
+    assert len(bodies) == 20 and all(b.motion == "free" for b in scene.bodies)
+    phi = sum(math.pi * b["radius"] ** 2 for b in bodies) / 2.0
+    assert phi == pytest.approx(0.1, rel=1e-9)
+    assert _periodic_gap(bodies, (2.0, None)) >= scene.mesh.h * (1 - 1e-9)  # measured 0.0492
+    _, _, lo, hi = _geometry(bodies)
+    assert min(lo[:, 1].min() + 0.5, 0.5 - hi[:, 1].max()) >= scene.mesh.h * (1 - 1e-9)  # walls: measured 0.0461

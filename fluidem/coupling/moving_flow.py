@@ -28,6 +28,7 @@ import numpy as np
 
 from ..cost import CostSplit
 from ..fluid.solvers.lagged import MOVING_MESH_STEPPING
+from ..fluid.solvers.ordering import OrderingChoice
 from ..geometry import barycentric
 from .bodies import LinearPath
 from ..mesh.seam import period_of
@@ -153,6 +154,7 @@ class MovingMeshFlow(FlowLoads):
         self.last_event = None
         self.last_cost = CostSplit()
         self.mesh_seconds = 0.0
+        self.ordering = OrderingChoice()  # SuperLU's ordering by measured fill, kept across re-triangulations
         self._build(0.0)
         if self.stokes:
             self.stepper = None
@@ -217,6 +219,7 @@ class MovingMeshFlow(FlowLoads):
         self.problem = FlowProblem(self.space, fl.viscosity, velocity_bcs(self.scene, self.centers), rho=fl.density,
                                    body_force=fl.body_force, moving=True, periodic=self.mm.periodic,
                                    viscous=viscous_form_of(self.scene))
+        self.problem.ordering = self.ordering
         self.rigid = RigidModes(self.space, self.names, self.centers, period=period_of(self.mm.box, self.mm.periodic))
 
     def _outline_dofs(self) -> np.ndarray:
@@ -385,7 +388,7 @@ class MovingMeshFlow(FlowLoads):
         self.mesh_seconds = cost.mesh
 
     def get_state(self):
-        s = {"t": self.t, "x": self.x.copy(), "mm": self.mm}
+        s = {"t": self.t, "x": self.x.copy(), "mm": self.mm, "ordering": self.ordering.state()}
         if self.stepper is not None:
             s["stepper"] = self.stepper.get_state()
         return s
@@ -393,6 +396,7 @@ class MovingMeshFlow(FlowLoads):
     def set_state(self, s):
         self.mm = s["mm"]
         self.t = s["t"]
+        self.ordering.restore(s.get("ordering"))
         self._build(self.t)
         self.x = s["x"].copy()
         if self.stepper is not None:

@@ -328,11 +328,12 @@ def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, a
     side_gap : float, optional
         Smallest distance from an outline to a side of the region, length; default ``min_gap``.
     periodic : sequence of {"x", "y"}
-        Axes along which the region is periodic.  Bodies never cross a periodic side (the
-        solver does not support it); they keep at least ``max(side_gap, min_gap / 2)`` from it,
-        so that two bodies facing each other across it are ``min_gap`` apart too.  In a fluid
-        scene the run stops when a body comes closer than ``mesh.h`` to a periodic side: a
-        ``side_gap`` of ``mesh.h`` or more leaves the bodies room to move.
+        Axes along which the region is periodic.  Bodies are placed anywhere along such an axis,
+        across its sides too (a body across the side is the same body on both sides; every gap is
+        measured to the nearest periodic image), and ``side_gap`` applies only to the other sides.
+        A fluid scene meshes a body across a periodic side on the moving mesh (free or moving
+        bodies).  A body's bounding diameter must stay below half the period (the nearest-image
+        rule of :class:`fluidem.dem.DEM`).
     segments : int, optional
         Outline vertices of every disk (a ``segments`` column; default: the scene's choice, a
         curved circle in a fluid scene, 32 vertices in a dry one).
@@ -385,23 +386,23 @@ def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, a
     min_gap = DEFAULT_GAP_FACTOR * r_mean if min_gap is None else nonnegative(lab["min_gap"], min_gap)
     side_gap = min_gap if side_gap is None else nonnegative(lab["side_gap"], side_gap)
     gaps = {"x": side_gap, "y": side_gap}
-    for ax in axes:
-        gaps[ax] = max(side_gap, 0.5 * min_gap)
+    period = (Lx if "x" in axes else None, Ly if "y" in axes else None)
 
-    # the largest bounding radius must fit with its side gaps
+    # the largest bounding radius must fit with its side gaps (or in half a period)
     R_factor = max(_bounding_factor(s, aspect) for s in weights)
-    room = min(Lx - 2 * gaps["x"], Ly - 2 * gaps["y"])
+    room = min(0.5 * Lx if period[0] else Lx - 2 * gaps["x"], 0.5 * Ly if period[1] else Ly - 2 * gaps["y"])
     if 2.0 * R_factor * r_hi > room:
         big = max(weights, key=lambda s: _bounding_factor(s, aspect))
         if radius is None:
             raise InputError(f"{lab['n']} = {n}, {lab['area_fraction']} = {area_fraction:g}: equal bodies of radius "
                              f"{r_hi:.4g} (a {big}'s bounding diameter {2 * R_factor * r_hi:.4g}) do not fit in the "
-                             f"room {room:.4g} the region {Lx:.4g} x {Ly:.4g} leaves inside its side gaps; expected "
+                             f"room {room:.4g} the region {Lx:.4g} x {Ly:.4g} leaves inside its side gaps (half the "
+                             f"period along a periodic axis); expected "
                              f"more bodies or a smaller fraction")
         raise fail(lab["radius"], radius if radius is not None else r_hi,
                    f"a radius up to {0.5 * room / R_factor:.4g}: a {big} of radius {r_hi:.4g} has a bounding "
                    f"diameter {2 * R_factor * r_hi:.4g}, more than the room {room:.4g} the region "
-                   f"{Lx:.4g} x {Ly:.4g} leaves inside its side gaps")
+                   f"{Lx:.4g} x {Ly:.4g} leaves inside its side gaps (half the period along a periodic axis)")
 
     rng = np.random.default_rng(seed)
     names, probs = list(weights), np.array(list(weights.values()))
@@ -432,7 +433,7 @@ def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, a
     kind_names = [names[i] for i in kinds]
     order = np.argsort(-radii * np.array([_bounding_factor(s, aspect) for s in kind_names]), kind="stable")
     placed = _place([kind_names[i] for i in order], radii[order], aspect, segments, (x0, x1, y0, y1), gaps,
-                    min_gap, attempts, rng, area_fraction, n, lab)
+                    period, min_gap, attempts, rng, area_fraction, n, lab)
     bodies, areas = placed
     return Packing(region=(x0, x1, y0, y1), bodies=bodies, kinds=[kind_names[i] for i in order],
                    radii=radii[order].copy(), areas=areas, min_gap=min_gap, side_gap=side_gap, seed=seed)
@@ -514,32 +515,166 @@ def _disk_area_factor(weights: dict, segments) -> float:
     return sum(w * (f if s == "disk" else 1.0) for s, w in weights.items())
 
 
-def _place(kinds, radii, aspect, segments, box, gaps, g, attempts, rng, area_fraction, n_asked, lab):
-    """Random sequential addition of the bodies ``kinds``/``radii`` (largest first) in ``box``."""
+class _Placement:
+    """The bodies placed so far and the gap test of a candidate against them.
+
+    Neighbours come from a k-d tree over the placed centres (rebuilt every :data:`_REBUILD`
+    bodies; the latest are checked directly); pairs whose bounding and inscribed circles do not
+    decide are measured exactly with shapely.  Along an axis of ``period`` every displacement is
+    taken to its nearest periodic image (the minimum-image convention).
+    """
+
+    def __init__(self, m, box, period, g, R_max):
+        from scipy.spatial import cKDTree
+
+        self._kdtree = cKDTree
+        x0, x1, y0, y1 = box
+        self.P = np.empty((m, 2))             # centres
+        self.Rb = np.empty(m)                 # bounding radii
+        self.Ri = np.empty(m)                 # inscribed radii
+        self.buf = np.empty(m)                # disk radius (the core is its centre), 0 for polygons
+        self.cores = np.empty(m, dtype=object)
+        self.g, self.R_max = g, R_max
+        self.tree, self.n_tree = None, 0
+        self.origin = np.array([x0, y0])
+        self.L = np.array([period[0] or 0.0, period[1] or 0.0])
+        self.wrap = self.L > 0.0
+        # the k-d trees' box: the period along a periodic axis, far beyond the region along another
+        self.boxsize = (np.where(self.wrap, self.L, 4.0 * (max(x1 - x0, y1 - y0) + R_max + g))
+                        if self.wrap.any() else None)
+
+    def nearest_image(self, d):
+        """Displacements ``d`` (..., 2) to their nearest periodic image."""
+        if self.boxsize is None:
+            return d
+        return d - self.L * np.round(d / np.where(self.wrap, self.L, 1.0))
+
+    def kd_tree(self, points):
+        if self.boxsize is None:
+            return self._kdtree(points)
+        return self._kdtree(points - self.origin, boxsize=self.boxsize)
+
+    def clashes(self, i, xy, rx, ry, disk, bad):
+        """Mark in ``bad`` the candidate centres ``xy`` (k, 2) of body ``i`` (rotated outlines
+        ``rx``, ``ry`` (k, n) unless a disk) closer than ``g`` to a placed body."""
+        import shapely
+
+        P, Rb, Ri, g = self.P, self.Rb, self.Ri, self.g
+        ci, cj, cd = [], [], []
+        if self.tree is not None:
+            sdm = self.kd_tree(xy).sparse_distance_matrix(self.tree, Rb[i] + self.R_max + g, output_type="ndarray")
+            ci.append(sdm["i"]), cj.append(sdm["j"]), cd.append(sdm["v"])
+        n_tree = self.n_tree
+        if i > n_tree:
+            d = np.hypot(*np.moveaxis(self.nearest_image(xy[:, None, :] - P[None, n_tree:i, :]), -1, 0))
+            a, b = np.nonzero(d < Rb[i] + Rb[None, n_tree:i] + g)
+            ci.append(a), cj.append(b + n_tree), cd.append(d[a, b])
+        if not ci:
+            return
+        pi, pj, pd = (np.concatenate(t) for t in (ci, cj, cd))
+        clear = pd >= Rb[i] + Rb[pj] + g
+        pi, pj, pd = pi[~clear], pj[~clear], pd[~clear]
+        near = pd < Ri[i] + Ri[pj] + g
+        bad[pi[near]] = True
+        keep = ~near & ~bad[pi]
+        pi, pj = pi[keep], pj[keep]
+        if len(pi):  # exact outline distances of the pairs in between
+            q = P[pj] - self.nearest_image(P[pj] - xy[pi])  # the candidate's image next to body pj
+            if disk:
+                geo = shapely.points(q)
+            else:
+                geo = shapely.polygons(np.stack([rx[pi] + q[:, :1], ry[pi] + q[:, 1:]], axis=2))
+            dist = shapely.distance(geo, self.cores[pj]) - self.buf[i] - self.buf[pj]
+            bad[pi[(dist < g) | (dist <= 0.0)]] = True  # 0: they meet (or overlap)
+
+    def add(self, i, p, core):
+        """Body ``i`` placed at ``p`` with the shapely ``core`` (its centre for a disk)."""
+        self.P[i], self.cores[i] = p, core
+        if i + 1 - self.n_tree > _REBUILD:
+            self.tree, self.n_tree = self.kd_tree(self.P[:i + 1]), i + 1
+
+
+def _candidates(k, r, v, box, gaps, wrap, rng):
+    """A batch of ``k`` random poses of a body (equal-area radius ``r``; outline ``v``, None for
+    a disk) inside ``box`` with its side gaps (anywhere along an axis with ``wrap``): angles (k,),
+    rotated outlines ``rx``, ``ry`` (k, n) or None, centres (k, 2) and a mask of poses that do
+    not fit."""
+    x0, x1, y0, y1 = box
+    ang = rng.uniform(0.0, 2.0 * math.pi, k)
+    if v is None:
+        rx = ry = None
+        lo = hi = np.full((k, 2), r)
+    else:
+        c, s = np.cos(ang), np.sin(ang)
+        rx = c[:, None] * v[None, :, 0] - s[:, None] * v[None, :, 1]
+        ry = s[:, None] * v[None, :, 0] + c[:, None] * v[None, :, 1]
+        lo = -np.column_stack([rx.min(axis=1), ry.min(axis=1)])
+        hi = np.column_stack([rx.max(axis=1), ry.max(axis=1)])
+    xlo, xhi = x0 + gaps["x"] + lo[:, 0], x1 - gaps["x"] - hi[:, 0]
+    ylo, yhi = y0 + gaps["y"] + lo[:, 1], y1 - gaps["y"] - hi[:, 1]
+    if wrap[0]:
+        xlo, xhi = np.full(k, x0), np.full(k, x1)
+    if wrap[1]:
+        ylo, yhi = np.full(k, y0), np.full(k, y1)
+    u = rng.random((k, 2))
+    xy = np.column_stack([xlo + u[:, 0] * (xhi - xlo), ylo + u[:, 1] * (yhi - ylo)])
+    upper = np.array([x1, y1])
+    xy = np.where(wrap & (xy >= upper), np.array([x0, y0]), xy)  # u * L rounded up to the period
+    return ang, rx, ry, xy, (xhi < xlo) | (yhi < ylo)
+
+
+def _jammed(i, m, frac, attempts, n_asked, area_fraction, asked_fraction, lab) -> FillJammed:
+    """The one-line error of a fill that found no place for body ``i`` (of ``m``)."""
+    if n_asked is not None and area_fraction is None:
+        what = (f"{lab['n']} = {n_asked}: only {i} bodies fit (area fraction {frac:.4f}) before random "
+                f"sequential addition jammed ({attempts} attempts for the next one); allowed here: "
+                f"{lab['n']} up to about {i}, or a larger region, smaller radius or smaller "
+                f"{lab['min_gap']}")
+    else:
+        asked = area_fraction if area_fraction is not None else asked_fraction
+        what = (f"{lab['area_fraction']} = {asked:g}: random sequential addition jammed at area "
+                f"fraction {frac:.4f} ({i} of {m} bodies placed, {attempts} attempts for the next one); "
+                f"allowed here: up to about {math.floor(100 * frac) / 100:.2f} (RSA jams near 0.547 "
+                f"for equal disks without gap; a smaller {lab['min_gap']} or a wider radius range "
+                "reaches more)")
+    return FillJammed(what, placed=i, fraction=frac)
+
+
+def _body_entry(kind, r, v, segments, p, angle) -> dict:
+    """The body dict of :attr:`Packing.bodies` for a body placed at ``p`` turned by ``angle``."""
+    if kind == "disk":
+        body = {"shape": "disk", "radius": float(r)}
+        if segments is not None:
+            body["segments"] = segments
+    elif kind in ("rectangle", "square"):
+        body = {"shape": "rectangle", "width": float(2 * v[1, 0]), "height": float(2 * v[2, 1])}
+    else:
+        body = {"shape": "polygon", "vertices": v.tolist()}
+    body["position"] = (float(p[0]), float(p[1]))
+    body["angle"] = angle
+    return body
+
+
+def _place(kinds, radii, aspect, segments, box, gaps, period, g, attempts, rng, area_fraction, n_asked, lab):
+    """Random sequential addition of the bodies ``kinds``/``radii`` (largest first) in ``box``;
+    along an axis of ``period`` (length or None) anywhere, gaps to the nearest image."""
     import shapely
-    from scipy.spatial import cKDTree
 
     from ..geometry import polygon_area
 
     x0, x1, y0, y1 = box
     A = (x1 - x0) * (y1 - y0)
     m = len(kinds)
-    P = np.empty((m, 2))
-    Rb = np.empty(m)            # bounding radii
-    Ri = np.empty(m)            # inscribed radii
-    buf = np.empty(m)           # disk radius (the core is its centre), 0 for polygons
-    cores = np.empty(m, dtype=object)
     bodies, areas = [], np.empty(m)
     R_all = np.array([radii[i] * _bounding_factor(kinds[i], aspect) for i in range(m)])
-    R_max = float(R_all.max())
-    tree, n_tree = None, 0
+    placed = _Placement(m, box, period, g, float(R_all.max()))
     batch = 16
     outlines = {}
     for i, (kind, r) in enumerate(zip(kinds, radii)):
         disk = kind == "disk"
         if disk:
             v = None
-            Rb[i], Ri[i], buf[i] = r, r, r
+            placed.Rb[i], placed.Ri[i], placed.buf[i] = r, r, r
             areas[i] = (math.pi * r * r if segments is None
                         else 0.5 * segments * r * r * math.sin(2.0 * math.pi / segments))
         else:
@@ -547,52 +682,13 @@ def _place(kinds, radii, aspect, segments, box, gaps, g, attempts, rng, area_fra
             v = outlines.get(key)
             if v is None:
                 v = outlines[key] = shape_outline(kind, r, aspect)
-            Rb[i], Ri[i], buf[i] = R_all[i], _inradius(v), 0.0
+            placed.Rb[i], placed.Ri[i], placed.buf[i] = R_all[i], _inradius(v), 0.0
             areas[i] = float(polygon_area(v))
         tried = 0
         while True:
             k = batch
-            ang = rng.uniform(0.0, 2.0 * math.pi, k)
-            if disk:
-                lo = np.full((k, 2), r)
-                hi = lo
-                world = None
-            else:
-                c, s = np.cos(ang), np.sin(ang)
-                rx = c[:, None] * v[None, :, 0] - s[:, None] * v[None, :, 1]
-                ry = s[:, None] * v[None, :, 0] + c[:, None] * v[None, :, 1]
-                lo = -np.column_stack([rx.min(axis=1), ry.min(axis=1)])
-                hi = np.column_stack([rx.max(axis=1), ry.max(axis=1)])
-            xlo, xhi = x0 + gaps["x"] + lo[:, 0], x1 - gaps["x"] - hi[:, 0]
-            ylo, yhi = y0 + gaps["y"] + lo[:, 1], y1 - gaps["y"] - hi[:, 1]
-            u = rng.random((k, 2))
-            xy = np.column_stack([xlo + u[:, 0] * (xhi - xlo), ylo + u[:, 1] * (yhi - ylo)])
-            bad = (xhi < xlo) | (yhi < ylo)
-            # candidate-neighbour pairs: the k-d tree of the older bodies, then the recent ones directly
-            ci, cj, cd = [], [], []
-            if tree is not None:
-                sdm = cKDTree(xy).sparse_distance_matrix(tree, Rb[i] + R_max + g, output_type="ndarray")
-                ci.append(sdm["i"]), cj.append(sdm["j"]), cd.append(sdm["v"])
-            if i > n_tree:
-                d = np.hypot(xy[:, None, 0] - P[None, n_tree:i, 0], xy[:, None, 1] - P[None, n_tree:i, 1])
-                a, b = np.nonzero(d < Rb[i] + Rb[None, n_tree:i] + g)
-                ci.append(a), cj.append(b + n_tree), cd.append(d[a, b])
-            if ci:
-                pi, pj, pd = (np.concatenate(t) for t in (ci, cj, cd))
-                clear = pd >= Rb[i] + Rb[pj] + g
-                pi, pj, pd = pi[~clear], pj[~clear], pd[~clear]
-                near = pd < Ri[i] + Ri[pj] + g
-                bad[pi[near]] = True
-                keep = ~near & ~bad[pi]
-                pi, pj = pi[keep], pj[keep]
-                if len(pi):  # exact outline distances of the pairs in between
-                    if disk:
-                        geo = shapely.points(xy[pi])
-                    else:
-                        world = np.stack([rx[pi] + xy[pi, :1], ry[pi] + xy[pi, 1:]], axis=2)
-                        geo = shapely.polygons(world)
-                    dist = shapely.distance(geo, cores[pj]) - buf[i] - buf[pj]
-                    bad[pi[(dist < g) | (dist <= 0.0)]] = True  # 0: they meet (or overlap)
+            ang, rx, ry, xy, bad = _candidates(k, r, v, box, gaps, placed.wrap, rng)
+            placed.clashes(i, xy, rx, ry, disk, bad)
             ok = np.flatnonzero(~bad)
             if len(ok):
                 j = int(ok[0])
@@ -602,37 +698,10 @@ def _place(kinds, radii, aspect, segments, box, gaps, g, attempts, rng, area_fra
             tried += k
             batch = min(2048, 2 * batch)
             if tried >= attempts:
-                frac = float(areas[:i].sum() / A)
-                if n_asked is not None and area_fraction is None:
-                    what = (f"{lab['n']} = {n_asked}: only {i} bodies fit (area fraction {frac:.4f}) before random "
-                            f"sequential addition jammed ({attempts} attempts for the next one); allowed here: "
-                            f"{lab['n']} up to about {i}, or a larger region, smaller radius or smaller "
-                            f"{lab['min_gap']}")
-                else:
-                    asked = area_fraction if area_fraction is not None else float(areas.sum() / A)
-                    what = (f"{lab['area_fraction']} = {asked:g}: random sequential addition jammed at area "
-                            f"fraction {frac:.4f} ({i} of {m} bodies placed, {attempts} attempts for the next one); "
-                            f"allowed here: up to about {math.floor(100 * frac) / 100:.2f} (RSA jams near 0.547 "
-                            f"for equal disks without gap; a smaller {lab['min_gap']} or a wider radius range "
-                            "reaches more)")
-                raise FillJammed(what, placed=i, fraction=frac)
+                raise _jammed(i, m, float(areas[:i].sum() / A), attempts, n_asked, area_fraction,
+                              float(areas.sum() / A), lab)
         p = xy[j]
-        P[i] = p
-        a0 = float(ang[j])
-        if disk:
-            cores[i] = shapely.points(p)
-            body = {"shape": "disk", "radius": float(r)}
-            if segments is not None:
-                body["segments"] = segments
-        else:
-            cores[i] = shapely.polygons(np.column_stack([rx[j] + p[0], ry[j] + p[1]]))
-            if kind in ("rectangle", "square"):
-                body = {"shape": "rectangle", "width": float(2 * v[1, 0]), "height": float(2 * v[2, 1])}
-            else:
-                body = {"shape": "polygon", "vertices": v.tolist()}
-        body["position"] = (float(p[0]), float(p[1]))
-        body["angle"] = a0
-        bodies.append(body)
-        if i + 1 - n_tree > _REBUILD:
-            tree, n_tree = cKDTree(P[:i + 1]), i + 1
+        placed.add(i, p, shapely.points(p) if disk else shapely.polygons(np.column_stack([rx[j] + p[0],
+                                                                                         ry[j] + p[1]])))
+        bodies.append(_body_entry(kind, r, v, segments, p, float(ang[j])))
     return bodies, areas

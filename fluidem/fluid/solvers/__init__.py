@@ -27,6 +27,8 @@ The package, one job per module:
   ``SolverError``; a :class:`fluidem.errors.SolverError`).
 * :mod:`.direct` -- :class:`DirectSolver`: sparse LU (SuperLU through scipy;
   PARDISO through the optional ``pypardiso`` package).
+* :mod:`.ordering` -- :class:`~.ordering.OrderingChoice`: SuperLU's symmetric-mode
+  ordering or COLAMD for a run's continuous-pressure systems, by the fill each gives.
 * :mod:`.krylov` -- the FGMRES and MINRES drivers that stop on the true residual.
 * :mod:`.block` -- :class:`BlockKrylovSolver`: GMRES with a block upper-triangular
   preconditioner, or MINRES with a block-diagonal one (symmetric Stokes); pyamg

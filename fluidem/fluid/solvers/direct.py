@@ -20,7 +20,11 @@ from ... import validate
 from ._sparse import _as_csr, _relres, _same_values
 from .results import SolveInfo, SolverError, _notify_factorization, _notify_solve
 
-__all__ = ["DirectSolver", "default_direct_backend"]
+__all__ = ["DirectSolver", "default_direct_backend", "COLAMD_PIVOT_THRESHOLD"]
+
+#: SuperLU's diagonal pivot threshold with COLAMD when an :class:`~.ordering.OrderingChoice`
+#: picks it (as ``pivot_threshold`` for P2-bubble: half the fill of partial pivoting)
+COLAMD_PIVOT_THRESHOLD = 0.01
 
 
 # ==========================================================================
@@ -78,6 +82,11 @@ class DirectSolver:
         (zero pressure diagonal) 0.01 halved the fill and the factorisation time (DKT,
         35k DOFs: 19.7M → 10.1M entries, 0.90 → 0.42 s, solves 1.4x faster) at a relative
         residual of 2.5e-9 before refinement; 0 fails (zero pivots).
+    ordering : fluidem.fluid.solvers.ordering.OrderingChoice, optional
+        With ``symmetric_mode`` (continuous pressure) and SuperLU: the run's choice between the
+        symmetric-mode ordering and COLAMD with threshold pivoting (0.01), by the fill each
+        gave (:mod:`.ordering`; one object shared by the solvers of a run, so it outlives a
+        re-triangulation).  Each factorisation reports its fill to it.
 
     Examples
     --------
@@ -91,7 +100,8 @@ class DirectSolver:
     """
 
     def __init__(self, backend: str = "auto", permc_spec: str = "COLAMD",
-                 check_rtol: float = 1e-8, symmetric_mode: bool = False, pivot_threshold: float = 1.0):
+                 check_rtol: float = 1e-8, symmetric_mode: bool = False, pivot_threshold: float = 1.0,
+                 ordering=None):
         backend = validate.choice("backend", backend, ("auto", "superlu", "pardiso"))
         if backend == "auto":
             backend = default_direct_backend()
@@ -113,6 +123,8 @@ class DirectSolver:
         self._lu = None
         self._setup_s = 0.0
         self._reused = False
+        self.ordering = ordering if (backend in ("auto", "superlu") and self.symmetric_mode) else None
+        self._threshold_pivoting = self.pivot_threshold < 1.0
 
     @property
     def n(self) -> int:
@@ -134,10 +146,15 @@ class DirectSolver:
         K = _as_csr(K)
         t0 = time.perf_counter()
         if self.backend == "superlu":
+            how = self.ordering.next() if self.ordering is not None else None
             try:
-                if self.symmetric_mode:
+                if self.symmetric_mode and how != "colamd":
                     self._lu = spla.splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=1e-3,
                                          options={"SymmetricMode": True})
+                    self._threshold_pivoting = False
+                elif how == "colamd":
+                    self._lu = spla.splu(K.tocsc(), permc_spec="COLAMD", diag_pivot_thresh=COLAMD_PIVOT_THRESHOLD)
+                    self._threshold_pivoting = True
                 else:
                     self._lu = spla.splu(K.tocsc(), permc_spec=self.permc_spec,
                                          diag_pivot_thresh=self.pivot_threshold)
@@ -145,6 +162,8 @@ class DirectSolver:
                 raise SolverError(
                     f"LU of the {K.shape[0]}x{K.shape[0]} system failed ({err}); with velocity "
                     "Dirichlet conditions on the whole boundary pin one pressure DOF") from err
+            if how is not None:
+                self.ordering.record(how, self._lu.L.nnz + self._lu.U.nnz, K.nnz)
         else:
             import pypardiso
 
@@ -227,7 +246,7 @@ class DirectSolver:
         # systems (a pinned pressure of a closed box) may need more than one
         # with threshold pivoting (pivot_threshold < 1) one step always: the larger growth of the
         # factors leaves round-off 100x that of partial pivoting, which one step removes
-        forced = 1 if self.pivot_threshold < 1.0 else 0
+        forced = 1 if self._threshold_pivoting else 0
         while (len(res) <= forced or not res[-1] <= self.check_rtol) and len(res) <= self.max_refinements:
             x_new = x + self._apply(b - self.K @ x)
             r_new = _relres(self.K, x_new, b)

@@ -38,7 +38,7 @@ SOLVERS = {
     "lagged": LaggedLUSolver,
 }
 
-_DIRECT_KEYS = ("backend", "permc_spec", "check_rtol", "symmetric_mode", "pivot_threshold")
+_DIRECT_KEYS = ("backend", "permc_spec", "check_rtol", "symmetric_mode", "pivot_threshold", "ordering")
 _LAGGED_KEYS = ("max_iterations_before_refactor",)
 
 
@@ -69,7 +69,7 @@ def flow_solver_options(problem) -> dict:
     Mu = problem.M[free_u][:, free_u]
     d = problem.direct_solver()
     direct = {"backend": d.backend, "permc_spec": d.permc_spec, "check_rtol": d.check_rtol,
-              "symmetric_mode": d.symmetric_mode, "pivot_threshold": d.pivot_threshold}
+              "symmetric_mode": d.symmetric_mode, "pivot_threshold": d.pivot_threshold, "ordering": d.ordering}
     return {"n_u": int(free_u.size), "pressure_mass": Mp, "velocity_mass": Mu,
             "nu": problem.nu, "direct": direct}
 

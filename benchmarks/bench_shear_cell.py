@@ -1,0 +1,233 @@
+"""Sheared suspensions of free disks in a periodic Stokes shear cell: effective viscosity against
+the literature, and what bodies crossing the periodic sides cost.
+
+The cell is the built-in ``sheared-suspension`` example's: the box [0, 2] × [−0.5, 0.5],
+periodic in x, walls moving at ∓1 (shear rate γ̇ = 2), Stokes, Taylor–Hood, 20 free neutrally
+buoyant disks placed by ``fluidem fill`` (``periodic="x"``, so bodies start across the sides
+too) with gaps ≥ h, dt = 0.02, 5 strain units (t = 2.5); μ_eff/μ is the run's ``rheology``
+(mean wall shear stress over μ γ̇ in the window t ∈ [1, 2.5], the last 3 strain units, with
+its blocking standard error).  Mesh size h = min(0.04, r/1.4): at φ = 0.1 the example's h;
+h = 0.025 there moved μ_eff/μ by 0.3 % (1.241 → 1.237, one seed).
+
+Two parts (``--part``):
+
+* ``viscosity``: φ = 0.05, 0.10, 0.15 over three seeds, and φ = 0.2, 0.3 (one seed each by
+  default); each φ's mean over seeds with the standard error across seeds, beside Bystricky et
+  al. (2D boundary integrals in Taylor–Couette flow: 1.12, 1.22, 1.42 at φ = 0.05, 0.10, 0.15),
+  Einstein's 2D dilute law 1 + 2φ and a Krieger–Dougherty curve (1 − φ/φ_m)^(−[η] φ_m) with
+  [η] = 2 and φ_m = 0.8 (≈ 1.58 and 2.12 at φ = 0.2 and 0.3).  Reported, not tuned: the cell
+  has walls (a layer of bodies next to each wall) and only 20 bodies.
+* ``cost``: the cost of seams.  The same 20 disks at φ = 0.1 (i) spread over the whole cell,
+  across the seams (the ``viscosity`` part's run), and (ii) filled into the band x ∈ [0.6, 1.4]
+  (local fraction 0.25) and run for 15 steps, in which no body comes within the moving mesh's
+  image margin of a side (checked: the run records the images it meshed).  Per step: wall time
+  (median over steps 2…), re-triangulations per 100 steps and their reasons; run one after the
+  other in one session (the load is in the machine line).
+
+Writes ``benchmarks/results/shear_cell.{md,json}``.  Run (about 40 minutes on a quiet 2-core
+machine; ``--seeds 1`` and ``--phis 0.1`` for a quick look)::
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_shear_cell.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import pathlib
+import subprocess
+import sys
+import tempfile
+import time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+HERE = pathlib.Path(__file__).resolve().parent
+N_BODIES = 20
+BOX = (0.0, 2.0, -0.5, 0.5)
+SHEAR_RATE = 2.0
+#: Bystricky et al. (2D boundary integrals, Taylor–Couette), the issue's reference values
+BYSTRICKY = {0.05: 1.12, 0.10: 1.22, 0.15: 1.42}
+#: Krieger–Dougherty with [η] = 2 (Einstein's 2D coefficient) and φ_m = 0.8 (2D random close packing)
+KD_INTRINSIC, KD_MAX = 2.0, 0.8
+
+
+def krieger_dougherty(phi: float) -> float:
+    """μ_eff/μ = (1 − φ/φ_m)^(−[η] φ_m) (Krieger & Dougherty 1959), [η] = 2, φ_m = 0.8."""
+    return (1.0 - phi / KD_MAX) ** (-KD_INTRINSIC * KD_MAX)
+
+
+def radius_of(phi: float) -> float:
+    """Radius of ``N_BODIES`` equal disks covering ``phi`` of the box."""
+    x0, x1, y0, y1 = BOX
+    return math.sqrt(phi * (x1 - x0) * (y1 - y0) / (N_BODIES * math.pi))
+
+
+def scene_dict(phi: float, seed: int, t_end: float, band=None) -> dict:
+    """The shear cell with 20 free disks at area fraction ``phi`` (of the box), placed by
+    :func:`fluidem.scene.fill.fill` over the whole periodic cell or inside ``band`` (x0, x1)."""
+    from fluidem.scene.fill import fill
+
+    r = radius_of(phi)
+    h = min(0.04, r / 1.4)
+    x0, x1, y0, y1 = BOX
+    if band is None:
+        p = fill(BOX, n=N_BODIES, radius=r, periodic="x", min_gap=h, side_gap=h, seed=seed)
+    else:
+        p = fill((band[0], band[1], y0, y1), n=N_BODIES, radius=r, min_gap=h, side_gap=h, seed=seed)
+    bodies = [dict(b, motion="free") for b in p.bodies]
+    return {"name": f"shear-{phi:g}-{seed}", "gravity": [0.0, 0.0],
+            "fluid": {"model": "stokes", "viscosity": 1.0, "element": "th"},
+            "domain": {"box": list(BOX), "left": "periodic", "right": "periodic",
+                       "bottom": {"type": "moving-wall", "velocity": [-1.0, 0.0]},
+                       "top": {"type": "moving-wall", "velocity": [1.0, 0.0]}},
+            "bodies": bodies, "contact": {}, "mesh": {"h": h},
+            "time": {"dt": 0.02, "t_end": t_end},
+            "output": {"every": 1000, "history_every": 1, "rheology_window": [min(1.0, 0.4 * t_end), t_end]}}
+
+
+def worker(spec: dict) -> dict:
+    """Run one cell; per-step wall time, re-triangulations and images; the run's rheology."""
+    import fluidem
+    from fluidem.scene import Scene
+
+    sc = scene_dict(spec["phi"], spec["seed"], spec["t_end"], spec.get("band"))
+    sim = fluidem.Simulation(Scene.from_dict(sc))
+    rows = []
+    last = [time.perf_counter()]
+
+    def progress(step, n, t, cost):
+        now = time.perf_counter()
+        flow = sim.flow
+        ev = flow.last_event
+        mm = flow.mm
+        rows.append({"step": int(step), "seconds": now - last[0],
+                     "retriangulated": bool(ev is not None and ev.retriangulated),
+                     "reason": ev.reason if ev is not None and ev.retriangulated else "",
+                     "images": int(mm.n_bodies - mm.n_real)})
+        last[0] = time.perf_counter()
+
+    with tempfile.TemporaryDirectory() as out:
+        t0 = time.perf_counter()
+        sim.run(out, overwrite=True, progress=progress)
+        wall = time.perf_counter() - t0
+        run = json.loads((pathlib.Path(out) / "run.json").read_text())
+    return {"rows": rows, "wall_s": wall, "rheology": run.get("rheology"), "h": sc["mesh"]["h"],
+            "radius": radius_of(spec["phi"])}
+
+
+def run_worker(spec: dict) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(HERE.parent), OPENBLAS_NUM_THREADS="1")
+    out = subprocess.run([sys.executable, __file__, "--worker", json.dumps(spec)], env=env, capture_output=True,
+                         text=True, check=False)
+    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("{")]
+    if not lines:
+        return {"error": (out.stderr.strip().splitlines() or ["no output"])[-1], "rows": []}
+    return json.loads(lines[-1])
+
+
+def step_summary(res: dict) -> dict:
+    """Median step time (steps 2…), re-triangulations per 100 steps and their reasons, images met."""
+    import numpy as np
+
+    rows = res["rows"]
+    sec = np.array([r["seconds"] for r in rows[1:]]) if len(rows) > 1 else np.array([np.nan])
+    reasons: dict = {}
+    for r in rows:
+        if r["retriangulated"]:
+            reasons[r["reason"]] = reasons.get(r["reason"], 0) + 1
+    n = max(len(rows), 1)
+    return {"steps": len(rows), "median_step_s": float(np.median(sec)), "per_100": 100.0 * sum(reasons.values()) / n,
+            "reasons": reasons, "max_images": max((r["images"] for r in rows), default=0)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--part", default="viscosity,cost")
+    ap.add_argument("--phis", default="0.05,0.1,0.15,0.2,0.3")
+    ap.add_argument("--seeds", type=int, default=3, help="seeds at phi <= 0.15 (default 3)")
+    ap.add_argument("--dense-seeds", type=int, default=1, help="seeds at phi > 0.15 (default 1)")
+    ap.add_argument("--t-end", type=float, default=2.5, help="end time (default 2.5: 5 strain units)")
+    ap.add_argument("--out", default="shear_cell")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.worker:
+        print(json.dumps(worker(json.loads(args.worker))))
+        return
+    import numpy as np
+
+    sys.path.insert(0, str(HERE))
+    from results_io import machine_description, markdown_table, write_json
+
+    parts = args.part.split(",")
+    runs = []
+    if "viscosity" in parts:
+        for phi in (float(p) for p in args.phis.split(",")):
+            for seed in range(1, 1 + (args.seeds if phi <= 0.15 + 1e-12 else args.dense_seeds)):
+                res = run_worker({"phi": phi, "seed": seed, "t_end": args.t_end})
+                s = step_summary(res)
+                rh = res.get("rheology") or {}
+                row = dict(kind="spread", phi=phi, seed=seed, wall_s=res.get("wall_s"), h=res.get("h"),
+                           mu=rh.get("mu_eff_over_mu"), se=rh.get("standard_error"), error=res.get("error"), **s)
+                runs.append(row)
+                print(json.dumps(row), flush=True)
+    if "cost" in parts:
+        res = run_worker({"phi": 0.1, "seed": 1, "t_end": 0.3, "band": [0.6, 1.4]})
+        row = dict(kind="band", phi=0.1, seed=1, wall_s=res.get("wall_s"), h=res.get("h"), error=res.get("error"),
+                   **step_summary(res))
+        runs.append(row)
+        print(json.dumps(row), flush=True)
+        if not any(r["kind"] == "spread" and r["phi"] == 0.1 and r["seed"] == 1 for r in runs):
+            res = run_worker({"phi": 0.1, "seed": 1, "t_end": args.t_end})
+            rh = res.get("rheology") or {}
+            row = dict(kind="spread", phi=0.1, seed=1, wall_s=res.get("wall_s"), h=res.get("h"),
+                       mu=rh.get("mu_eff_over_mu"), se=rh.get("standard_error"), error=res.get("error"),
+                       **step_summary(res))
+            runs.append(row)
+            print(json.dumps(row), flush=True)
+
+    machine = machine_description()
+    write_json(args.out, machine, runs)
+    lines = ["# Sheared suspensions in a periodic Stokes shear cell", "",
+             f"Machine: {machine}.  `benchmarks/bench_shear_cell.py`: 20 free disks, box 2 × 1 periodic in x, "
+             f"walls at ∓1 (γ̇ = {SHEAR_RATE:g}), Stokes, Taylor–Hood, dt = 0.02, t_end = {args.t_end:g}; "
+             "μ_eff/μ over t ∈ [1, t_end] with its blocking standard error.", ""]
+    spread = [r for r in runs if r["kind"] == "spread" and r.get("mu") is not None]
+    if spread:
+        lines += ["## Effective viscosity", "", *markdown_table(
+            ["φ", "seed", "h", "μ_eff/μ", "standard error", "re-tri. / 100 steps", "s/step (median)", "wall s"],
+            [[f"{r['phi']:g}", str(r["seed"]), f"{r['h']:.4g}", f"{r['mu']:.4f}", f"{r['se']:.4f}",
+              f"{r['per_100']:.0f}", f"{r['median_step_s']:.2f}", f"{r['wall_s']:.0f}"] for r in spread]), ""]
+        table = []
+        for phi in sorted({r["phi"] for r in spread}):
+            mu = np.array([r["mu"] for r in spread if r["phi"] == phi])
+            err = mu.std(ddof=1) / math.sqrt(len(mu)) if len(mu) > 1 else float("nan")
+            by = BYSTRICKY.get(round(phi, 2))
+            table.append([f"{phi:g}", str(len(mu)), f"{mu.mean():.4f}", "–" if math.isnan(err) else f"{err:.4f}",
+                          f"{1 + 2 * phi:.3f}", "–" if by is None else f"{by:.2f}", f"{krieger_dougherty(phi):.3f}"])
+        lines += ["Mean over seeds (standard error across seeds):", "", *markdown_table(
+            ["φ", "seeds", "μ_eff/μ", "± (seeds)", "1 + 2φ", "Bystricky et al.", "Krieger–Dougherty"], table), ""]
+    failed = [r for r in runs if r.get("error")]
+    for r in failed:
+        lines.append(f"* {r['kind']} φ = {r['phi']:g}, seed {r['seed']}: stopped: {r['error']}")
+    cost = {r["kind"]: r for r in runs if r["phi"] == 0.1 and r["seed"] == 1 and not r.get("error")}
+    if "band" in cost and "spread" in cost:
+        b, s = cost["band"], cost["spread"]
+        lines += ["", "## What seams cost (φ = 0.1, seed 1)", "", *markdown_table(
+            ["cell", "steps", "images meshed (most)", "s/step (median)", "re-tri. / 100 steps", "reasons"],
+            [["bodies in x ∈ [0.6, 1.4], none near a seam", str(b["steps"]), str(b["max_images"]),
+              f"{b['median_step_s']:.3f}", f"{b['per_100']:.0f}", json.dumps(b["reasons"])],
+             ["bodies over the whole cell, crossing the seams", str(s["steps"]), str(s["max_images"]),
+              f"{s['median_step_s']:.3f}", f"{s['per_100']:.0f}", json.dumps(s["reasons"])]]), "",
+            f"Cost per step with seams / without: {s['median_step_s'] / b['median_step_s']:.2f} (target ≤ 1.3); "
+            f"re-triangulations per 100 steps: {s['per_100'] / max(b['per_100'], 1e-9):.2f}× (target ≤ 2)."]
+    from results_io import RESULTS
+
+    (RESULTS / f"{args.out}.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
