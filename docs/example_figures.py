@@ -10,10 +10,12 @@ reference; prints the figures the pages quote.
   and 4 (Aitken's Δ², the approach is exponential).
 * ``jeffery-orbit``: the angle and angular velocity of the ellipse against Jeffery's (1922)
   orbit in unbounded shear, tan θ = −(1/r) tan(γ̇ r t / (r² + 1)).
+* ``sheared-suspension``: the wall shear stress of every step over μ γ̇ with the run's μ_eff/μ
+  over its window, and the bodies at the start and the end.
 
 Run from the repository root::
 
-    OPENBLAS_NUM_THREADS=1 MPLBACKEND=Agg python docs/example_figures.py [settling-disk] [jeffery-orbit]
+    OPENBLAS_NUM_THREADS=1 MPLBACKEND=Agg python docs/example_figures.py [settling-disk] [jeffery-orbit] [sheared-suspension]
 """
 
 from __future__ import annotations
@@ -131,13 +133,63 @@ def jeffery_orbit(out: Path) -> dict:
             "omega_min": float(om[1:].min()), "omega_max": float(om[1:].max())}
 
 
+def sheared_suspension(out: Path) -> dict:
+    import json
+
+    import matplotlib.pyplot as plt
+
+    from fluidem.cases.scenes import example_scene
+    from fluidem.io import read_sides
+    from fluidem.rheology import shear_cell, wall_shear_stress
+
+    wall = ensure_run("sheared-suspension", out)
+    scene = example_scene("sheared-suspension")
+    cell, _ = shear_cell(scene)
+    sides = read_sides(out)
+    lo, hi = (sides["side"] == s for s in cell.sides)
+    F = np.column_stack([sides["fx"], sides["fy"]])
+    t = sides["t"][lo]
+    ratio = wall_shear_stress(F[lo], F[hi], cell) / (cell.viscosity * cell.shear_rate)
+    rh = json.loads((out / "run.json").read_text())["rheology"]
+    h = read_history(out)
+    fig, ax = plt.subplots(1, 2, figsize=(11, 3.8), gridspec_kw={"width_ratios": [1.3, 1]})
+    ax[0].plot(cell.shear_rate * t, ratio, lw=0.8, label="wall shear stress / (μ γ̇), per step")
+    t0, t1 = rh["window"]
+    mu, se = rh["mu_eff_over_mu"], rh["standard_error"]
+    ax[0].hlines(mu, cell.shear_rate * t0, cell.shear_rate * t1, color="C3",
+                 label=f"μ_eff/μ = {mu:.3f} ± {se:.3f} (window)")
+    ax[0].axhline(1 + 2 * 0.1, color="k", ls="--", lw=0.8, label="1 + 2φ (Einstein, 2D)")
+    ax[0].set_xlabel("strain γ̇ t")
+    ax[0].set_ylabel("μ_eff / μ")
+    ax[0].legend(fontsize=8)
+    last = h["step"] == h["step"].max()
+    first = h["step"] == h["step"].min()
+    for k, (sel, style) in enumerate(((first, dict(facecolor="none", edgecolor="0.6")),
+                                      (last, dict(facecolor="C0", edgecolor="C0", alpha=0.7)))):
+        for x, y in zip(h["x"][sel], h["y"][sel]):
+            for dx in (-2.0, 0.0, 2.0):  # the images across the periodic sides
+                ax[1].add_patch(plt.Circle((x + dx, y), 0.0564, **style))
+    ax[1].set_xlim(0, 2)
+    ax[1].set_ylim(-0.5, 0.5)
+    ax[1].set_aspect("equal")
+    ax[1].set_title("bodies at t = 0 (outlines) and at the end (filled)", fontsize=9)
+    travelled = float(np.abs(h["x_unwrapped"][last] - h["x_unwrapped"][first]).max())
+    fig.suptitle("sheared-suspension: 20 free disks, φ = 0.1, Stokes shear cell periodic in x")
+    fig.tight_layout()
+    IMAGES.mkdir(parents=True, exist_ok=True)
+    fig.savefig(IMAGES / "example-sheared-suspension.png", dpi=110)
+    plt.close(fig)
+    return {"run_wall_s": wall, "mu_eff_over_mu": mu, "standard_error": se, "travelled_max": travelled}
+
+
 def main(argv) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
-    which = argv or ["settling-disk", "jeffery-orbit"]
+    which = argv or ["settling-disk", "jeffery-orbit", "sheared-suspension"]
     for name in which:
-        fn = {"settling-disk": settling_disk, "jeffery-orbit": jeffery_orbit}[name]
+        fn = {"settling-disk": settling_disk, "jeffery-orbit": jeffery_orbit,
+              "sheared-suspension": sheared_suspension}[name]
         print(name, fn(Path("out") / name), flush=True)
 
 

@@ -310,3 +310,33 @@ def test_checkpoint_round_trip_keeps_the_periods_and_reads_older_states():
     assert restored.period == (None, None) and restored.contacts.shift.shape == (1, 2)
     restored.step(0.5 * restored.dt_max)
     assert len(restored.contacts) == 1
+
+
+def test_a_dry_periodic_scene_runs_with_contacts_across_the_seam(tmp_path):
+    """A dry scene with periodic left/right sides (the plan refused it before the DEM had periods): two
+    equal disks approach each other through the seam at ∓2 and collide there; momentum stays zero to
+    round-off, the undamped (γ = 0), frictionless collision swaps their velocities, and the outputs give
+    positions in the box with continuous unwrapped ones."""
+    from fluidem.io import read_history
+    from fluidem.scene import Scene
+    from fluidem.simulation import Simulation
+
+    disk = {"shape": "disk", "radius": 0.05, "segments": 32, "motion": "free"}
+    sc = Scene.from_dict({"gravity": [0.0, 0.0],
+                          "domain": {"box": [0.0, 1.0, 0.0, 1.0], "left": "periodic", "right": "periodic"},
+                          "bodies": [dict(disk, position=[0.9, 0.5], velocity=[2.0, 0.0]),
+                                     dict(disk, position=[0.1, 0.5], velocity=[-2.0, 0.0])],
+                          "contact": {"E": 1e5, "mu": 0.0, "gamma": 0.0},
+                          "time": {"dt": 1e-3, "t_end": 0.06}, "output": {"every": 1000}})
+    assert not sc.plan().unsupported
+    Simulation(sc).run(out_dir=tmp_path)
+    h = read_history(tmp_path)
+    a, b = h["id"] == 0, h["id"] == 1
+    assert np.abs(h["vx"][a] + h["vx"][b]).max() < 1e-12  # momentum: measured 0 (equal masses)
+    assert h["vx"][a][-1] == pytest.approx(-2.0, rel=1e-3)  # velocities swapped: measured -2.0000
+    assert ((h["x"] >= 0.0) & (h["x"] < 1.0)).all()
+    # they met at the seam: each turned back one radius from it (less the contact's overlap)
+    assert 1.0 - h["x_unwrapped"][a].max() == pytest.approx(0.05, abs=3e-3)  # measured 0.0487 (the overlap)
+    assert h["x_unwrapped"][b].min() == pytest.approx(0.05, abs=3e-3)  # measured 0.0487 (the overlap)
+    turn = np.argmax(h["vx"][a] < 0)  # the collision is at the seam: the contact point x = 1 (= 0)
+    assert abs(0.5 * (h["x_unwrapped"][a][turn] + h["x_unwrapped"][b][turn] + 1.0) - 1.0) < 1e-9

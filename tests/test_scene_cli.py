@@ -165,10 +165,11 @@ def test_run_refuses_a_scene_it_cannot_run_before_building_anything(tmp_path, ca
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 2 and "strategy = 'fixed'" in err[0] and "more than this machine's" in err[1]
     assert not built and not (tmp_path / "o").exists()
-    # a dry scene with periodic sides: the DEM has none
-    (tmp_path / "per.toml").write_text('[domain]\nbox = [0.0, 1.0, 0.0, 1.0]\nleft = "periodic"\n'
-                                       'right = "periodic"\n[time]\ndt = 0.1\nt_end = 0.1\n')
+    # a dry scene with a fluid side condition
+    (tmp_path / "per.toml").write_text('[domain]\nbox = [0.0, 1.0, 0.0, 1.0]\n'
+                                       'top = { type = "moving-wall", velocity = [1.0, 0.0] }\n'
+                                       '[time]\ndt = 0.1\nt_end = 0.1\n')
     assert main(["run", "per.toml", "--out", "p"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "periodic sides (right, left) are not supported yet by the DEM" in err
+    assert err.count("\n") == 1 and "domain sides top are fluid conditions; a dry scene allows" in err
     assert not built and not (tmp_path / "p").exists()

@@ -279,12 +279,14 @@ def periodic(scene, ctx):
     x0, x1, y0, y1 = scene.domain.box
     pairs = [f"{a}/{b} (period {p:g} in {ax})" for a, b, p, ax in
              (("left", "right", x1 - x0, "x"), ("bottom", "top", y1 - y0, "y")) if a in ctx.periodic]
-    drive = ""
-    if fl is not None:
-        drive = (f"; driven by body_force = {list(fl.body_force)}" if any(fl.body_force) else
-                 "; no body_force (driven by moving walls or bodies only)")
-    yield Effect("periodic", True, "periodic pairs " + ", ".join(pairs) + ": matching mesh nodes, "
-                 "identified velocity (and continuous pressure) DOFs" + drive,
+    if fl is None:
+        how = (": the DEM takes every pair of bodies at its nearest periodic image; positions in the box in the "
+               "outputs, x_unwrapped and y_unwrapped continuous")
+    else:
+        how = (": matching mesh nodes, identified velocity (and continuous pressure) DOFs"
+               + (f"; driven by body_force = {list(fl.body_force)}" if any(fl.body_force) else
+                  "; no body_force (driven by moving walls or bodies only)"))
+    yield Effect("periodic", True, "periodic pairs " + ", ".join(pairs) + how,
                  "+".join(ax for a, ax in (("left", "x"), ("bottom", "y")) if a in ctx.periodic))
 
 
@@ -319,13 +321,6 @@ def prescribed_collision_note(scene, ctx):
     if hit:
         yield Note("prescribed motion brings " + "; ".join(hit[:3]) + (" ..." if len(hit) > 3 else "")
                    + " before t_end (prescribed bodies feel no contact forces)")
-
-
-def dry_periodic_refusal(scene, ctx):
-    """Refuse periodic sides in a dry scene (the DEM has none)."""
-    if ctx.periodic and scene.fluid is None:
-        yield Refusal(f"periodic sides ({', '.join(ctx.periodic)}) are not supported yet by the DEM "
-                      "(a dry scene); use 'wall' or 'outflow'")
 
 
 def free_bodies_need_moving_mesh(scene, ctx):
@@ -451,7 +446,7 @@ def dry_fluid_sides_refusal(scene, ctx):
     bad = [s for s in names.choices("side") if scene.domain.side(s).type in ("inflow", "moving-wall")]
     if bad:
         yield Refusal(f"domain sides {', '.join(bad)} are fluid conditions; a dry scene allows "
-                      "'wall' and 'outflow' (open)")
+                      "'wall', 'outflow' (open) and 'periodic'")
 
 
 def net_flux_refusal(scene, ctx):
@@ -537,7 +532,7 @@ def defaults_note(scene, ctx):
 RULES = [
     fluid, inertia, moving_bodies, mesh, ale, contacts, gravity, buoyancy, coupling, rotation, remeshing, periodic,
     solver,
-    prescribed_collision_note, dry_periodic_refusal, free_bodies_need_moving_mesh, iterative_free_bodies_note,
+    prescribed_collision_note, free_bodies_need_moving_mesh, iterative_free_bodies_note,
     stokes_contacts_note, zero_repulsion_warning, fluid_contacts_note, free_bodies_without_contacts_note,
     prescribed_moving_mesh, bdf3_moving_mesh_refusal, quasi_steady_note, fixed_strategy_refusal,
     dry_fluid_sides_refusal, net_flux_refusal, mesh_size, explicit_coupling_ratio, explicit_coupling_contacts,
