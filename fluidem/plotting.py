@@ -35,7 +35,8 @@ import numpy as np
 
 from . import names
 from .errors import InputError, install_hint
-from .io import HISTORY_UNITS, PathLike, read_history, read_pvd
+from .io import HISTORY_UNITS, read_history, read_pvd
+from .io.layout import PathLike
 
 __all__ = ["plot_run", "figures", "require_matplotlib", "view_windows", "UNIT_SYSTEMS", "PlotWarning"]
 
