@@ -73,17 +73,30 @@ Examples
 
 # the submodules, one concept each; the names below are the public ones (those not in __all__
 # are kept importable from here for code that imported them)
+from . import layout as _layout
+from . import outdir as _outdir
 from .checkpoints import CHECKPOINT_VERSION as CHECKPOINT_VERSION
 from .checkpoints import latest_checkpoint, load_checkpoint, load_latest_checkpoint
-from .layout import HISTORY_COLUMNS, HISTORY_UNITS, OUTPUT_ENTRIES, SIDES_COLUMNS
+from .layout import HISTORY_COLUMNS
 from .layout import PathLike as PathLike
-from .outdir import LOCK_FILE, OutputDirError, RunLock, prepare_output_dir, read_run_record, write_run_record
+from .outdir import OutputDirError, RunLock, prepare_output_dir, read_run_record, write_run_record
 from .readers import field_series, read_fields, read_history, read_pvd, read_sides
 from .sampling import FULL_ORDER_DIVISIONS as FULL_ORDER_DIVISIONS
 from .sampling import fluid_point_data, full_order_fields
 from .writer import OutputWriter
 from .xdmf import require_h5py as require_h5py
 from .xdmf import write_xdmf
+
+# The public constants, each with its doc comment here, where the API reference reads it (the
+# values are those of the modules that define them).
+#: columns of sides.csv (``side`` is the side's name: bottom, right, top, left)
+SIDES_COLUMNS = _layout.SIDES_COLUMNS
+#: unit of each history column, in the scene's own unit system (see the module docstring)
+HISTORY_UNITS = _layout.HISTORY_UNITS
+#: what a run writes into its output directory (and what overwriting it removes)
+OUTPUT_ENTRIES = _layout.OUTPUT_ENTRIES
+#: the lock file of an output directory (never removed: a waiting opener must find the same file)
+LOCK_FILE = _outdir.LOCK_FILE
 
 __all__ = ["OutputWriter", "read_history", "read_sides", "SIDES_COLUMNS",
            "read_pvd", "latest_checkpoint", "load_checkpoint", "load_latest_checkpoint",
