@@ -21,6 +21,9 @@ In the field figures the bodies are the holes of the fluid mesh of that output s
 geometry and field are from the same instant.  A box longer than 4:1 is split into up to three
 stacked views, or, longer still, cropped to a 4:1 view around the bodies (the title says so).
 
+What the figures read from the run directory, and how they bear a run still writing, is
+:mod:`fluidem.figure_inputs`.
+
 matplotlib is needed: ``pip install "fluidem[plot]"`` (:func:`require_matplotlib` says so).
 """
 
@@ -28,14 +31,16 @@ from __future__ import annotations
 
 import math
 import re
-import warnings
 from pathlib import Path
 
 import numpy as np
 
 from . import names
 from .errors import InputError, install_hint
-from .io import HISTORY_UNITS, PathLike, read_history, read_pvd
+from .figure_inputs import (PlotWarning, body_outlines, mass_inertia, read_mesh_quality, read_run_history,
+                            read_vtu, scene_as_run)
+from .io import HISTORY_UNITS, read_pvd
+from .io.layout import PathLike
 
 __all__ = ["plot_run", "figures", "require_matplotlib", "view_windows", "UNIT_SYSTEMS", "PlotWarning"]
 
@@ -130,95 +135,6 @@ def view_windows(box, focus=None, max_aspect: float = MAX_ASPECT) -> tuple[list,
     return [(float(a), float(a + w), y0, y1)], True
 
 
-class PlotWarning(UserWarning):
-    """Something in a run directory the figures work around (a half-written last row of a CSV file)."""
-
-
-def _read_vtu(path):
-    """A VTU file of a run directory as a ``meshio.Mesh``.
-
-    ``meshio.read`` prints and exits the interpreter on a file it cannot read; this raises
-    :class:`fluidem.errors.InputError` naming the file instead (missing, truncated or damaged).
-    """
-    import zlib
-
-    import meshio
-
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: missing; expected the VTU file that the run's .pvd index lists (run the scene "
-                         "again to write it)")
-    try:
-        return meshio.vtu.read(str(path))
-    except (meshio.ReadError, ValueError, KeyError, IndexError, EOFError, zlib.error) as exc:
-        why = " ".join(str(exc).split())
-        raise InputError(f"{path}: not a complete VTU file ({why + '; ' if why else ''}{path.stat().st_size} "
-                         "bytes): truncated or damaged, e.g. by a run stopped while writing it; expected the file as "
-                         "'fluidem run' writes it (run the scene again to rewrite it)") from None
-
-
-def _row_problem(line: str, n: int) -> str | None:
-    """What is wrong with one data row of a CSV file of ``n`` numeric columns, or None."""
-    parts = line.strip().split(",")
-    if len(parts) != n:
-        return f"{len(parts)} values, expected {n}"
-    for p in parts:
-        try:
-            float(p)
-        except ValueError:
-            return f"{p!r} is not a number"
-    return None
-
-
-def _repaired_table(path: Path) -> tuple[list, np.ndarray]:
-    """(header, data (n_rows, n_cols)) of a numeric CSV file that ``np.loadtxt`` refused.
-
-    A half-written last row (a run still writing, or stopped mid-row) is dropped with a
-    :class:`PlotWarning`; any other bad row raises :class:`fluidem.errors.InputError` naming
-    the file, the line and what is wrong.
-    """
-    with open(path) as f:
-        rows = [(k, ln) for k, ln in enumerate(f, 1) if ln.strip() and not ln.startswith("#")]
-    if not rows:
-        raise InputError(f"{path}: empty; expected a header line of column names and rows of numbers")
-    header = rows[0][1].strip().split(",")
-    rows = rows[1:]
-    bad = [(k, why) for k, ln in rows if (why := _row_problem(ln, len(header))) is not None]  # only when damaged
-    if not bad:  # pragma: no cover - np.loadtxt refused a file every row of which parses
-        raise InputError(f"{path}: cannot be read as a table of numbers; expected {len(header)} comma-separated "
-                         "numbers per row")
-    k, why = bad[0]
-    if len(bad) > 1 or k != rows[-1][0]:
-        raise InputError(f"{path}, line {k}: {why}; expected {len(header)} comma-separated numbers per row "
-                         f"({', '.join(header)}): the file is damaged (only a half-written last line is skipped)")
-    warnings.warn(f"{path}: its last line {k} is half-written ({why}; a run still writing, or stopped mid-row): "
-                  "drawn without it", PlotWarning, stacklevel=3)
-    rows = rows[:-1]
-    data = np.loadtxt([ln for _, ln in rows], delimiter=",", ndmin=2) if rows else np.zeros((0, len(header)))
-    return header, data
-
-
-def _read_history(out_dir: Path) -> dict:
-    """:func:`fluidem.io.read_history` of ``out_dir``, but a half-written last row is dropped with a
-    :class:`PlotWarning` and a damaged file is an :class:`~fluidem.errors.InputError` naming it."""
-    path = out_dir / "history.csv"
-    try:
-        return read_history(path)
-    except (ValueError, IndexError):  # a row np.loadtxt cannot read, or an empty file
-        header, data = _repaired_table(path)
-    return {name: (data[:, k].astype(int) if name in ("step", "id", "contacts") else data[:, k])
-            for k, name in enumerate(header)}
-
-
-def _outlines(vtu):
-    m = _read_vtu(vtu)
-    out = []
-    for block in m.cells:
-        for conn in block.data:
-            out.append(m.points[conn, :2])
-    return out
-
-
 def _holes(points: np.ndarray, tri: np.ndarray) -> tuple[list, np.ndarray]:
     """The holes of a triangulation (its boundary loops but the outer one) and every boundary edge.
 
@@ -250,43 +166,6 @@ def _area(p):
     x, y = p[:, 0], p[:, 1]
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
-
-def _scene(out_dir: Path):
-    try:  # the scene as run
-        from .scene import Scene
-
-        return Scene.from_toml(out_dir / "scene.toml")
-    except (ValueError, OSError):
-        return None
-
-
-def _mass_inertia(scene) -> tuple[np.ndarray, np.ndarray] | None:
-    """Mass and moment of inertia about the centre of each body of ``scene`` (per unit depth)."""
-    from . import geometry as geo
-
-    if scene is None or not scene.bodies:
-        return None
-    m, J = [], []
-    for b in scene.bodies:  # once per figure
-        v = b.local_vertices(scene.default_segments(b))
-        a, c = geo.polygon_area(v), geo.polygon_centroid(v)
-        m.append(b.density * a)
-        J.append(b.density * (geo.polygon_polar_moment(v) - a * float(c @ c)))
-    return np.array(m), np.array(J)
-
-
-def _read_quality(out_dir: Path) -> dict | None:
-    path = out_dir / "mesh_quality.csv"
-    if not path.exists():
-        return None
-    lines = path.read_text().splitlines()
-    if len(lines) < 2:
-        return None
-    try:
-        header, data = lines[0].split(","), np.loadtxt(lines[1:], delimiter=",", ndmin=2)
-    except ValueError:  # a half-written last row (dropped with a warning) or a damaged file
-        header, data = _repaired_table(path)
-    return {k: data[:, i] for i, k in enumerate(header)}
 
 
 def figures(out_dir: PathLike, units: str | None = None) -> dict:
@@ -325,16 +204,16 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
     if not (out_dir / "history.csv").exists():
         raise InputError(f"out_dir = {str(out_dir)!r} is not a fluidem run directory: expected a directory written "
                          "by 'fluidem run' (with a history.csv)")
-    scene = _scene(out_dir)
+    scene = scene_as_run(out_dir)
     if units is None and scene is not None:
         units = scene.units
     u = lambda dim: _unit(dim, units)  # noqa: E731
-    h = _read_history(out_dir)
+    h = read_run_history(out_dir)
     bodies_series = read_pvd(out_dir / "bodies.pvd") if (out_dir / "bodies.pvd").exists() else []
     fields = read_pvd(out_dir / "fields.pvd") if (out_dir / "fields.pvd").exists() else []
     box = scene.domain.box if scene is not None else None
     if box is None and fields:
-        p = _read_vtu(fields[-1][1]).points
+        p = read_vtu(fields[-1][1]).points
         box = (p[:, 0].min(), p[:, 0].max(), p[:, 1].min(), p[:, 1].max())
     focus = None
     if len(h["t"]):
@@ -349,7 +228,7 @@ def figures(out_dir: PathLike, units: str | None = None) -> dict:
     if fields:
         figs.update(_field_figures(canvas, fields, h))
     figs.update(_body_figures(canvas, h, bodies_series))
-    hist = _history_figure(plt, h, _mass_inertia(scene), _read_quality(out_dir), scene, u)
+    hist = _history_figure(plt, h, mass_inertia(scene), read_mesh_quality(out_dir), scene, u)
     if hist is not None:
         figs["history"] = hist
     return figs
@@ -412,7 +291,7 @@ def _field_figures(canvas: _Canvas, fields: list, h: dict) -> dict:
     # the fields are written every output.every steps: say when the run went on past the last of them
     when = f"t = {t_f:.4g}" + (f" (last fields written; the run reached t = {t_run:.4g})"
                                if t_run > t_f + 1e-9 * max(abs(t_run), 1.0) else "")
-    m = _read_vtu(f_last)
+    m = read_vtu(f_last)
     pts, tri = m.points[:, :2], m.cells_dict["triangle"]
     T = mtri.Triangulation(pts[:, 0], pts[:, 1], tri)
     holes, edges = _holes(pts, tri)
@@ -469,10 +348,10 @@ def _body_figures(canvas: _Canvas, h: dict, bodies_series: list) -> dict:
     if not moving:
         return {}
     figs = {}
-    last = _outlines(bodies_series[-1][1]) if bodies_series else []
+    last = body_outlines(bodies_series[-1][1]) if bodies_series else []
     if bodies_series:
         fig, axes = canvas.plane(f"bodies at t = {bodies_series[0][0]:.4g} (dashed) and t = {bodies_series[-1][0]:.4g}")
-        first = _outlines(bodies_series[0][1])
+        first = body_outlines(bodies_series[0][1])
         for ax in axes:
             canvas.outlines(ax, first, facecolor="none", edgecolor="0.5", linestyle="--")
             canvas.outlines(ax, last, facecolor="tab:orange", alpha=0.8)

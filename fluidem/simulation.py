@@ -390,7 +390,7 @@ class Simulation:
                                  f"time.t_end = {sc.time.t_end:g}; expected at most {self.plan.n_steps} (raise "
                                  "time.t_end to run longer)")
         if out_dir is not None and self.flow is not None and sc.output.fields and sc.output.xdmf:
-            from .io import require_h5py  # before anything is written, the folder included
+            from .io.xdmf import require_h5py  # before anything is written, the folder included
 
             require_h5py("output.xdmf = true")
             if self.plan.mesh == "moving":

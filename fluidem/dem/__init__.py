@@ -34,7 +34,8 @@ time, time step              time                            s
 a force per length, i.e. a 3D Young's modulus (force/length²) times the unit depth.
 
 Modules: :mod:`~fluidem.dem.bodies` (shapes and mass properties),
-:mod:`~fluidem.dem.contact` (broad phase, overlap geometry, force law),
+:mod:`~fluidem.dem.contact` (the contact law and forces), :mod:`~fluidem.dem.broad_phase`
+(candidate pairs), :mod:`~fluidem.dem.overlaps` (overlap geometry, the narrow phase),
 :mod:`~fluidem.dem.integrate` (Gear predictor–corrector),
 :mod:`~fluidem.dem.system` (the DEM system: arrays of bodies, stepping, energies),
 :mod:`~fluidem.dem.periodic` (periodic boxes: the nearest image of each pair's partner);
@@ -43,8 +44,9 @@ for bodies in a fluid :mod:`~fluidem.dem.repulsion` (short-range repulsion) and
 """
 
 from .bodies import Body, random_convex_vertices
-from .contact import WALL_IDS, ContactModel, Contacts
+from .contact import ContactModel, Contacts
 from .integrate import Gear
+from .overlaps import WALL_IDS
 from .system import DEM, StepCost
 
 __all__ = ["Body", "ContactModel", "Contacts", "DEM", "Gear", "StepCost", "WALL_IDS",

@@ -78,7 +78,9 @@ Choices made here (see the CHANGELOG):
   one instant needs only the geometry at that instant (the wall-correction example).
 * Contacts are off when no pair can meet before ``t_end`` (:mod:`fluidem.plan`).
 
-Layout: :mod:`fluidem.scene.specs` (the spec dataclasses and :class:`Scene`),
+Layout: :mod:`fluidem.scene.specs` (:class:`Scene`), the spec dataclasses of its tables in
+:mod:`fluidem.scene.domain`, :mod:`fluidem.scene.bodies`, :mod:`fluidem.scene.physics` and
+:mod:`fluidem.scene.settings`,
 :mod:`fluidem.scene.files` (TOML and CSV in, TOML out), :mod:`fluidem.scene.reference` (the
 reference of every table and key, ``docs/scenes.md``, printed by ``fluidem reference``) and
 :mod:`fluidem.plan` (the plan).
@@ -102,7 +104,11 @@ from .. import names as _names
 from ..plan import Effect, Plan, contact_candidates, make_plan, moving_mesh_available, prescribed_collisions
 from . import files, specs
 from .files import read_bodies_table, read_toml, scene_toml, tomllib, write_scene_toml
-from .specs import BodySpec, ContactSpec, DomainSpec, FluidSpec, MeshSpec, OutputSpec, Scene, SideSpec, TimeSpec
+from .bodies import BodySpec
+from .domain import DomainSpec, SideSpec
+from .physics import ContactSpec, FluidSpec
+from .settings import MeshSpec, OutputSpec, TimeSpec
+from .specs import Scene
 
 # The names a scene accepts, from the registry (kept for code that imported these tuples).
 SIDE_TYPES = _names.choices("side type")

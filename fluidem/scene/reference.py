@@ -2,8 +2,8 @@
 
 :func:`markdown` writes it (``fluidem reference`` prints it; ``docs/scenes.md`` is its
 output, checked in).  It is generated from what the scene reader accepts, so that it cannot
-drift: the keys and defaults come from the spec dataclasses of :mod:`fluidem.scene.specs`
-(their ``KEYS``, ``PROFILE_KEYS``, ``GRADING_KEYS`` and field defaults) and from
+drift: the keys and defaults come from the spec dataclasses of the scene's tables (their
+``KEYS``, ``PROFILE_KEYS``, ``GRADING_KEYS`` and field defaults) and from
 :data:`fluidem.scene.files.TABLE_COLUMNS`, the allowed names and their meanings from
 :data:`fluidem.names.REGISTRY`, the units of the output from :data:`fluidem.io.HISTORY_UNITS`.
 Only what a key means and its unit are written here (:data:`KEY_DOCS`); a key the reader
@@ -29,27 +29,31 @@ import dataclasses
 from .. import names
 from ..errors import FluidemError
 from . import files, specs
+from .bodies import BodySpec
+from .domain import DomainSpec, SideSpec
+from .physics import ContactSpec, FluidSpec
+from .settings import MeshSpec, OutputSpec, TimeSpec
 
 __all__ = ["markdown", "accepted_keys", "KEY_DOCS", "WORKED_EXAMPLE", "TABLES"]
 
 #: table name -> (heading, spec class or None, keys): in the order the reference shows them
 TABLES = {
     "": ("Top level (before any table)", None, specs._TOP_KEYS),
-    "fluid": ("[fluid]", specs.FluidSpec, specs.FluidSpec.KEYS),
-    "domain": ("[domain]", specs.DomainSpec, specs.DomainSpec.KEYS),
-    "domain.<side>": ("A side as a table: `left = { type = ..., velocity = ..., profile = ... }`", specs.SideSpec,
-                      specs.SideSpec.KEYS),
+    "fluid": ("[fluid]", FluidSpec, FluidSpec.KEYS),
+    "domain": ("[domain]", DomainSpec, DomainSpec.KEYS),
+    "domain.<side>": ("A side as a table: `left = { type = ..., velocity = ..., profile = ... }`", SideSpec,
+                      SideSpec.KEYS),
     "domain.inflow_profile": ("An inflow profile: `inflow_profile = { ... }` or a side's `profile = { ... }`", None,
-                              specs.DomainSpec.PROFILE_KEYS),
-    "bodies": ("[[bodies]] (one table per body)", specs.BodySpec, specs.BodySpec.KEYS),
+                              DomainSpec.PROFILE_KEYS),
+    "bodies": ("[[bodies]] (one table per body)", BodySpec, BodySpec.KEYS),
     "bodies_table": ("[bodies_table] (many bodies: one CSV row per body)", None, files.TABLE_KEYS),
     "bodies_table.csv": ("Columns of the CSV body table", None, files.TABLE_COLUMNS),
-    "contact": ("[contact]", specs.ContactSpec, specs.ContactSpec.KEYS),
-    "mesh": ("[mesh]", specs.MeshSpec, specs.MeshSpec.KEYS),
+    "contact": ("[contact]", ContactSpec, ContactSpec.KEYS),
+    "mesh": ("[mesh]", MeshSpec, MeshSpec.KEYS),
     "mesh.grading": ("Mesh grading: `grading = { region = ..., growth = ..., h_max = ... }`", None,
-                     specs.MeshSpec.GRADING_KEYS),
-    "time": ("[time]", specs.TimeSpec, specs.TimeSpec.KEYS),
-    "output": ("[output]", specs.OutputSpec, specs.OutputSpec.KEYS),
+                     MeshSpec.GRADING_KEYS),
+    "time": ("[time]", TimeSpec, TimeSpec.KEYS),
+    "output": ("[output]", OutputSpec, OutputSpec.KEYS),
 }
 
 #: names a key takes from :mod:`fluidem.names` (key -> registry kind)
@@ -263,7 +267,7 @@ def _default(table: str, key: str, spec) -> str:
         return doc[3]
     f = {f.name: f for f in dataclasses.fields(spec)}[key]
     value = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-    if isinstance(value, specs.SideSpec):
+    if isinstance(value, SideSpec):
         value = value.type
     return "—" if value is None else f"`{files.toml_value(value)}`"
 
