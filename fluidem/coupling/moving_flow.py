@@ -129,6 +129,8 @@ class MovingMeshFlow(FlowLoads):
 
     Attributes
     ----------
+    body_specs : list of fluidem.scene.BodySpec
+        ``bodies``; ``fluid``, ``domain`` and ``dt`` are kept as given too (rebuilds read them).
     mm : MovingMesh
     mesh : skfem.MeshTri
     space : FlowSpace
