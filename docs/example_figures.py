@@ -15,7 +15,8 @@ reference; prints the figures the pages quote.
 
 Run from the repository root::
 
-    OPENBLAS_NUM_THREADS=1 MPLBACKEND=Agg python docs/example_figures.py [settling-disk] [jeffery-orbit] [sheared-suspension]
+    OPENBLAS_NUM_THREADS=1 MPLBACKEND=Agg python docs/example_figures.py \\
+        [settling-disk] [jeffery-orbit] [sheared-suspension]
 """
 
 from __future__ import annotations

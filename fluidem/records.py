@@ -168,9 +168,9 @@ def record_sides(sim, writer) -> float:
 def in_box(sim, positions) -> np.ndarray:
     """Body positions ``(n, 2)`` wrapped into the box across its periodic sides (the bodies keep
     continuous, unwrapped positions: a body that crossed a side is in the box again here)."""
-    from .coupling.boundary import period_of_scene
+    from .coupling.boundary import period_of_domain
 
-    return wrap_into_box(positions, sim.scene.domain.box, period_of_scene(sim.scene))
+    return wrap_into_box(positions, sim.scene.domain.box, period_of_domain(sim.scene.domain))
 
 
 def write_fields(sim, writer) -> None:

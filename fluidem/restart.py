@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .build import dem_from_kinematic
 from .coupling.bodies import DEMBodies, KinematicBodies
 from .errors import InputError, RunWarning, one_line
 
@@ -226,9 +227,9 @@ def set_state(sim, bs: dict, flow_state, step: int) -> None:
     """
     sc = sim.scene
     if isinstance(sim.bodies, DEMBodies) and "dem" not in bs:
-        kin = KinematicBodies(sc)
+        kin = KinematicBodies(sc.bodies, sc.gravity)
         kin.set_state(bs)
-        sim.bodies = DEMBodies.from_kinematic(sc, kin)
+        sim.bodies = dem_from_kinematic(sc, kin)
         sim.events.append(("plan", f"from step {step} contacts are on: the DEM continues the closed-form motion"))
     elif isinstance(sim.bodies, KinematicBodies) and "dem" in bs:
         dem = DEMBodies.__new__(DEMBodies)

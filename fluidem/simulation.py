@@ -18,7 +18,8 @@
   scenes are refused.
 
 The parts live in :mod:`fluidem.coupling` (bodies adapters, boundary conditions, loads, the
-fixed- and moving-mesh flows); this module is the loop.  What the loop writes is
+fixed- and moving-mesh flows), which take scene specs, not the scene: :mod:`fluidem.build` takes the
+scene apart for them; this module is the loop.  What the loop writes is
 :mod:`fluidem.records`, continuing from a checkpoint :mod:`fluidem.restart`, stopping on a signal
 :mod:`fluidem.signals`, the verbose per-step lines :mod:`fluidem.progress`; :class:`RunStopped` and
 :class:`RunWarning` are :mod:`fluidem.errors`' (all importable from here as well).  Free bodies in a fluid need the
@@ -56,8 +57,10 @@ from pathlib import Path
 
 import numpy as np
 
+from . import build
 from . import restart as restart_
-from .coupling.bodies import DEMBodies, FlowBodies, KinematicBodies, LinearPath
+from .coupling.bodies import KinematicBodies  # noqa: F401 (importable from here, as before)
+from .coupling.bodies import DEMBodies, FlowBodies, LinearPath
 from .cost import CostSplit
 from .diagnostics import RunDiagnostics
 from .errors import InputError, RunStopped, RunWarning
@@ -170,27 +173,17 @@ class Simulation:
         #: the numerical health of the run's steps (:mod:`fluidem.diagnostics`); ``enabled = False`` skips it
         self.diagnostics = RunDiagnostics()
         self.events = [("built", f"plan: mesh {self.plan.mesh}, contacts {self.plan.on('contacts')}")]
-        if self.plan.on("contacts") and scene.fluid is None:
-            self.bodies = DEMBodies(scene)
+        self.bodies = build.bodies_of(scene, self.plan.on("contacts"))
+        if isinstance(self.bodies, DEMBodies):
             self.counters["dem"] += 1
-        elif scene.fluid is not None and any(b.motion == "free" for b in scene.bodies):
-            self.bodies = FlowBodies(scene)
-        else:
-            self.bodies = KinematicBodies(scene)
         if scene.fluid is not None:
             with self.diagnostics.watching():  # an LU of the set-up (Stokes mobility) goes into step 1's record
                 if isinstance(self.bodies, FlowBodies):
-                    from .coupling.free_flow import FreeBodyFlow
-
-                    self.flow = self.bodies.flow = FreeBodyFlow(scene, self)
+                    self.flow = self.bodies.flow = build.free_body_flow(scene, self)
                 elif self.plan.mesh == "moving":
-                    from .coupling.moving_flow import MovingMeshFlow
-
-                    self.flow = MovingMeshFlow(scene, self)
+                    self.flow = build.moving_mesh_flow(scene, self)
                 else:
-                    from .coupling.fixed_flow import FixedMeshFlow
-
-                    self.flow = FixedMeshFlow(scene, self)
+                    self.flow = build.fixed_mesh_flow(scene, self)
             self.events.append(("mesh", ("moving, initial: " if self.plan.mesh == "moving" else "built once: ")
                                 + f"{self.flow.mesh.t.shape[1]} triangles, "
                                         f"{self.flow.dofs} DOFs, {'curved' if self.flow.curved else 'polygonal'}"))

@@ -139,7 +139,8 @@ def test_fluid_contacts_across_a_seam_are_the_translated_ones(offset):
     from fluidem.coupling.contacts import FluidContacts
 
     sc = _periodic_scene()
-    c = FluidContacts(sc, np.array([0, 1]), [VA, VB], [None, None])
+    c = FluidContacts(sc.bodies, np.array([0, 1]), [VA, VB], [None, None],
+                      domain=sc.domain, fluid=sc.fluid, contact=sc.contact, gravity=sc.gravity, h=sc.mesh.h)
     assert c.dem.period == (2.0, 1.0)
     pa = np.array({(2.0, 0.0): (0.01, 0.5), (0.0, -1.0): (0.6, 0.995), (2.0, -1.0): (0.01, 0.99)}[offset])
     mid = np.array([[1.0, 0.5, 0.3], [1.0 + D_NEAR[0], 0.5 + D_NEAR[1], -0.2]])
@@ -168,9 +169,11 @@ def test_fluid_contacts_across_a_seam_are_the_translated_ones(offset):
 
 def test_scene_dem_gets_the_periods_of_its_sides():
     """A dry DEM built from a scene (DEMBodies) is periodic where the scene's sides are, with no walls there."""
+    from fluidem.build import body_outlines
     from fluidem.coupling.bodies import DEMBodies
 
-    d = DEMBodies(_periodic_scene()).dem
+    sc = _periodic_scene()
+    d = DEMBodies(sc.bodies, body_outlines(sc), domain=sc.domain, contact=sc.contact, gravity=sc.gravity).dem
     assert d.period == (2.0, 1.0) and d.walls == (-np.inf, np.inf, -np.inf, np.inf)
 
 

@@ -249,10 +249,10 @@ def test_couette_scene_runs_on_the_fixed_mesh(element, tmp_path):
 
 
 def _moving_flow(scene):
-    from fluidem.coupling.moving_flow import MovingMeshFlow
+    from fluidem.build import moving_mesh_flow
 
     sim = types.SimpleNamespace(counters=collections.Counter())
-    return MovingMeshFlow(scene, sim), sim
+    return moving_mesh_flow(scene, sim), sim
 
 
 @pytest.mark.parametrize("element", PAIRS)
@@ -331,7 +331,7 @@ def _galilean_pair(omega, h=0.05, n=100, U=1.0, dt=0.01):
     and of the same disk held at its start on a fixed mesh with both walls moving at −U and
     the fluid starting at −U (body frame); ν = 0.01 (Re = 30), Taylor–Hood, BDF2 in both (the fixed
     mesh would take BDF3 by default, whose start from the impulsive field differs by ~3 %)."""
-    from fluidem.coupling.fixed_flow import FixedMeshFlow
+    from fluidem.build import fixed_mesh_flow
 
     def scene(lab):
         wall = {"type": "moving-wall", "velocity": [-U, 0.0]}
@@ -346,7 +346,7 @@ def _galilean_pair(omega, h=0.05, n=100, U=1.0, dt=0.01):
                                 "time": {"dt": dt, "t_end": n * dt, "scheme": "bdf2"}})  # both frames alike
 
     lab, sim = _moving_flow(scene(True))
-    body = FixedMeshFlow(scene(False), types.SimpleNamespace(counters=collections.Counter()))
+    body = fixed_mesh_flow(scene(False), types.SimpleNamespace(counters=collections.Counter()))
     sp = body.space
     u0 = np.zeros(sp.n_u)
     u0[sp.ub.dofs.element_dofs[0::2].ravel()] = -U
@@ -404,7 +404,7 @@ def test_array_of_disks_scene_drag_balances_the_body_force(element, curved):
     """Doubly periodic cell of a fixed disk through the scene path (FixedMeshFlow), Stokes:
     drag = f |Ω| with |Ω| the fluid area of the cell: round-off on the polygon; on the curved
     (isoparametric) mesh 1 − π r² to its area error (measured 1.0e-6 relative)."""
-    from fluidem.coupling.fixed_flow import FixedMeshFlow
+    from fluidem.build import fixed_mesh_flow
     from fluidem.geometry import polygon_area
 
     sc = Scene.from_dict({
@@ -413,7 +413,7 @@ def test_array_of_disks_scene_drag_balances_the_body_force(element, curved):
                    "top": "periodic"},
         "bodies": [{"shape": "disk", "radius": 0.2, "position": [0.5, 0.5], "motion": "fixed"}],
         "mesh": {"h": 0.05, "curved": curved}, "time": {"dt": 0.1, "t_end": 0.1}})
-    fl = FixedMeshFlow(sc, types.SimpleNamespace(counters=collections.Counter()))
+    fl = fixed_mesh_flow(sc, types.SimpleNamespace(counters=collections.Counter()))
     assert fl.curved == curved and fl.periodic == ("x", "y")
     fl.step(0.1)
     F, T = fl.loads()

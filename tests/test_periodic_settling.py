@@ -48,9 +48,9 @@ def _disk(radius, position=(0.5, 0.5), density=2.0, segments=128):
 
 def _flow(scene):
     """The flow at t = 0: the velocities of the first mobility solve."""
-    from fluidem.coupling.free_flow import FreeBodyFlow
+    from fluidem.build import free_body_flow
 
-    return FreeBodyFlow(scene, types.SimpleNamespace(counters=collections.Counter(), plan=scene.plan()))
+    return free_body_flow(scene, types.SimpleNamespace(counters=collections.Counter(), plan=scene.plan()))
 
 
 def _side_flux(fl, side):

@@ -1,10 +1,12 @@
-"""Scene bodies as motion providers for the simulation loop.
+"""Bodies (:class:`~fluidem.scene.BodySpec`) as motion providers for the simulation loop.
 
 Both adapters expose ``step(dt)``, ``positions`` (n, 2), ``angles`` (n,), ``velocities``
 (n, 2), ``omegas`` (n,), ``loads()`` and ``get_state``/``set_state`` for checkpoints.
 """
 
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 
@@ -48,10 +50,25 @@ class KinematicBodies:
 
     Closed form, ``x = x₀ + v₀ t + g t²/2``, ``θ = θ₀ + ω t`` (g only for free bodies; fixed
     bodies have v₀ = 0, ω = 0).
+
+    Parameters
+    ----------
+    bodies : list of fluidem.scene.BodySpec
+        Initial poses (length, rad), velocities (length/time, rad/time) and motions.
+    gravity : (2,) float
+        Acceleration of gravity, length/time².
+
+    Examples
+    --------
+    >>> from fluidem.scene import BodySpec
+    >>> kin = KinematicBodies([BodySpec(radius=0.1, position=(0.0, 1.0))], gravity=(0.0, -10.0))
+    >>> kin.step(0.1)
+    >>> kin.positions.tolist()
+    [[0.0, 0.95]]
     """
 
-    def __init__(self, scene):
-        B = scene.bodies
+    def __init__(self, bodies, gravity):
+        B = bodies
         n = len(B)
         self.x0 = np.array([b.position for b in B], float).reshape(n, 2)
         self.a0 = np.array([b.angle for b in B], float)
@@ -60,7 +77,7 @@ class KinematicBodies:
         fixed = np.array([b.motion == "fixed" for b in B], bool)
         self.v0[fixed] = 0.0
         self.w0[fixed] = 0.0
-        self.g = np.where(np.array([b.motion == "free" for b in B])[:, None], np.asarray(scene.gravity), 0.0)
+        self.g = np.where(np.array([b.motion == "free" for b in B])[:, None], np.asarray(gravity), 0.0)
         self.t = 0.0
         self.n = n
 
@@ -97,10 +114,11 @@ class KinematicBodies:
 
 class FlowBodies(KinematicBodies):
     """Bodies in a fluid with free ones among them: the flow (:class:`fluidem.coupling.free_flow.FreeBodyFlow`)
-    moves them; poses and velocities are read from it (``flow`` is set once the flow exists)."""
+    moves them; poses and velocities are read from it (``flow`` is set once the flow exists).
+    Parameters as :class:`KinematicBodies`."""
 
-    def __init__(self, scene):
-        super().__init__(scene)
+    def __init__(self, bodies, gravity):
+        super().__init__(bodies, gravity)
         self.flow = None
 
     @property
@@ -128,43 +146,60 @@ class FlowBodies(KinematicBodies):
 
 
 class DEMBodies:
-    """Bodies moved by :class:`fluidem.dem.DEM` (sub-steps of at most ``dt_max`` inside a scene step)."""
+    """Bodies moved by :class:`fluidem.dem.DEM` (sub-steps of at most ``dt_max`` inside a step).
 
-    def __init__(self, scene, t0: float = 0.0):
+    Parameters
+    ----------
+    bodies : list of fluidem.scene.BodySpec
+        Initial poses, velocities, densities and motions.
+    outlines : list of (k, 2) float
+        Every body's outline in body coordinates, length.
+    domain : fluidem.scene.DomainSpec
+        The box: walls where its sides are ``"wall"``, periods where they are ``"periodic"``.
+    contact : fluidem.scene.ContactSpec
+        The contact law (E, μ, γ).
+    gravity : (2,) float
+        Acceleration of gravity, length/time².
+    t0 : float
+        The DEM's start time.
+    """
+
+    def __init__(self, bodies, outlines, *, domain, contact, gravity, t0: float = 0.0):
         from ..dem import DEM, Body, ContactModel
-        from .contacts import scene_period
+        from .contacts import domain_period
 
-        bodies = []
-        for b in scene.bodies:
-            v = b.local_vertices(scene.default_segments(b))
+        dem_bodies = []
+        for b, v in zip(bodies, outlines):
             if b.motion == "prescribed":
                 path = LinearPath(b.position, b.angle, b.velocity, b.omega)
-                bodies.append(Body.polygon(v, density=b.density, motion="prescribed", path=path))
+                dem_bodies.append(Body.polygon(v, density=b.density, motion="prescribed", path=path))
             else:
-                bodies.append(Body.polygon(v, density=b.density, position=b.position, angle=b.angle,
-                                           velocity=b.velocity, omega=b.omega, motion=b.motion))
-        x0, x1, y0, y1 = scene.domain.box
-        sides = {s: scene.domain.side(s).type for s in ("left", "right", "bottom", "top")}
+                dem_bodies.append(Body.polygon(v, density=b.density, position=b.position, angle=b.angle,
+                                               velocity=b.velocity, omega=b.omega, motion=b.motion))
+        x0, x1, y0, y1 = domain.box
+        sides = {s: domain.side(s).type for s in ("left", "right", "bottom", "top")}
         walls = (x0 if sides["left"] == "wall" else -np.inf, x1 if sides["right"] == "wall" else np.inf,
                  y0 if sides["bottom"] == "wall" else -np.inf, y1 if sides["top"] == "wall" else np.inf)
-        c = scene.contact
-        self.dem = DEM(bodies, walls=walls, gravity=scene.gravity, contact=ContactModel(E=c.E, mu=c.mu, gamma=c.gamma),
-                       t0=t0, period=scene_period(scene))
-        self.n = len(bodies)
+        c = contact
+        self.dem = DEM(dem_bodies, walls=walls, gravity=gravity, contact=ContactModel(E=c.E, mu=c.mu, gamma=c.gamma),
+                       t0=t0, period=domain_period(domain))
+        self.n = len(dem_bodies)
         self.substeps = 0
 
     @classmethod
-    def from_kinematic(cls, scene, kinematic: KinematicBodies) -> DEMBodies:
+    def from_kinematic(cls, kinematic: KinematicBodies, bodies, outlines, *, domain, contact,
+                       gravity) -> DEMBodies:
         """The DEM continuing the closed-form motion of ``kinematic`` at its time (a restart whose
         longer ``t_end`` switches contacts on): free bodies start from their current state,
-        prescribed bodies keep their paths (the DEM's clock starts at that time)."""
-        sc = scene.copy()
+        prescribed bodies keep their paths (the DEM's clock starts at that time).  The other
+        parameters are those of :class:`DEMBodies` (``bodies`` at the start of the run; not changed)."""
+        bodies = copy.deepcopy(bodies)
         pos, ang, vel, om = kinematic.positions, kinematic.angles, kinematic.velocities, kinematic.omegas
-        for k, b in enumerate(sc.bodies):  # once per restart
+        for k, b in enumerate(bodies):  # once per restart
             if b.motion == "free":
                 b.position, b.angle = tuple(pos[k]), float(ang[k])
                 b.velocity, b.omega = tuple(vel[k]), float(om[k])
-        return cls(sc, t0=kinematic.t)
+        return cls(bodies, outlines, domain=domain, contact=contact, gravity=gravity, t0=kinematic.t)
 
     def step(self, dt):
         self.substeps += self.dem.advance(dt)

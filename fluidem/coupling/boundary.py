@@ -1,4 +1,4 @@
-"""Velocity conditions of a scene: box sides (walls, moving walls, inflow) and rigid bodies."""
+"""Velocity conditions of a domain and its bodies: box sides (walls, moving walls, inflow) and rigid bodies."""
 
 from __future__ import annotations
 
@@ -9,19 +9,20 @@ import numpy as np
 __all__ = ["inflow_value", "velocity_bcs", "periodic_axes_of"]
 
 
-def periodic_axes_of(scene) -> tuple:
-    """Periodic axes of the scene's box: ``"x"`` if ``left``/``right`` are periodic, ``"y"`` if
-    ``bottom``/``top`` are (:mod:`fluidem.mesh.periodic`)."""
+def periodic_axes_of(domain) -> tuple:
+    """Periodic axes of the box of ``domain`` (a :class:`~fluidem.scene.DomainSpec`): ``"x"`` if
+    ``left``/``right`` are periodic, ``"y"`` if ``bottom``/``top`` are (:mod:`fluidem.mesh.periodic`)."""
     from ..mesh.periodic import axes_of_sides
 
-    return axes_of_sides({s: scene.domain.side(s).type for s in ("left", "right", "bottom", "top")})
+    return axes_of_sides({s: domain.side(s).type for s in ("left", "right", "bottom", "top")})
 
 
-def period_of_scene(scene) -> tuple:
-    """``(L_x or None, L_y or None)``: the periods of the scene's periodic axes, length units."""
+def period_of_domain(domain) -> tuple:
+    """``(L_x or None, L_y or None)``: the periods of the periodic axes of ``domain`` (a
+    :class:`~fluidem.scene.DomainSpec`), length units."""
     from ..mesh.seam import period_of
 
-    return period_of(scene.domain.box, periodic_axes_of(scene))
+    return period_of(domain.box, periodic_axes_of(domain))
 
 
 def inflow_value(side: str, box, profile: dict):
@@ -56,26 +57,37 @@ def inflow_value(side: str, box, profile: dict):
     return value
 
 
-def velocity_bcs(scene, centers):
+def velocity_bcs(domain, bodies, centers):
     """Velocity conditions of the box sides and the bodies (rigid motion about ``centers`` (n, 2)).
 
-    Returns a list of :class:`fluidem.fluid.space.VelocityBC`: the sides first (in the order
-    left, right, bottom, top; outflow and periodic sides get none), then one per body, so a body's
-    condition wins on DOFs it shares with a side.
+    Parameters
+    ----------
+    domain : fluidem.scene.DomainSpec
+        The box and its sides.
+    bodies : list of fluidem.scene.BodySpec
+        The bodies (name, motion, velocity in length/time, ω in rad/time), in the order of ``centers``.
+    centers : (n, 2) float
+        The centre of each body's rigid motion, length units.
+
+    Returns
+    -------
+    list of fluidem.fluid.space.VelocityBC
+        The sides first (in the order left, right, bottom, top; outflow and periodic sides get
+        none), then one per body, so a body's condition wins on DOFs it shares with a side.
     """
     from ..fluid.space import RigidMotion, VelocityBC
 
     bcs = []
-    period = period_of_scene(scene)
+    period = period_of_domain(domain)
     for s in ("left", "right", "bottom", "top"):
-        side = scene.domain.side(s)
+        side = domain.side(s)
         if side.type == "wall":
             bcs.append(VelocityBC(s, (0.0, 0.0)))
         elif side.type == "moving-wall":
             bcs.append(VelocityBC(s, side.velocity))
         elif side.type == "inflow":
-            bcs.append(VelocityBC(s, inflow_value(s, scene.domain.box, scene.domain.profile_of(s))))
-    for b, c in zip(scene.bodies, centers):
+            bcs.append(VelocityBC(s, inflow_value(s, domain.box, domain.profile_of(s))))
+    for b, c in zip(bodies, centers):
         if b.motion == "fixed":
             bcs.append(VelocityBC(b.name, (0.0, 0.0)))
         else:
@@ -83,8 +95,9 @@ def velocity_bcs(scene, centers):
     return bcs
 
 
-def viscous_form_of(scene) -> str:
-    """``"stress"`` when a body may rotate (free, or prescribed with ω ≠ 0): the torque on it
-    needs the true viscous traction (:mod:`fluidem.fluid.forms`); ``"laplacian"`` otherwise."""
-    return "stress" if any(b.motion == "free" or (b.motion == "prescribed" and b.omega) for b in scene.bodies) \
+def viscous_form_of(bodies) -> str:
+    """``"stress"`` when one of ``bodies`` (list of :class:`~fluidem.scene.BodySpec`) may rotate (free,
+    or prescribed with ω ≠ 0): the torque on it needs the true viscous traction
+    (:mod:`fluidem.fluid.forms`); ``"laplacian"`` otherwise."""
+    return "stress" if any(b.motion == "free" or (b.motion == "prescribed" and b.omega) for b in bodies) \
         else "laplacian"

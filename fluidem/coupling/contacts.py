@@ -65,7 +65,7 @@ from ..dem.periodic import image_shift
 from ..dem.repulsion import Repulsion
 from ..dem.system import critical_sub_step
 
-__all__ = ["BACKSTOP", "FluidContacts", "RESOLVED_FILM", "lubrication_for", "repulsion_for", "scene_period"]
+__all__ = ["BACKSTOP", "FluidContacts", "RESOLVED_FILM", "domain_period", "lubrication_for", "repulsion_for"]
 
 
 #: Resolved-film length δ_r / h of each element pair, for ``contact.lubrication_resolved_gap``:
@@ -81,28 +81,42 @@ RESOLVED_FILM = {"th": 0.025, "p3": 0.015, "p2b": 0.0, "mini": 0.0}
 BACKSTOP = 0.01
 
 
-def repulsion_for(scene, free_areas: np.ndarray, free_densities: np.ndarray) -> Repulsion:
-    """The scene's repulsion: ``contact.repulsion_*`` or their defaults (range ``0.01 mesh.h``,
-    ε = 1e-4 · h/range, force the largest buoyant weight |ρ_s − ρ_f| A |g| of a free body)."""
-    c = scene.contact
-    rng = c.repulsion_range if c.repulsion_range is not None else BACKSTOP * scene.mesh.h
-    eps = c.repulsion_epsilon if c.repulsion_epsilon is not None else 1e-4 * scene.mesh.h / rng
+def repulsion_for(contact, free_areas: np.ndarray, free_densities: np.ndarray, *, h: float, fluid_density: float,
+                  gravity) -> Repulsion:
+    """The repulsion of ``contact``: ``contact.repulsion_*`` or their defaults (range ``0.01 h``,
+    ε = 1e-4 · h/range, force the largest buoyant weight |ρ_s − ρ_f| A |g| of a free body).
+
+    Parameters
+    ----------
+    contact : fluidem.scene.ContactSpec
+    free_areas, free_densities : (n_free,) float
+        Area (length²) and density (mass/length³) of each free body.
+    h : float
+        The mesh size, length.
+    fluid_density : float
+        ρ_f, mass/length³.
+    gravity : (2,) float
+        Acceleration of gravity, length/time².
+    """
+    c = contact
+    rng = c.repulsion_range if c.repulsion_range is not None else BACKSTOP * h
+    eps = c.repulsion_epsilon if c.repulsion_epsilon is not None else 1e-4 * h / rng
     if c.repulsion_force is not None:
         force = c.repulsion_force
     else:
-        g = float(np.hypot(*scene.gravity))
-        w = np.abs(free_densities - scene.fluid.density) * free_areas * g
+        g = float(np.hypot(*gravity))
+        w = np.abs(free_densities - fluid_density) * free_areas * g
         force = float(w.max()) if len(w) else 0.0
     return Repulsion(range=rng, force=force, epsilon=eps)
 
 
-def scene_period(scene) -> tuple:
-    """The periods ``(L_x, L_y)`` of the scene's box for :class:`fluidem.dem.DEM` (``period=...``), length:
-    the box's width where ``domain.left``/``right`` are ``"periodic"``, its height where ``bottom``/``top``
-    are, None on the other axes."""
-    x0, x1, y0, y1 = scene.domain.box
-    return (float(x1 - x0) if scene.domain.side("left").type == "periodic" else None,
-            float(y1 - y0) if scene.domain.side("bottom").type == "periodic" else None)
+def domain_period(domain) -> tuple:
+    """The periods ``(L_x, L_y)`` of the box of ``domain`` (a :class:`~fluidem.scene.DomainSpec`) for
+    :class:`fluidem.dem.DEM` (``period=...``), length: the box's width where ``left``/``right`` are
+    ``"periodic"``, its height where ``bottom``/``top`` are, None on the other axes."""
+    x0, x1, y0, y1 = domain.box
+    return (float(x1 - x0) if domain.side("left").type == "periodic" else None,
+            float(y1 - y0) if domain.side("bottom").type == "periodic" else None)
 
 
 def _pairs_within(pos: np.ndarray, r: float, period: np.ndarray):
@@ -117,21 +131,21 @@ def _pairs_within(pos: np.ndarray, r: float, period: np.ndarray):
     return cKDTree(pos).query_pairs(r, output_type="ndarray")
 
 
-def lubrication_for(scene) -> Lubrication | None:
-    """The scene's lubrication correction (``contact.lubrication*``; μ = ρ_f ν, cut-off ``mesh.h``,
-    the full law below it unless ``lubrication_resolved_gap`` is set, regularised at the
-    repulsion's range), or None where it is off, cannot act (δ_r = 0) or the flow has no inertia
-    (Stokes free bodies feel only the repulsion)."""
-    c = scene.contact
-    if c is None or not c.lubrication or scene.fluid is None or scene.fluid.model == "stokes":
+def lubrication_for(contact, fluid, h: float) -> Lubrication | None:
+    """The lubrication correction of ``contact`` (a :class:`~fluidem.scene.ContactSpec` or None;
+    ``contact.lubrication*``; μ = ρ_f ν of ``fluid``, a :class:`~fluidem.scene.FluidSpec` or None;
+    cut-off the mesh size ``h`` (length), the full law below it unless ``lubrication_resolved_gap``
+    is set, regularised at the repulsion's range), or None where it is off, cannot act (δ_r = 0)
+    or the flow has no inertia (Stokes free bodies feel only the repulsion)."""
+    c = contact
+    if c is None or not c.lubrication or fluid is None or fluid.model == "stokes":
         return None
-    h = scene.mesh.h
     rng = c.lubrication_range if c.lubrication_range is not None else h
     dr = c.lubrication_resolved_gap
     if dr == 0.0:
         return None
     backstop = c.repulsion_range if c.repulsion_range is not None else BACKSTOP * h
-    return Lubrication(viscosity=scene.fluid.density * scene.fluid.viscosity, range=rng,
+    return Lubrication(viscosity=fluid.density * fluid.viscosity, range=rng,
                        min_gap=min(backstop, 0.5 * rng), resolved_gap=dr)
 
 
@@ -140,50 +154,61 @@ class FluidContacts:
 
     Parameters
     ----------
-    scene : fluidem.scene.Scene
-        A fluid scene with a ``[contact]`` table.
+    bodies : list of fluidem.scene.BodySpec
+        Every body of the flow (motion, density, initial pose and velocity).
     free : (n_free,) int
         Indices of the free bodies.
     vertices : list of (k, 2) float
         Every body's outline in body coordinates, length.
+    path : list
+        Every body's path ``t -> (position (2,), angle)``
+        (:class:`~fluidem.coupling.bodies.LinearPath`; used for the prescribed bodies).
+    domain : fluidem.scene.DomainSpec
+        The box: walls where its sides are solid, periods where they are periodic.
+    fluid : fluidem.scene.FluidSpec
+    contact : fluidem.scene.ContactSpec
+    gravity : (2,) float
+        Acceleration of gravity, length/time² (the repulsion's default force scale).
+    h : float
+        The mesh size, length (the default ranges).
 
     Attributes
     ----------
     repulsion : Repulsion
     dem : fluidem.dem.DEM
         The bodies (free ones free, the others as prescribed or fixed), walls from the box,
-        periodic where its sides are (:func:`scene_period`; positions unwrapped, pairs between
+        periodic where its sides are (:func:`domain_period`; positions unwrapped, pairs between
         nearest images), no gravity.
     substeps : int
         DEM sub-steps taken so far; ``dem_calls`` the sub-stepped passes over a fluid step.
     """
 
-    def __init__(self, scene, free, vertices, path):
-        B = scene.bodies
+    def __init__(self, bodies, free, vertices, path, *, domain, fluid, contact, gravity, h: float):
         self.free = np.asarray(free, np.int64)
-        rho_f = scene.fluid.density
-        bodies = []
-        for k, b in enumerate(B):
+        rho_f = fluid.density
+        dem_bodies = []
+        for k, b in enumerate(bodies):
             if b.motion == "prescribed":
-                bodies.append(Body.polygon(vertices[k], density=b.density, motion="prescribed", path=path[k]))
+                dem_bodies.append(Body.polygon(vertices[k], density=b.density, motion="prescribed", path=path[k]))
             else:  # free bodies: translational mass with the added mass ρ_f A (see mean_load)
-                bodies.append(Body.polygon(vertices[k], density=b.density + (rho_f if b.motion == "free" else 0.0),
-                                           position=b.position, angle=b.angle,
-                                           velocity=b.velocity if b.motion == "free" else (0.0, 0.0),
-                                           omega=b.omega if b.motion == "free" else 0.0, motion=b.motion))
-        dens = np.array([B[k].density for k in self.free])
-        areas = np.array([bodies[k].area for k in self.free])
-        self.repulsion = repulsion_for(scene, areas, dens)
-        self.lubrication = lubrication_for(scene)
-        x0, x1, y0, y1 = scene.domain.box
-        solid = {s: scene.domain.side(s).type in ("wall", "moving-wall") for s in ("left", "right", "bottom", "top")}
+                dem_bodies.append(Body.polygon(vertices[k], density=b.density + (rho_f if b.motion == "free" else 0.0),
+                                               position=b.position, angle=b.angle,
+                                               velocity=b.velocity if b.motion == "free" else (0.0, 0.0),
+                                               omega=b.omega if b.motion == "free" else 0.0, motion=b.motion))
+        dens = np.array([bodies[k].density for k in self.free])
+        areas = np.array([dem_bodies[k].area for k in self.free])
+        self.repulsion = repulsion_for(contact, areas, dens, h=h, fluid_density=rho_f, gravity=gravity)
+        self.lubrication = lubrication_for(contact, fluid, h)
+        x0, x1, y0, y1 = domain.box
+        solid = {s: domain.side(s).type in ("wall", "moving-wall") for s in ("left", "right", "bottom", "top")}
         walls = (x0 if solid["left"] else -np.inf, x1 if solid["right"] else np.inf,
                  y0 if solid["bottom"] else -np.inf, y1 if solid["top"] else np.inf)
-        c = scene.contact
-        self.dem = DEM(bodies, walls=walls, gravity=(0.0, 0.0), contact=ContactModel(E=c.E, mu=c.mu, gamma=c.gamma),
-                       repulsion=self.repulsion, lubrication=self.lubrication, period=scene_period(scene))
+        c = contact
+        self.dem = DEM(dem_bodies, walls=walls, gravity=(0.0, 0.0),
+                       contact=ContactModel(E=c.E, mu=c.mu, gamma=c.gamma), repulsion=self.repulsion,
+                       lubrication=self.lubrication, period=domain_period(domain))
         self._L = self.dem._L  # (2,) periods, 0 on a non-periodic axis
-        self.radii = np.array([b.radius for b in bodies])
+        self.radii = np.array([b.radius for b in dem_bodies])
         self.walls = walls
         # no rotational added mass: the free bodies' moments of inertia are their own, ρ_s J
         self.dem.inertia[self.free] *= dens / (dens + rho_f)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import time
+from time import perf_counter
 
 from ..cost import CostSplit
 from .boundary import periodic_axes_of, velocity_bcs, viscous_form_of
@@ -16,9 +16,20 @@ class FixedMeshFlow(FlowLoads):
 
     Parameters
     ----------
-    scene : Scene
-    sim : Simulation
-        Its ``counters`` are charged (``triangulations``, ``fluid_solvers``).
+    bodies : list of fluidem.scene.BodySpec
+        The bodies (names, shapes, poses, motions), each a hole in the mesh.
+    outlines : list of (k, 2) float
+        Every body's outline in body coordinates, length.
+    domain : fluidem.scene.DomainSpec
+        The box and its sides.
+    fluid : fluidem.scene.FluidSpec
+    mesh : fluidem.scene.MeshSpec
+        Mesh size, grading and whether disks get curved edges.
+    time : fluidem.scene.TimeSpec
+        The step ``dt`` and the BDF scheme.
+    sim : fluidem.simulation.Simulation
+        Its ``counters`` are charged (``triangulations``, ``fluid_solvers``): any object with a
+        ``counters`` dict.
 
     Attributes
     ----------
@@ -34,7 +45,8 @@ class FixedMeshFlow(FlowLoads):
         ``assembly`` and ``solve`` seconds of the last step.
     """
 
-    def __init__(self, scene, sim):
+    def __init__(self, bodies, outlines, *, domain, fluid, mesh, time, sim):
+        from .. import geometry as geo
         from ..fluid.forces import RigidModes
         from ..fluid.navier_stokes import BDFStepper, FlowProblem
         from ..fluid.solvers import make_solver
@@ -42,10 +54,11 @@ class FixedMeshFlow(FlowLoads):
         from ..mesh import triangulate as tri
         from ..mesh.background import GradedSize, UniformSize
 
-        fl, ms = scene.fluid, scene.mesh
-        t0 = time.perf_counter()
+        fl, ms, time_spec = fluid, mesh, time
+        t0 = perf_counter()
         obstacles = []
-        for b, outline in zip(scene.bodies, scene.world_outlines()):
+        for b, v in zip(bodies, outlines):
+            outline = geo.transform(v, b.position, b.angle)
             circle = (*b.position, b.radius) if (b.shape == "disk" and ms.curved) else None
             obstacles.append(tri.Obstacle(outline, b.name, circle=circle, refine_outline=b.shape != "disk"))
         if ms.grading is None:
@@ -55,22 +68,22 @@ class FixedMeshFlow(FlowLoads):
             region = g["region"] if g["region"] != "bodies" else [o.vertices for o in obstacles]
             size = GradedSize(h_min=ms.h, growth=g["growth"], h_max=g["h_max"], region=region) if region else \
                 UniformSize(ms.h)
-        self.periodic = periodic_axes_of(scene)
-        tmesh = tri.triangulate_box(scene.domain.box, obstacles, size, periodic=self.periodic)
+        self.periodic = periodic_axes_of(domain)
+        tmesh = tri.triangulate_box(domain.box, obstacles, size, periodic=self.periodic)
         self.curved = bool(tmesh.circles)
         self.mesh = tri.to_skfem(tmesh, curved=self.curved)
         sim.counters["triangulations"] += 1
-        self.mesh_time = time.perf_counter() - t0
+        self.mesh_time = perf_counter() - t0
         self.space = FlowSpace(self.mesh, fl.element)
-        bcs = velocity_bcs(scene, [b.position for b in scene.bodies])
+        bcs = velocity_bcs(domain, bodies, [b.position for b in bodies])
         self.rho = fl.density
         self.problem = FlowProblem(self.space, fl.viscosity, bcs, rho=fl.density, body_force=fl.body_force,
-                                   periodic=self.periodic, viscous=viscous_form_of(scene))
+                                   periodic=self.periodic, viscous=viscous_form_of(bodies))
         self.stokes = fl.model == "stokes"
-        self.centers = [b.position for b in scene.bodies]
-        self.names = [b.name for b in scene.bodies]
+        self.centers = [b.position for b in bodies]
+        self.names = [b.name for b in bodies]
         self.rigid = RigidModes(self.space, self.names, self.centers)
-        # scene names mean what the solver factory says (fluidem.fluid.solvers.make_solver):
+        # solver names mean what the solver factory says (fluidem.fluid.solvers.make_solver):
         # "auto" on a run of time steps is an LU reused as a GMRES preconditioner across steps
         # (2-7 iterations, 5-20x cheaper per step than a fresh LU); "direct" a fresh LU every
         # step, for runs that must restart bit for bit
@@ -80,9 +93,9 @@ class FixedMeshFlow(FlowLoads):
             self.stepper = None
             self.x = self.problem.initial_vector(0.0)
         else:
-            solver = make_solver(fl.solver, problem=self.problem, dt=scene.time.dt)
-            order = 3 if scene.time.bdf_scheme(moving_mesh=False) == "bdf3" else 2
-            self.stepper = BDFStepper(self.problem, scene.time.dt, convection=fl.convection, solver=solver,
+            solver = make_solver(fl.solver, problem=self.problem, dt=time_spec.dt)
+            order = 3 if time_spec.bdf_scheme(moving_mesh=False) == "bdf3" else 2
+            self.stepper = BDFStepper(self.problem, time_spec.dt, convection=fl.convection, solver=solver,
                                       order=order)
             self.x = self.stepper.state.x
         self.t = 0.0
@@ -94,10 +107,10 @@ class FixedMeshFlow(FlowLoads):
         return self.space.n_dofs
 
     def step(self, dt):
-        """One step of length ``dt`` (the scene's); charges ``assembly`` and ``solve`` to ``last_cost``."""
+        """One step of length ``dt`` (``time.dt``); charges ``assembly`` and ``solve`` to ``last_cost``."""
         from ..fluid.navier_stokes import solve_stokes
 
-        t0 = time.perf_counter()
+        t0 = perf_counter()
         solve0 = self.problem.timings.solve
         if self.stokes:
             self.t += dt
@@ -107,7 +120,7 @@ class FixedMeshFlow(FlowLoads):
             st = self.stepper.step()
             self.t = self.stepper.t
             self.x = st.x
-        wall = time.perf_counter() - t0
+        wall = perf_counter() - t0
         solve = self.problem.timings.solve - solve0
         self.last_cost = CostSplit({"assembly": wall - solve, "solve": solve})
 

@@ -25,7 +25,7 @@ step and blows up once the added mass exceeds the body mass (a disk: m_a ≈ ρ_
 External loads on a free body: its buoyant weight (ρ_s − ρ_f) A g (the fluid carries no
 gravity: its hydrostatic pressure is subtracted).
 
-Contacts (scenes with a ``[contact]`` table whose bodies may meet):
+Contacts (a ``contact`` spec given: bodies that may meet):
 :class:`fluidem.coupling.contacts.FluidContacts` sub-steps the DEM contact law and the
 short-range repulsion over the step with the fluid's force held, and its mean load enters the
 coupled solve of step 3 by fixed-point iteration (a few back-substitutions, only in steps
@@ -67,10 +67,20 @@ def _polygon_inertia(v: np.ndarray) -> tuple[float, float]:
 class FreeBodyFlow(MovingMeshFlow):
     """The flow around free (and prescribed) bodies on the moving mesh, bodies moved by it.
 
+    Parameters
+    ----------
+    bodies, outlines, domain, fluid, mesh, dt, sim
+        As :class:`~fluidem.coupling.moving_flow.MovingMeshFlow` (``bodies`` may be free).
+    gravity : (2,) float
+        Acceleration of gravity, length/time² (the free bodies' buoyant weight).
+    contact : fluidem.scene.ContactSpec or None
+        The contacts between the bodies (:class:`~fluidem.coupling.contacts.FluidContacts`);
+        None: none.
+
     Attributes
     ----------
     free : (n_free,) int
-        Indices of the free bodies in the scene.
+        Indices of the free bodies among ``bodies``.
     poses : (n_bodies, 3) float
         x, y, angle of every body at the current time (length units, rad).
     body_velocities : (n_bodies, 3) float
@@ -79,8 +89,8 @@ class FreeBodyFlow(MovingMeshFlow):
         Per unit depth: mass/length and mass·length (ρ_s A, ρ_s J about the centroid).
     """
 
-    def __init__(self, scene, sim):
-        B = scene.bodies
+    def __init__(self, bodies, outlines, *, domain, fluid, mesh, dt: float, gravity, contact, sim):
+        B = bodies
         self.free = np.array([k for k, b in enumerate(B) if b.motion == "free"], dtype=np.int64)
         self.poses = np.array([[*b.position, b.angle] for b in B], float).reshape(-1, 3)
         self.body_velocities = np.array([[*b.velocity, b.omega] if b.motion != "fixed" else [0.0, 0.0, 0.0]
@@ -89,18 +99,18 @@ class FreeBodyFlow(MovingMeshFlow):
         self._V_prev = None
         self._lagged_mobility = None  # Stokes: the LU kept between steps (_mobility_solver)
         self._mesh_poses = self.poses.copy()  # where the mesh has the outlines
-        super().__init__(scene, sim)
-        rho_f = scene.fluid.density
-        geo = [_polygon_inertia(B[k].local_vertices(scene.default_segments(B[k]))) for k in self.free]
+        super().__init__(bodies, outlines, domain=domain, fluid=fluid, mesh=mesh, dt=dt, sim=sim)
+        rho_f = fluid.density
+        geo = [_polygon_inertia(np.asarray(outlines[k])) for k in self.free]
         self.area = np.array([a for a, _ in geo])
         dens = np.array([B[k].density for k in self.free])
         self.mass = dens * self.area
         self.inertia = dens * np.array([j for _, j in geo])
-        g = np.asarray(scene.gravity, float)
+        g = np.asarray(gravity, float)
         self._weight = np.zeros((len(self.free), 3))
         self._weight[:, :2] = ((dens - rho_f) * self.area)[:, None] * g[None, :]
         self.system = RigidBodySystem(self.problem, self.rigid, self.free)
-        self.explicit = scene.fluid.coupling == "explicit" and not self.stokes
+        self.explicit = fluid.coupling == "explicit" and not self.stokes
         self.contacts = None
         self._contact_step = False  # Stokes: the last mobility solve had the repulsion in it
         #: Stokes with contacts: Newton iterations of the repulsion per step (relative tolerance
@@ -110,13 +120,13 @@ class FreeBodyFlow(MovingMeshFlow):
         self.contact_iterations = 8
         self.last_contact_iterations = 0
         self.contact_load = np.zeros((len(self.free), 3))
-        if sim.plan.on("contacts") and len(self.free):
-            self.contacts = FluidContacts(scene, self.free, [b.local_vertices(scene.default_segments(b)) for b in B],
-                                          self.path)
+        if contact is not None and len(self.free):
+            self.contacts = FluidContacts(B, self.free, list(outlines), self.path, domain=domain, fluid=fluid,
+                                          contact=contact, gravity=gravity, h=mesh.h)
         #: Stokes in a periodic cell: the zero-flux conditions (:mod:`fluidem.coupling.mean_gradient`)
         #: and the mean pressure gradient G (2,) of the last solve, force/length³ (dynamic; zero
         #: without ``fluid.zero_net_flux``): on the fluid −G, on each free body −G A_k
-        self._flux = flux_conditions(scene) if self.stokes else ((), False, False)
+        self._flux = flux_conditions(domain, B, fluid) if self.stokes else ((), False, False)
         self.mean_gradient = np.zeros(2)
         if self.stokes:
             self.coupled = None
@@ -126,7 +136,7 @@ class FreeBodyFlow(MovingMeshFlow):
                                            velocities=self.body_velocities[self.free], solver=self._coupled_solver())
 
     def _coupled_solver(self):
-        """The coupled system's solver, by the scene's ``fluid.solver``: the fluid's LU (fresh or
+        """The coupled system's solver, by ``fluid.solver``: the fluid's LU (fresh or
         lagged) for ``"direct"`` and ``"lagged"``; block-preconditioned GMRES with the bodies in the
         velocity block (:class:`~fluidem.coupling.body_krylov.BodyBlockKrylovSolver`) for
         ``"iterative"`` (less memory); the lagged LU for ``"auto"`` at every size, also above the
@@ -140,8 +150,8 @@ class FreeBodyFlow(MovingMeshFlow):
         s = self.stepper.solver
         if isinstance(s, (DirectSolver, LaggedLUSolver)):
             return s
-        dt = self.scene.time.dt
-        if self.scene.fluid.solver == "iterative":
+        dt = self.dt
+        if self.fluid.solver == "iterative":
             return BodyBlockKrylovSolver(self, dt)
         if isinstance(s, AutoSolver):  # "auto" without the iterative path: lagged for a run of steps
             return AutoSolver(direct_options=s.direct_options, iterative_options={"dt": dt},
@@ -250,8 +260,8 @@ class FreeBodyFlow(MovingMeshFlow):
         t0 = time.perf_counter()
         f = self.free
         X, V = self.poses[f], self.body_velocities[f]
-        F, T = self.loads() if self.stepper.n_steps else (np.zeros((len(self.scene.bodies), 2)),
-                                                           np.zeros(len(self.scene.bodies)))
+        F, T = self.loads() if self.stepper.n_steps else (np.zeros((len(self.body_specs), 2)),
+                                                           np.zeros(len(self.body_specs)))
         load = np.column_stack([F[f], T[f]]) + self._weight
         m = np.column_stack([self.mass, self.mass, self.inertia])
         if self._V_prev is None:  # BDF1
@@ -273,7 +283,7 @@ class FreeBodyFlow(MovingMeshFlow):
         self._mesh_poses[f] = X_new
         cost.add("coupling", time.perf_counter() - t0)
         ev, rebuilt, old_space = self._move_mesh(self._mesh_poses, self.t + dt, cost)
-        first = len(self.problem.bcs) - len(self.scene.bodies)  # body conditions follow the sides'
+        first = len(self.problem.bcs) - len(self.body_specs)  # body conditions follow the sides'
         for j, k in enumerate(f):
             self.problem.bcs[first + k] = VelocityBC(self.names[k], RigidMotion(tuple(V_new[j, :2]), float(V_new[j, 2]),
                                                                              tuple(X_new[j, :2]),
@@ -298,7 +308,7 @@ class FreeBodyFlow(MovingMeshFlow):
         from ..fluid.solvers import LaggedLUSolver
         from .moving_flow import LAGGED_REFACTOR_ITERATIONS
 
-        if self.scene.fluid.solver == "direct":
+        if self.fluid.solver == "direct":
             return self.problem.direct_solver()
         s = self._lagged_mobility
         if s is None or rebuilt:
@@ -312,7 +322,7 @@ class FreeBodyFlow(MovingMeshFlow):
         pr, sysm = self.problem, self.system
         axes, multiplier, null = self._flux
         if multiplier:  # the residual without the mean gradient: the solve finds all of it
-            pr.set_body_force(self.scene.fluid.body_force)
+            pr.set_body_force(self.fluid.body_force)
         x = pr.initial_vector(t)
         z = sysm.gather(x, np.zeros((len(self.free), 3)))
         x = sysm.prolong(z, x)
@@ -323,7 +333,7 @@ class FreeBodyFlow(MovingMeshFlow):
         solver = self._mobility_solver(rebuilt)
         if axes:
             solver = flux_solver(self, solver, x, z, axes, multiplier, null)
-        dt = self.scene.time.dt
+        dt = self.dt
         c = self.contacts
         self._contact_step = c is not None and c.within_reach(
             self._mesh_poses, 2.0 * dt * float(np.abs(self.body_velocities[self.free, :2]).max()))
@@ -338,7 +348,7 @@ class FreeBodyFlow(MovingMeshFlow):
         if multiplier:  # G = ρ g on the axes: the fluid's body force −G/ρ from now on (loads, output)
             self.mean_gradient = np.zeros(2)
             self.mean_gradient[list(axes)] = self.rho * solver.last_multiplier
-            pr.set_body_force(np.asarray(self.scene.fluid.body_force) - self.mean_gradient / self.rho)
+            pr.set_body_force(np.asarray(self.fluid.body_force) - self.mean_gradient / self.rho)
         pr.normalise_pressure(self.x)
         P, Vp = self._prescribed(t)
         self.body_velocities = Vp.copy()

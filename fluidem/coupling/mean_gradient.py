@@ -165,19 +165,20 @@ class ZeroFluxSolver:
         return d
 
 
-def flux_conditions(scene) -> tuple[tuple[int, ...], bool, bool]:
-    """Which flux conditions a Stokes scene of free bodies needs: (axes, multiplier, null space).
+def flux_conditions(domain, bodies, fluid) -> tuple[tuple[int, ...], bool, bool]:
+    """Which flux conditions a Stokes flow of free bodies needs: (axes, multiplier, null space).
 
+    ``domain``, ``bodies`` and ``fluid`` are the :class:`~fluidem.scene.DomainSpec`, the list of
+    :class:`~fluidem.scene.BodySpec` and the :class:`~fluidem.scene.FluidSpec` of the flow.
     ``axes``: the periodic axes (0: x, 1: y) whose volume flux is held at zero; ``multiplier``:
     the mean pressure gradient along them is solved for (``fluid.zero_net_flux``); ``null``:
     the cell is doubly periodic and holds free bodies only, so fluid and bodies translating
     together is a null mode of the mobility problem (fixed by the flux, with or without the key).
     """
-    sides = scene.domain
     axes = tuple(a for a, (s0, _) in enumerate((("left", "right"), ("bottom", "top")))
-                 if sides.side(s0).type == "periodic")
-    null = len(axes) == 2 and all(b.motion == "free" for b in scene.bodies)
-    multiplier = bool(scene.fluid.zero_net_flux)
+                 if domain.side(s0).type == "periodic")
+    null = len(axes) == 2 and all(b.motion == "free" for b in bodies)
+    multiplier = bool(fluid.zero_net_flux)
     if not (null or multiplier):
         return (), False, False
     return axes, multiplier, null

@@ -5,7 +5,7 @@ Each step the bodies move to their poses at t + dt and the mesh follows
 problem is moved, not rebuilt (:meth:`fluidem.fluid.problem.FlowProblem.update_geometry`:
 same DOF numbering, patterns, condensed structure, Dirichlet lists; new basis values and
 data), the rigid-mode operator's torque rows are refilled, and the lagged LU of the last
-matrices preconditions GMRES (scene ``solver = "direct"``: a fresh LU every step, for
+matrices preconditions GMRES (``fluid.solver = "direct"``: a fresh LU every step, for
 bit-for-bit restarts).  At a re-triangulation everything is rebuilt, the LU is recomputed,
 and u^n, u^{n−1} are interpolated onto the new nodes from the old connectivity at the
 positions of t + dt, which covers the new domain exactly: the new nodes inherit the
@@ -29,7 +29,7 @@ import numpy as np
 from ..cost import CostSplit
 from ..fluid.solvers.lagged import MOVING_MESH_STEPPING
 from ..fluid.solvers.ordering import OrderingChoice
-from ..geometry import barycentric
+from ..geometry import barycentric, transform
 from .bodies import LinearPath
 from ..mesh.seam import period_of
 from .boundary import periodic_axes_of, velocity_bcs, viscous_form_of
@@ -95,7 +95,7 @@ class Outline:
 class MovingMeshFlow(FlowLoads):
     """The flow around prescribed bodies whose outlines move: ALE on :class:`fluidem.mesh.MovingMesh`.
 
-    One BDF2 step per scene step with the mesh velocity w in the convection, (u − w)·∇u, w
+    One BDF2 step per time step with the mesh velocity w in the convection, (u − w)·∇u, w
     the BDF2 derivative of the node trajectories (module docstring; BDF1 on the first step).
     While the connectivity is unchanged the velocity coefficients stay attached to the nodes
     (no interpolation) and the problem is moved in place.  At a re-triangulation u^n and
@@ -111,8 +111,27 @@ class MovingMeshFlow(FlowLoads):
     ``tests/test_ale.py``).  Stokes is quasi-steady: one solve per step on the current mesh,
     no mesh velocity.  Outlines are polygons (straight edges).
 
+    Parameters
+    ----------
+    bodies : list of fluidem.scene.BodySpec
+        The bodies (names, initial poses, velocities and motions: fixed, prescribed).
+    outlines : list of (k, 2) float
+        Every body's outline in body coordinates, length.
+    domain : fluidem.scene.DomainSpec
+        The box and its sides.
+    fluid : fluidem.scene.FluidSpec
+    mesh : fluidem.scene.MeshSpec
+        Mesh size, grading, strategy and re-triangulation period.
+    dt : float
+        The time step.
+    sim : fluidem.simulation.Simulation
+        Its ``counters`` are charged (``triangulations``, ``fluid_solvers``, ``transfers``): any
+        object with a ``counters`` dict.
+
     Attributes
     ----------
+    body_specs : list of fluidem.scene.BodySpec
+        ``bodies``; ``fluid``, ``domain`` and ``dt`` are kept as given too (rebuilds read them).
     mm : MovingMesh
     mesh : skfem.MeshTri
     space : FlowSpace
@@ -125,31 +144,32 @@ class MovingMeshFlow(FlowLoads):
         (problem moved or rebuilt, fields transferred), ``assembly``, ``solve``.
     """
 
-    def __init__(self, scene, sim):
+    def __init__(self, bodies, outlines, *, domain, fluid, mesh, dt: float, sim):
         from ..fluid.navier_stokes import BDF2Stepper
         from ..mesh import MovingMesh
 
-        fl, ms = scene.fluid, scene.mesh
-        self.scene = scene
+        fl, ms = fluid, mesh
+        self.fluid, self.dt, self.domain, self.body_specs = fluid, dt, domain, list(bodies)
         t0 = time.perf_counter()
-        outlines = [Outline(b.local_vertices(scene.default_segments(b)), b.name) for b in scene.bodies]
+        mesh_outlines = [Outline(v, b.name) for b, v in zip(bodies, outlines)]
         self.path = [LinearPath(b.position, b.angle, b.velocity if b.motion != "fixed" else (0, 0),
-                                b.omega if b.motion != "fixed" else 0.0) for b in scene.bodies]
+                                b.omega if b.motion != "fixed" else 0.0) for b in bodies]
         grading = None
         if ms.grading is not None:
             g = ms.grading
-            region = g["region"] if g["region"] != "bodies" else scene.world_outlines()
+            region = g["region"] if g["region"] != "bodies" else \
+                [transform(v, b.position, b.angle) for b, v in zip(bodies, outlines)]
             grading = {"region": region, "growth": g["growth"], "h_max": g["h_max"]}
-        self.mm = MovingMesh(scene.domain.box, outlines, self._poses(0.0), ms.h, grading=grading,
+        self.mm = MovingMesh(domain.box, mesh_outlines, self._poses(0.0), ms.h, grading=grading,
                              strategy=ms.strategy, retriangulate_every=ms.retriangulate_every,
-                             periodic=periodic_axes_of(scene))
+                             periodic=periodic_axes_of(domain))
         sim.counters["triangulations"] += 1
         self.sim = sim
         self.mesh_time = time.perf_counter() - t0
         self.curved = False
         self.rho = fl.density
         self.stokes = fl.model == "stokes"
-        self.names = [b.name for b in scene.bodies]
+        self.names = [b.name for b in bodies]
         self.t = 0.0
         self.last_event = None
         self.last_cost = CostSplit()
@@ -166,7 +186,7 @@ class MovingMeshFlow(FlowLoads):
             # 9-15 iterations after a few steps, where one LU costs 40-60 GMRES iterations
             # (Taylor-Hood, 20k-80k DOFs), so refactorise only above LAGGED_REFACTOR_ITERATIONS
             solver = self._make_solver()
-            self.stepper = BDF2Stepper(self.problem, scene.time.dt, convection=fl.convection, solver=solver,
+            self.stepper = BDF2Stepper(self.problem, dt, convection=fl.convection, solver=solver,
                                        mesh_velocity=np.zeros(self.space.n_u))
             if fl.ale_form == "conservative":
                 self.stepper.use_conservative_form(self._outline_dofs())
@@ -178,15 +198,15 @@ class MovingMeshFlow(FlowLoads):
         return np.array([[*p(t)[0], p(t)[1]] for p in self.path]).reshape(-1, 3)
 
     def _make_solver(self):
-        """The scene's linear solver for the current problem: for ``"auto"`` and ``"lagged"`` the
+        """The linear solver of ``fluid.solver`` for the current problem: for ``"auto"`` and ``"lagged"`` the
         lagged LU with :data:`~fluidem.fluid.solvers.lagged.MOVING_MESH_STEPPING` (the block-Krylov
         path of ``"auto"`` keeps its own tolerance)."""
         from ..fluid.solvers import AutoSolver, make_solver
 
-        fl = self.scene.fluid
+        fl = self.fluid
         if fl.solver == "lagged":
             return make_solver("lagged", problem=self.problem, **MOVING_MESH_STEPPING)
-        s = make_solver(fl.solver, problem=self.problem, dt=self.scene.time.dt)
+        s = make_solver(fl.solver, problem=self.problem, dt=self.dt)
         if isinstance(s, AutoSolver):
             s.lagged_options.update(MOVING_MESH_STEPPING)
         return s
@@ -211,14 +231,14 @@ class MovingMeshFlow(FlowLoads):
         from ..fluid.problem import FlowProblem
         from ..fluid.space import FlowSpace
 
-        fl = self.scene.fluid
+        fl = self.fluid
         self.mesh = self.mm.skfem_mesh()
         self._triangles = np.array(self.mm.triangles, copy=True)  # the connectivity this problem was built on
         self.space = FlowSpace(self.mesh, fl.element)
         self.centers = self._poses(t)[:, :2]
-        self.problem = FlowProblem(self.space, fl.viscosity, velocity_bcs(self.scene, self.centers), rho=fl.density,
-                                   body_force=fl.body_force, moving=True, periodic=self.mm.periodic,
-                                   viscous=viscous_form_of(self.scene))
+        self.problem = FlowProblem(self.space, fl.viscosity, velocity_bcs(self.domain, self.body_specs, self.centers),
+                                   rho=fl.density, body_force=fl.body_force, moving=True, periodic=self.mm.periodic,
+                                   viscous=viscous_form_of(self.body_specs))
         self.problem.ordering = self.ordering
         self.rigid = RigidModes(self.space, self.names, self.centers, period=period_of(self.mm.box, self.mm.periodic))
 
@@ -256,7 +276,7 @@ class MovingMeshFlow(FlowLoads):
         mesh = dataclasses.replace(self.mesh, doflocs=np.ascontiguousarray(self.mm.points.T, dtype=float))
         self.mesh = mesh
         self.centers = self._poses(t)[:, :2]
-        self.problem.update_geometry(mesh, velocity_bcs(self.scene, self.centers))
+        self.problem.update_geometry(mesh, velocity_bcs(self.domain, self.body_specs, self.centers))
         self.space = self.problem.space
         self.rigid.update(self.space, self.centers)
         return True

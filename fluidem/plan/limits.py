@@ -132,7 +132,7 @@ def contact_sub_steps(scene: Scene) -> tuple[float, float, str] | None:
     if fl is not None:
         from ..coupling.contacts import repulsion_for
 
-        rep = repulsion_for(scene, areas, dens)
+        rep = repulsion_for(c, areas, dens, h=scene.mesh.h, fluid_density=fl.density, gravity=scene.gravity)
     dt_max, by = stable_sub_step(mass, c.E, rep)
     with np.errstate(all="ignore"):
         n = scene.time.dt / dt_max

@@ -349,7 +349,8 @@ def stokes_contacts_note(scene, ctx):
         return
     from ..coupling.contacts import repulsion_for
 
-    rep = repulsion_for(scene, np.zeros(0), np.zeros(0))
+    rep = repulsion_for(scene.contact, np.zeros(0), np.zeros(0), h=scene.mesh.h, fluid_density=fl.density,
+                        gravity=scene.gravity)
     yield Note(f"contacts of Stokes free bodies: the short-range repulsion (Glowinski et al. 2001) "
                f"below {rep.range:g}, epsilon {rep.epsilon:g}, in the mobility problem, linearly "
                "implicit in the poses (Euler in the steps where it acts); no lubrication correction, "
@@ -380,9 +381,9 @@ def fluid_contacts_note(scene, ctx):
         return
     from ..coupling.contacts import lubrication_for, repulsion_for
 
-    c = scene.contact
-    rep = repulsion_for(scene, np.zeros(0), np.zeros(0))
-    lub = lubrication_for(scene)
+    c, fl = scene.contact, scene.fluid
+    rep = repulsion_for(c, np.zeros(0), np.zeros(0), h=scene.mesh.h, fluid_density=fl.density, gravity=scene.gravity)
+    lub = lubrication_for(c, fl, scene.mesh.h)
     force = f"{c.repulsion_force:g}" if c.repulsion_force is not None else "the largest buoyant weight of a free body"
     if lub is not None:
         what = ("the squeeze-film law" if lub.resolved_gap is None

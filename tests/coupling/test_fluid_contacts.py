@@ -92,7 +92,8 @@ def test_contact_loads_are_equal_and_opposite():
 
     sc = _pair_scene()
     verts = [regular_polygon(A, 32)] * 2
-    c = FluidContacts(sc, np.array([0, 1]), verts, [None, None])
+    c = FluidContacts(sc.bodies, np.array([0, 1]), verts, [None, None],
+                      domain=sc.domain, fluid=sc.fluid, contact=sc.contact, gravity=sc.gravity, h=sc.mesh.h)
     poses = np.array([[0.8, 0.5, 0.0], [0.8 + 2 * A + 0.5 * c.repulsion.range, 0.5, 0.0]])  # gap ρ/2
     vel = np.array([[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]])
     load = c.load_function(0.0, 0.01, poses, vel)

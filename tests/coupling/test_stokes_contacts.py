@@ -45,7 +45,8 @@ def test_repulsion_stiffness_is_the_derivative_of_its_force_along_the_normals():
                     "density": 1.5}],
         "contact": {"E": 1e4, "mu": 0.0, "repulsion_range": H}, "mesh": {"h": H},
         "time": {"dt": 0.01, "t_end": 0.1}})
-    c = FluidContacts(sc, np.array([0, 1]), [disk, disk], [None, None])
+    c = FluidContacts(sc.bodies, np.array([0, 1]), [disk, disk], [None, None],
+                      domain=sc.domain, fluid=sc.fluid, contact=sc.contact, gravity=sc.gravity, h=sc.mesh.h)
     P = np.array([[A + 0.002, 0.5, 0.0], [A + 0.002 + 2 * A + 0.01, 0.5, 0.0]])  # wall, then the pair
     F, K = c.repulsion_linearised(P)
     K = K.toarray()
