@@ -5,6 +5,7 @@ import time
 import numpy as np
 import pytest
 
+from fluidem.errors import InputError
 from fluidem.scene import BodySpec, Scene
 
 CONTRACT = """
@@ -296,3 +297,24 @@ def test_conservative_ale_form_with_another_convection_is_refused_naming_both():
                                          r"the conservative form needs convection = 'semi-implicit'"):
         Scene.from_dict({"fluid": {"ale_form": "conservative", "convection": "newton"},
                          "domain": {"box": [0, 1, 0, 1]}})
+
+
+def test_bodies_overlapping_through_a_periodic_side_are_refused_in_one_line():
+    """A body across a periodic side is also where its image is: an overlap with a body at the other side
+    (or, doubly periodic, at the opposite corner) is refused like one inside the box."""
+    fluid = {"fluid": {"model": "stokes", "viscosity": 1.0}, "mesh": {"h": 0.04},
+             "domain": {"box": [0, 2, -0.5, 0.5], "left": "periodic", "right": "periodic"}}
+    disk = {"shape": "disk", "radius": 0.1, "motion": "free"}
+    with pytest.raises(InputError, match=r"^bodies\[0\] .* and bodies\[1\] .* overlap at start \(through a periodic "
+                                         r"side\) by 0\.00697"):
+        Scene.from_dict(dict(fluid, bodies=[dict(disk, position=[0.02, 0.0]), dict(disk, position=[1.9, 0.05])]))
+    assert len(Scene.from_dict(dict(fluid, bodies=[dict(disk, position=[0.02, 0.0]),
+                                                   dict(disk, position=[1.7, 0.05])])).bodies) == 2
+    dry = {"domain": {"box": [0, 1, 0, 1], "left": "periodic", "right": "periodic", "bottom": "periodic",
+                      "top": "periodic"}}
+    corner = [{"shape": "disk", "radius": 0.1, "position": [0.02, 0.03]},
+              {"shape": "rectangle", "width": 0.2, "height": 0.1, "position": [0.95, 0.95]}]
+    with pytest.raises(InputError, match=r"overlap at start \(through a periodic side\) by 0\.0069 "):
+        Scene.from_dict(dict(dry, bodies=corner))
+    corner[1]["position"] = [0.6, 0.6]  # a dry scene takes a body across periodic sides (the DEM's images)
+    assert len(Scene.from_dict(dict(dry, bodies=corner)).bodies) == 2

@@ -325,20 +325,31 @@ class Scene:
                            f"{self.mesh.h:g}; a longer one reaches a wall from anywhere in the box)", SceneError)
 
     def _check_geometry(self):
-        """Bodies inside the box and not overlapping each other (shapely, vectorised)."""
-        import shapely
-
+        """Bodies inside the box (or across its periodic sides where the run can take them) and not
+        overlapping each other, through the periodic sides too (shapely, vectorised)."""
         if not self.bodies:
             return
-        x0, x1, y0, y1 = self.domain.box
         polys = self.world_outlines()
         lo = np.array([p.min(axis=0) for p in polys])
         hi = np.array([p.max(axis=0) for p in polys])
-        # the moving mesh meshes a body across a periodic side as its images on both sides
+        # the moving mesh meshes a body across a periodic side as its images on both sides, and the
+        # DEM of a dry scene takes every pair at its nearest image; a fixed mesh cannot
         moving_mesh = self.fluid is not None and any(b.outline_moves for b in self.bodies)
-        for c, (s0, s1), (b0, b1) in ((0, ("left", "right"), (x0, x1)), (1, ("bottom", "top"), (y0, y1))):
-            if self.domain.side(s0).type != "periodic":
-                continue
+        can_cross = self.fluid is None or moving_mesh
+        self._check_periodic_extents(lo, hi, can_cross)
+        self._check_inside_box(lo, hi, can_cross)
+        self._check_overlaps(polys, lo, hi)
+
+    def _periodic_sides(self):
+        """(axis, (low side, high side), (low, high)) of each periodic pair of the box."""
+        x0, x1, y0, y1 = self.domain.box
+        return [(c, sides, bounds) for c, sides, bounds in ((0, ("left", "right"), (x0, x1)),
+                                                            (1, ("bottom", "top"), (y0, y1)))
+                if self.domain.side(sides[0]).type == "periodic"]
+
+    def _check_periodic_extents(self, lo, hi, can_cross):
+        """Every body narrower than the period; across a periodic side only where the run can take it."""
+        for c, (s0, s1), (b0, b1) in self._periodic_sides():
             width = hi[:, c] - lo[:, c]
             wide = np.flatnonzero(width >= b1 - b0)
             if len(wide):
@@ -346,21 +357,25 @@ class Scene:
                 raise SceneError(f"bodies[{i}] has width {width[i]:.4g} in {'xy'[c]} across the periodic sides "
                                  f"{s0}/{s1}: allowed: narrower than the period {b1 - b0:.4g}")
             cross = np.flatnonzero((lo[:, c] <= b0) | (hi[:, c] >= b1))
-            if len(cross) and not moving_mesh:
+            if len(cross) and not can_cross:
                 i = int(cross[0])
                 side = s0 if lo[i, c] <= b0 else s1
                 raise SceneError(f"bodies[{i}].position = {list(self.bodies[i].position)}: the body (extent "
                                  f"{'xy'[c]} {lo[i, c]:.4g}..{hi[i, c]:.4g}) overlaps the periodic side {side!r} "
                                  f"at {'xy'[c]} = {b0 if side == s0 else b1:g}; allowed: every vertex strictly "
                                  "inside the box (a body across a periodic side needs the moving mesh: a fluid "
-                                 "scene with a free or moving body)")
+                                 "scene with a free or moving body; or a dry scene)")
+
+    def _check_inside_box(self, lo, hi, can_cross):
+        """Every vertex inside the box, except across periodic sides where the run can take it."""
+        x0, x1, y0, y1 = self.domain.box
         # a body whose outline moves in a fluid is meshed by the moving mesh, which merges a body
         # touching a wall with the wall: touching is fine there, overlapping is not
         touch = np.array([self.fluid is not None and b.outline_moves for b in self.bodies])
         tol = 1e-12 * max(x1 - x0, y1 - y0)
         below = np.where(touch, -tol, 0.0)
-        px = moving_mesh and self.domain.side("left").type == "periodic"
-        py = moving_mesh and self.domain.side("bottom").type == "periodic"
+        px = can_cross and self.domain.side("left").type == "periodic"
+        py = can_cross and self.domain.side("bottom").type == "periodic"
         out = np.flatnonzero((~px & ((lo[:, 0] - x0 <= below) | (x1 - hi[:, 0] <= below)))
                              | (~py & ((lo[:, 1] - y0 <= below) | (y1 - hi[:, 1] <= below))))
         if len(out):
@@ -370,27 +385,56 @@ class Scene:
             raise SceneError(f"bodies[{i}].position = {list(self.bodies[i].position)}: the body (extent "
                              f"x {lo[i, 0]:.4g}..{hi[i, 0]:.4g}, y {lo[i, 1]:.4g}..{hi[i, 1]:.4g}) is not inside "
                              f"domain.box = {list(self.domain.box)}; allowed: {allowed}")
+
+    def _check_overlaps(self, polys, lo, hi):
+        """No two bodies overlap (a fluid scene: touch), also through a periodic side: a body across
+        a side is tested with its images shifted by one period back into the box."""
+        import shapely
+
         idx = np.repeat(np.arange(len(polys)), [len(p) for p in polys])
         geoms = shapely.polygons(shapely.linearrings(np.vstack(polys), indices=idx))
+        owner = np.arange(len(polys))
+        images, image_owner = [], []
+        shifts = {c: np.where(lo[:, c] <= b0, b1 - b0, 0.0) - np.where(hi[:, c] >= b1, b1 - b0, 0.0)
+                  for c, _, (b0, b1) in self._periodic_sides()}
+        for sx in ((0.0, 1.0) if 0 in shifts else (0.0,)):
+            for sy in ((0.0, 1.0) if 1 in shifts else (0.0,)):
+                if sx == sy == 0.0:
+                    continue
+                d = np.column_stack([sx * shifts.get(0, np.zeros(len(polys))),
+                                     sy * shifts.get(1, np.zeros(len(polys)))])
+                moved = np.flatnonzero(np.abs(d).sum(axis=1) > 0.0)
+                if len(moved):
+                    rings = np.vstack([polys[k] + d[k] for k in moved])
+                    at = np.repeat(np.arange(len(moved)), [len(polys[k]) for k in moved])
+                    images.append(shapely.polygons(shapely.linearrings(rings, indices=at)))
+                    image_owner.append(moved)
+        if images:
+            geoms = np.concatenate([geoms, *images])
+            owner = np.concatenate([owner, *image_owner])
         tree = shapely.STRtree(geoms)
         pairs = tree.query(geoms, predicate="intersects")
-        i, j = pairs[:, pairs[0] < pairs[1]] if pairs.size else (np.zeros(0, int), np.zeros(0, int))
-        if len(i):
-            area = shapely.area(shapely.intersection(geoms[i], geoms[j]))
-            ref = np.minimum(shapely.area(geoms[i]), shapely.area(geoms[j]))
-            bad = np.flatnonzero(area > 1e-9 * ref)
-            if len(bad):
-                a, b = int(i[bad[0]]), int(j[bad[0]])
-                raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
-                                 f"{list(self.bodies[b].position)}) overlap at start by {area[bad[0]]:.3g} "
-                                 f"(length²); allowed: bodies that do not overlap"
-                                 + (" or touch" if self.fluid is None else ""))
-            if self.fluid is not None:  # touching outlines leave no fluid between them: no mesh can be built
-                a, b = int(i[0]), int(j[0])
-                raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
-                                 f"{list(self.bodies[b].position)}) touch at start; in a fluid scene bodies need "
-                                 f"fluid between them: move them apart (a gap of at least mesh.h = {self.mesh.h:g}) "
-                                 "or make them one polygon body")
+        keep = (pairs[0] < pairs[1]) & (owner[pairs[0]] != owner[pairs[1]]) if pairs.size else np.zeros(0, bool)
+        i, j = pairs[:, keep] if pairs.size else (np.zeros(0, int), np.zeros(0, int))
+        if not len(i):
+            return
+        area = shapely.area(shapely.intersection(geoms[i], geoms[j]))
+        ref = np.minimum(shapely.area(geoms[i]), shapely.area(geoms[j]))
+        bad = np.flatnonzero(area > 1e-9 * ref)
+        across = " (through a periodic side)" if len(bad) and (i[bad[0]] >= len(polys) or j[bad[0]] >= len(polys)) \
+            else ""
+        if len(bad):
+            a, b = sorted((int(owner[i[bad[0]]]), int(owner[j[bad[0]]])))
+            raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
+                             f"{list(self.bodies[b].position)}) overlap at start{across} by {area[bad[0]]:.3g} "
+                             f"(length²); allowed: bodies that do not overlap"
+                             + (" or touch" if self.fluid is None else ""))
+        if self.fluid is not None:  # touching outlines leave no fluid between them: no mesh can be built
+            a, b = sorted((int(owner[i[0]]), int(owner[j[0]])))
+            raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
+                             f"{list(self.bodies[b].position)}) touch at start; in a fluid scene bodies need "
+                             f"fluid between them: move them apart (a gap of at least mesh.h = {self.mesh.h:g}) "
+                             "or make them one polygon body")
 
     def world_outlines(self) -> list:
         """Initial outlines in world coordinates, list of (n_i, 2) arrays."""
