@@ -45,22 +45,18 @@ def worker(scene: str, n_steps: int) -> dict:
     import fluidem
     from fluidem.cases.scenes import example_scene
 
+    sys.path.insert(0, str(HERE))
+    from results_io import step_recorder
+
     path = example_scene(scene) if scene == "suspension" else scene
     sim = fluidem.Simulation(path)
-    rows = []
-    last = [time.perf_counter()]
 
-    def progress(step, n, t, cost):
-        now = time.perf_counter()
-        flow = sim.flow
-        ev = flow.last_event
-        f = flow.__dict__.get("_forces_now")
-        rows.append({"step": int(step), "t": float(t), "seconds": now - last[0],
-                     "mesh_seconds": float(getattr(cost, "mesh", 0.0) or 0.0),
-                     "retriangulated": bool(ev is not None and ev.retriangulated),
-                     "reason": ev.reason if ev is not None else "",
-                     "forces": None if f is None else np.asarray(f[1], float).tolist()})
-        last[0] = time.perf_counter()
+    def extra(sim, cost):
+        f = sim.flow.__dict__.get("_forces_now")
+        return {"mesh_seconds": float(getattr(cost, "mesh", 0.0) or 0.0),
+                "forces": None if f is None else np.asarray(f[1], float).tolist()}
+
+    rows, progress = step_recorder(sim, extra)
 
     status = "finished"
     with tempfile.TemporaryDirectory() as out:

@@ -93,21 +93,12 @@ def worker(spec: dict) -> dict:
     import fluidem
     from fluidem.scene import Scene
 
+    sys.path.insert(0, str(HERE))
+    from results_io import step_recorder
+
     sc = scene_dict(spec["phi"], spec["seed"], spec["t_end"], spec.get("band"))
     sim = fluidem.Simulation(Scene.from_dict(sc))
-    rows = []
-    last = [time.perf_counter()]
-
-    def progress(step, n, t, cost):
-        now = time.perf_counter()
-        flow = sim.flow
-        ev = flow.last_event
-        mm = flow.mm
-        rows.append({"step": int(step), "seconds": now - last[0],
-                     "retriangulated": bool(ev is not None and ev.retriangulated),
-                     "reason": ev.reason if ev is not None and ev.retriangulated else "",
-                     "images": int(mm.n_bodies - mm.n_real)})
-        last[0] = time.perf_counter()
+    rows, progress = step_recorder(sim, lambda sim, cost: {"images": int(sim.flow.mm.n_bodies - sim.flow.mm.n_real)})
 
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()

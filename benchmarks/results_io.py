@@ -6,6 +6,7 @@ import json
 import os
 import pathlib
 import platform
+import time
 
 RESULTS = pathlib.Path(__file__).parent / "results"
 
@@ -27,3 +28,24 @@ def write_json(name: str, machine: str, rows: list) -> None:
 def markdown_table(header, rows) -> list:
     """Lines of a Markdown table: ``header`` (column titles) and ``rows`` (lists of cell strings)."""
     return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows]
+
+
+def step_recorder(sim, extra=None):
+    """``(rows, progress)``: a ``progress`` callback for ``sim.run`` that appends one row per step
+    to ``rows``: the step, t, its wall-clock seconds, whether the moving mesh was re-triangulated
+    and why, and what ``extra(sim, cost)`` (a dict) adds."""
+    rows = []
+    last = [time.perf_counter()]
+
+    def progress(step, n, t, cost):
+        now = time.perf_counter()
+        ev = sim.flow.last_event
+        row = {"step": int(step), "t": float(t), "seconds": now - last[0],
+               "retriangulated": bool(ev is not None and ev.retriangulated),
+               "reason": ev.reason if ev is not None and ev.retriangulated else ""}
+        if extra is not None:
+            row.update(extra(sim, cost))
+        rows.append(row)
+        last[0] = time.perf_counter()
+
+    return rows, progress
