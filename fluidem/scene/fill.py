@@ -68,7 +68,6 @@ from __future__ import annotations
 
 import csv
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -76,22 +75,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..validate import fail, integer, nonnegative, number, positive
+from .rsa import FillJammed, place
+from .shapes import SHAPES, bounding_factor, check_shape, disk_area_factor, shape_outline
 
 __all__ = ["fill", "Packing", "FillJammed", "SHAPES", "shape_outline", "DEFAULT_ATTEMPTS", "MAX_BODIES"]
-
-#: shape names :func:`fill` takes, and what each is; also ``"<N>-gon"`` for a regular N-gon, 3 <= N <= 64
-SHAPES = {
-    "disk": "circle (the curved outline of a fluid scene; the inscribed regular polygon with `segments`)",
-    "rectangle": "rectangle of aspect ratio `aspect` (width / height)",
-    "square": "square",
-    "triangle": "equilateral triangle",
-    "pentagon": "regular pentagon",
-    "hexagon": "regular hexagon",
-    "octagon": "regular octagon",
-}
-_NGON = {"triangle": 3, "pentagon": 5, "hexagon": 6, "octagon": 8}
-_NGON_RE = re.compile(r"^(\d+)-gon$")
-_MAX_NGON = 64
 
 #: candidate poses tried for one body before the fill is declared jammed
 DEFAULT_ATTEMPTS = 20000
@@ -99,24 +86,6 @@ DEFAULT_ATTEMPTS = 20000
 MAX_BODIES = 100000
 #: the default gap between outlines, times the mean radius
 DEFAULT_GAP_FACTOR = 0.1
-_REBUILD = 128  # placed bodies checked directly before the k-d tree is rebuilt
-
-
-class FillJammed(InputError):
-    """No place found for a body in ``attempts`` candidates: the fill is jammed.
-
-    Attributes
-    ----------
-    placed : int
-        Bodies placed before the jam.
-    fraction : float
-        Area fraction they cover.
-    """
-
-    def __init__(self, message, placed: int, fraction: float):
-        super().__init__(message)
-        self.placed = placed
-        self.fraction = fraction
 
 
 @dataclass
@@ -227,70 +196,6 @@ class Packing:
 
 
 # ---------------------------------------------------------------------------------------
-# shapes
-# ---------------------------------------------------------------------------------------
-def _ngon_sides(name: str) -> int | None:
-    """Sides of a regular polygon named ``name`` (``"hexagon"``, ``"7-gon"``), or None."""
-    if name in _NGON:
-        return _NGON[name]
-    m = _NGON_RE.match(name)
-    return int(m.group(1)) if m else None
-
-
-def _check_shape(name, key: str) -> str:
-    if isinstance(name, str) and name in SHAPES:
-        return name
-    n = _ngon_sides(name) if isinstance(name, str) else None
-    if n is not None and 3 <= n <= _MAX_NGON:
-        return name
-    allowed = ", ".join(repr(s) for s in SHAPES)
-    raise fail(key, name, f"one of {allowed} or '<N>-gon' with N from 3 to {_MAX_NGON}")
-
-
-def shape_outline(name: str, radius: float, aspect: float = 2.0) -> np.ndarray:
-    """The outline of a body of shape ``name`` and equal-area radius ``radius``, unrotated.
-
-    Parameters
-    ----------
-    name : str
-        A polygonal name of :data:`SHAPES` (not ``"disk"``) or ``"<N>-gon"``.
-    radius : float
-        Equal-area radius r, length: the outline's area is π r².
-    aspect : float
-        Width / height of a ``"rectangle"``.
-
-    Returns
-    -------
-    (n, 2) float
-        Vertices counter-clockwise, centroid at the origin, length.
-
-    Examples
-    --------
-    >>> from fluidem.geometry import polygon_area
-    >>> import math
-    >>> v = shape_outline("hexagon", 0.1)
-    >>> v.shape, abs(float(polygon_area(v)) / (math.pi * 0.01) - 1) < 1e-12
-    ((6, 2), True)
-    """
-    if name in ("rectangle", "square"):
-        a = aspect if name == "rectangle" else 1.0
-        h = radius * math.sqrt(math.pi / a)
-        w, h = 0.5 * a * h, 0.5 * h
-        return np.array([[-w, -h], [w, -h], [w, h], [-w, h]])
-    n = _ngon_sides(name)
-    R = radius * math.sqrt(2.0 * math.pi / (n * math.sin(2.0 * math.pi / n)))
-    t = 2.0 * math.pi * np.arange(n) / n
-    return R * np.column_stack([np.cos(t), np.sin(t)])
-
-
-def _inradius(v: np.ndarray) -> float:
-    """Distance from the origin (inside) to the nearest edge line of the convex polygon ``v``."""
-    e = np.roll(v, -1, axis=0) - v
-    cross = v[:, 0] * e[:, 1] - v[:, 1] * e[:, 0]
-    return float((cross / np.hypot(e[:, 0], e[:, 1])).min())
-
-
-# ---------------------------------------------------------------------------------------
 # the fill
 # ---------------------------------------------------------------------------------------
 def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, aspect=2.0, seed=0,
@@ -379,7 +284,7 @@ def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, a
         if n is None or area_fraction is None:
             raise InputError(f"no size: give {lab['radius']} (the equal-area radius, or a range r_min r_max), or both "
                              f"{lab['n']} and {lab['area_fraction']}")
-        r_lo = r_hi = math.sqrt(area_fraction * A / (n * math.pi * _disk_area_factor(weights, segments)))
+        r_lo = r_hi = math.sqrt(area_fraction * A / (n * math.pi * disk_area_factor(weights, segments)))
     else:
         r_lo, r_hi = _radius(radius, lab["radius"])
     r_mean = 0.5 * (r_lo + r_hi)
@@ -389,10 +294,10 @@ def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, a
     period = (Lx if "x" in axes else None, Ly if "y" in axes else None)
 
     # the largest bounding radius must fit with its side gaps (or in half a period)
-    R_factor = max(_bounding_factor(s, aspect) for s in weights)
+    R_factor = max(bounding_factor(s, aspect) for s in weights)
     room = min(0.5 * Lx if period[0] else Lx - 2 * gaps["x"], 0.5 * Ly if period[1] else Ly - 2 * gaps["y"])
     if 2.0 * R_factor * r_hi > room:
-        big = max(weights, key=lambda s: _bounding_factor(s, aspect))
+        big = max(weights, key=lambda s: bounding_factor(s, aspect))
         if radius is None:
             raise InputError(f"{lab['n']} = {n}, {lab['area_fraction']} = {area_fraction:g}: equal bodies of radius "
                              f"{r_hi:.4g} (a {big}'s bounding diameter {2 * R_factor * r_hi:.4g}) do not fit in the "
@@ -406,12 +311,12 @@ def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, a
 
     rng = np.random.default_rng(seed)
     names, probs = list(weights), np.array(list(weights.values()))
-    disk_factor = _disk_area_factor({"disk": 1.0}, segments)
+    disk_factor = disk_area_factor({"disk": 1.0}, segments)
     if n is not None:
         radii = rng.uniform(r_lo, r_hi, n)
         kinds = rng.choice(len(names), size=n, p=probs)
         if area_fraction is not None and radius is not None:
-            expected = n * math.pi * (r_lo ** 2 + r_lo * r_hi + r_hi ** 2) / 3.0 * _disk_area_factor(weights, segments)
+            expected = n * math.pi * (r_lo ** 2 + r_lo * r_hi + r_hi ** 2) / 3.0 * disk_area_factor(weights, segments)
             if abs(expected / (area_fraction * A) - 1.0) > 0.05:
                 raise InputError(f"{lab['n']} = {n}, {lab['area_fraction']} = {area_fraction:g} and {lab['radius']} = "
                                  f"{_show(radius)} disagree: {n} bodies of that radius cover about "
@@ -431,8 +336,8 @@ def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, a
         k = max(k, 1)
         radii, kinds = radii[:k], kinds[:k]
     kind_names = [names[i] for i in kinds]
-    order = np.argsort(-radii * np.array([_bounding_factor(s, aspect) for s in kind_names]), kind="stable")
-    placed = _place([kind_names[i] for i in order], radii[order], aspect, segments, (x0, x1, y0, y1), gaps,
+    order = np.argsort(-radii * np.array([bounding_factor(s, aspect) for s in kind_names]), kind="stable")
+    placed = place([kind_names[i] for i in order], radii[order], aspect, segments, (x0, x1, y0, y1), gaps,
                     period, min_gap, attempts, rng, area_fraction, n, lab)
     bodies, areas = placed
     return Packing(region=(x0, x1, y0, y1), bodies=bodies, kinds=[kind_names[i] for i in order],
@@ -485,7 +390,7 @@ def _shapes(shapes, key) -> dict:
         raise fail(key, shapes, "at least one shape")
     out: dict = {}
     for s, w in items:
-        s = _check_shape(s, key)
+        s = check_shape(s, key)
         out[s] = out.get(s, 0.0) + positive(f"{key} weight of {s!r}", w)
     total = sum(out.values())
     return {s: w / total for s, w in out.items()}
@@ -502,206 +407,3 @@ def _axes(periodic, key) -> tuple:
     return axes
 
 
-def _bounding_factor(name: str, aspect: float) -> float:
-    """Bounding radius over equal-area radius."""
-    if name == "disk":
-        return 1.0
-    return float(np.hypot(*shape_outline(name, 1.0, aspect).T).max())
-
-
-def _disk_area_factor(weights: dict, segments) -> float:
-    """Mean area of a drawn body over π r²: disks with ``segments`` are the inscribed polygon."""
-    f = 1.0 if segments is None else 0.5 * segments * math.sin(2.0 * math.pi / segments) / math.pi
-    return sum(w * (f if s == "disk" else 1.0) for s, w in weights.items())
-
-
-class _Placement:
-    """The bodies placed so far and the gap test of a candidate against them.
-
-    Neighbours come from a k-d tree over the placed centres (rebuilt every :data:`_REBUILD`
-    bodies; the latest are checked directly); pairs whose bounding and inscribed circles do not
-    decide are measured exactly with shapely.  Along an axis of ``period`` every displacement is
-    taken to its nearest periodic image (the minimum-image convention).
-    """
-
-    def __init__(self, m, box, period, g, R_max):
-        from scipy.spatial import cKDTree
-
-        self._kdtree = cKDTree
-        x0, x1, y0, y1 = box
-        self.P = np.empty((m, 2))             # centres
-        self.Rb = np.empty(m)                 # bounding radii
-        self.Ri = np.empty(m)                 # inscribed radii
-        self.buf = np.empty(m)                # disk radius (the core is its centre), 0 for polygons
-        self.cores = np.empty(m, dtype=object)
-        self.g, self.R_max = g, R_max
-        self.tree, self.n_tree = None, 0
-        self.origin = np.array([x0, y0])
-        self.L = np.array([period[0] or 0.0, period[1] or 0.0])
-        self.wrap = self.L > 0.0
-        # the k-d trees' box: the period along a periodic axis, far beyond the region along another
-        self.boxsize = (np.where(self.wrap, self.L, 4.0 * (max(x1 - x0, y1 - y0) + R_max + g))
-                        if self.wrap.any() else None)
-
-    def nearest_image(self, d):
-        """Displacements ``d`` (..., 2) to their nearest periodic image."""
-        if self.boxsize is None:
-            return d
-        return d - self.L * np.round(d / np.where(self.wrap, self.L, 1.0))
-
-    def kd_tree(self, points):
-        if self.boxsize is None:
-            return self._kdtree(points)
-        return self._kdtree(points - self.origin, boxsize=self.boxsize)
-
-    def clashes(self, i, xy, rx, ry, disk, bad):
-        """Mark in ``bad`` the candidate centres ``xy`` (k, 2) of body ``i`` (rotated outlines
-        ``rx``, ``ry`` (k, n) unless a disk) closer than ``g`` to a placed body."""
-        import shapely
-
-        P, Rb, Ri, g = self.P, self.Rb, self.Ri, self.g
-        ci, cj, cd = [], [], []
-        if self.tree is not None:
-            sdm = self.kd_tree(xy).sparse_distance_matrix(self.tree, Rb[i] + self.R_max + g, output_type="ndarray")
-            ci.append(sdm["i"]), cj.append(sdm["j"]), cd.append(sdm["v"])
-        n_tree = self.n_tree
-        if i > n_tree:
-            d = np.hypot(*np.moveaxis(self.nearest_image(xy[:, None, :] - P[None, n_tree:i, :]), -1, 0))
-            a, b = np.nonzero(d < Rb[i] + Rb[None, n_tree:i] + g)
-            ci.append(a), cj.append(b + n_tree), cd.append(d[a, b])
-        if not ci:
-            return
-        pi, pj, pd = (np.concatenate(t) for t in (ci, cj, cd))
-        clear = pd >= Rb[i] + Rb[pj] + g
-        pi, pj, pd = pi[~clear], pj[~clear], pd[~clear]
-        near = pd < Ri[i] + Ri[pj] + g
-        bad[pi[near]] = True
-        keep = ~near & ~bad[pi]
-        pi, pj = pi[keep], pj[keep]
-        if len(pi):  # exact outline distances of the pairs in between
-            q = P[pj] - self.nearest_image(P[pj] - xy[pi])  # the candidate's image next to body pj
-            if disk:
-                geo = shapely.points(q)
-            else:
-                geo = shapely.polygons(np.stack([rx[pi] + q[:, :1], ry[pi] + q[:, 1:]], axis=2))
-            dist = shapely.distance(geo, self.cores[pj]) - self.buf[i] - self.buf[pj]
-            bad[pi[(dist < g) | (dist <= 0.0)]] = True  # 0: they meet (or overlap)
-
-    def add(self, i, p, core):
-        """Body ``i`` placed at ``p`` with the shapely ``core`` (its centre for a disk)."""
-        self.P[i], self.cores[i] = p, core
-        if i + 1 - self.n_tree > _REBUILD:
-            self.tree, self.n_tree = self.kd_tree(self.P[:i + 1]), i + 1
-
-
-def _candidates(k, r, v, box, gaps, wrap, rng):
-    """A batch of ``k`` random poses of a body (equal-area radius ``r``; outline ``v``, None for
-    a disk) inside ``box`` with its side gaps (anywhere along an axis with ``wrap``): angles (k,),
-    rotated outlines ``rx``, ``ry`` (k, n) or None, centres (k, 2) and a mask of poses that do
-    not fit."""
-    x0, x1, y0, y1 = box
-    ang = rng.uniform(0.0, 2.0 * math.pi, k)
-    if v is None:
-        rx = ry = None
-        lo = hi = np.full((k, 2), r)
-    else:
-        c, s = np.cos(ang), np.sin(ang)
-        rx = c[:, None] * v[None, :, 0] - s[:, None] * v[None, :, 1]
-        ry = s[:, None] * v[None, :, 0] + c[:, None] * v[None, :, 1]
-        lo = -np.column_stack([rx.min(axis=1), ry.min(axis=1)])
-        hi = np.column_stack([rx.max(axis=1), ry.max(axis=1)])
-    xlo, xhi = x0 + gaps["x"] + lo[:, 0], x1 - gaps["x"] - hi[:, 0]
-    ylo, yhi = y0 + gaps["y"] + lo[:, 1], y1 - gaps["y"] - hi[:, 1]
-    if wrap[0]:
-        xlo, xhi = np.full(k, x0), np.full(k, x1)
-    if wrap[1]:
-        ylo, yhi = np.full(k, y0), np.full(k, y1)
-    u = rng.random((k, 2))
-    xy = np.column_stack([xlo + u[:, 0] * (xhi - xlo), ylo + u[:, 1] * (yhi - ylo)])
-    upper = np.array([x1, y1])
-    xy = np.where(wrap & (xy >= upper), np.array([x0, y0]), xy)  # u * L rounded up to the period
-    return ang, rx, ry, xy, (xhi < xlo) | (yhi < ylo)
-
-
-def _jammed(i, m, frac, attempts, n_asked, area_fraction, asked_fraction, lab) -> FillJammed:
-    """The one-line error of a fill that found no place for body ``i`` (of ``m``)."""
-    if n_asked is not None and area_fraction is None:
-        what = (f"{lab['n']} = {n_asked}: only {i} bodies fit (area fraction {frac:.4f}) before random "
-                f"sequential addition jammed ({attempts} attempts for the next one); allowed here: "
-                f"{lab['n']} up to about {i}, or a larger region, smaller radius or smaller "
-                f"{lab['min_gap']}")
-    else:
-        asked = area_fraction if area_fraction is not None else asked_fraction
-        what = (f"{lab['area_fraction']} = {asked:g}: random sequential addition jammed at area "
-                f"fraction {frac:.4f} ({i} of {m} bodies placed, {attempts} attempts for the next one); "
-                f"allowed here: up to about {math.floor(100 * frac) / 100:.2f} (RSA jams near 0.547 "
-                f"for equal disks without gap; a smaller {lab['min_gap']} or a wider radius range "
-                "reaches more)")
-    return FillJammed(what, placed=i, fraction=frac)
-
-
-def _body_entry(kind, r, v, segments, p, angle) -> dict:
-    """The body dict of :attr:`Packing.bodies` for a body placed at ``p`` turned by ``angle``."""
-    if kind == "disk":
-        body = {"shape": "disk", "radius": float(r)}
-        if segments is not None:
-            body["segments"] = segments
-    elif kind in ("rectangle", "square"):
-        body = {"shape": "rectangle", "width": float(2 * v[1, 0]), "height": float(2 * v[2, 1])}
-    else:
-        body = {"shape": "polygon", "vertices": v.tolist()}
-    body["position"] = (float(p[0]), float(p[1]))
-    body["angle"] = angle
-    return body
-
-
-def _place(kinds, radii, aspect, segments, box, gaps, period, g, attempts, rng, area_fraction, n_asked, lab):
-    """Random sequential addition of the bodies ``kinds``/``radii`` (largest first) in ``box``;
-    along an axis of ``period`` (length or None) anywhere, gaps to the nearest image."""
-    import shapely
-
-    from ..geometry import polygon_area
-
-    x0, x1, y0, y1 = box
-    A = (x1 - x0) * (y1 - y0)
-    m = len(kinds)
-    bodies, areas = [], np.empty(m)
-    R_all = np.array([radii[i] * _bounding_factor(kinds[i], aspect) for i in range(m)])
-    placed = _Placement(m, box, period, g, float(R_all.max()))
-    batch = 16
-    outlines = {}
-    for i, (kind, r) in enumerate(zip(kinds, radii)):
-        disk = kind == "disk"
-        if disk:
-            v = None
-            placed.Rb[i], placed.Ri[i], placed.buf[i] = r, r, r
-            areas[i] = (math.pi * r * r if segments is None
-                        else 0.5 * segments * r * r * math.sin(2.0 * math.pi / segments))
-        else:
-            key = (kind, float(r))
-            v = outlines.get(key)
-            if v is None:
-                v = outlines[key] = shape_outline(kind, r, aspect)
-            placed.Rb[i], placed.Ri[i], placed.buf[i] = R_all[i], _inradius(v), 0.0
-            areas[i] = float(polygon_area(v))
-        tried = 0
-        while True:
-            k = batch
-            ang, rx, ry, xy, bad = _candidates(k, r, v, box, gaps, placed.wrap, rng)
-            placed.clashes(i, xy, rx, ry, disk, bad)
-            ok = np.flatnonzero(~bad)
-            if len(ok):
-                j = int(ok[0])
-                tried += j + 1
-                batch = max(16, batch // 2) if j < k // 4 else batch
-                break
-            tried += k
-            batch = min(2048, 2 * batch)
-            if tried >= attempts:
-                raise _jammed(i, m, float(areas[:i].sum() / A), attempts, n_asked, area_fraction,
-                              float(areas.sum() / A), lab)
-        p = xy[j]
-        placed.add(i, p, shapely.points(p) if disk else shapely.polygons(np.column_stack([rx[j] + p[0],
-                                                                                         ry[j] + p[1]])))
-        bodies.append(_body_entry(kind, r, v, segments, p, float(ang[j])))
-    return bodies, areas
