@@ -46,6 +46,7 @@ from .nodes import (
     box_ring,
     to_body,
 )
+from .periodic import partner_places
 from .relax import MeshTopology, signed_areas
 from .seam import SEAM_CODE, clip_at_seams, covered_side_nodes, pair_seam_nodes
 
@@ -158,21 +159,6 @@ def _on_periodic_sides(points, box, axes) -> np.ndarray:
     if "y" in axes:
         on |= (np.abs(points[:, 1] - ymin) < tol) | (np.abs(points[:, 1] - ymax) < tol)
     return on
-
-
-def _partners(points, box, axes) -> np.ndarray:
-    """The partners ``(k, 2)`` across the side pair of the ``points`` on a periodic side."""
-    xmin, xmax, ymin, ymax = box
-    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
-    out = []
-    for c, (lo, hi) in ((0, (xmin, xmax)), (1, (ymin, ymax))):
-        if "xy"[c] not in axes:
-            continue
-        for a, b in ((lo, hi), (hi, lo)):
-            q = points[np.abs(points[:, c] - a) < tol].copy()
-            q[:, c] = b
-            out.append(q)
-    return np.vstack(out) if out else np.zeros((0, 2))
 
 
 def _hole_points(solids, box) -> np.ndarray:
@@ -288,7 +274,7 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
             n_oc_outline = int((oc_row >= 0).sum())
             # box nodes on periodic sides under a body or next to a seam node (on both sides
             # of the pair) are no boundary
-            ends = np.vstack([seam_points, _partners(seam_points, box, axes)])
+            ends = np.vstack([seam_points, partner_places(seam_points, clip.seam_side, box)])
             on_periodic = _on_periodic_sides(points, box, axes) & ((kind == SIDE) | (kind == CORNER))
             if on_periodic.any():
                 drop = np.zeros(len(points), dtype=bool)
