@@ -14,9 +14,24 @@ and then, in this order:
    motion broke an element);
 3. relaxation with the per-step iteration limit, the step of oscillating nodes halved
    (:func:`relax_dragged`, Sec. 3.3);
-4. the triggers (:func:`fluidem.mesh.triggers.retriangulation_reason`): inverted or degenerate
-   elements, every ``retriangulate_every`` steps, contacts changed (:func:`contacts_changed`),
-   quality dropped.
+4. the triggers (:func:`fluidem.mesh.triggers.retriangulation_reason`): every
+   ``retriangulate_every`` steps (K, default 30), or earlier when
+
+   - an element is inverted by the rigid motion (``"inverted"``) or shrank below a tenth of
+     its area (``"degenerate"``, typically a narrow-gap element whose anchor passes a
+     corner),
+   - bodies came within ``min_gap`` of each other, or a contact changed (``"contact"``;
+     a wall contact may breathe by ``contact_slack · h``, 0.02 h, first: a resting body
+     whose overlap or gap changes by a little more than ``min_gap`` keeps its outline),
+   - an element outside narrow gaps degraded ``angle_margin`` (10°) past 135°, or
+     ``min_angle_margin`` (3°) below ``min_angle_trigger`` (15°), or as far past its own
+     angles after the last triangulation if it was born outside them (``"quality"``, with
+     hysteresis: an element born near a bound does not fire as soon as it crosses it,
+     :func:`fluidem.mesh.triggers.quality_baseline`).
+
+Oscillating nodes (Sec. 3.3) are detected from the relaxation displacements
+(:class:`fluidem.mesh.quality.OscillationDetector`), reported, and their relaxation step is
+halved each time they are flagged, on top of the per-step iteration limit.
 
 The functions take the mesh (``mesh``) and read or set its attributes; they add none.
 

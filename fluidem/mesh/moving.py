@@ -18,38 +18,14 @@ Strategies (``strategy=``):
     ``drag_reach · h``; :mod:`fluidem.mesh.drag`); junction nodes keep their barycentric
     place between their three outline nodes; then
     ``relax_iterations`` relaxation sweeps (default 3; dragged nodes relax with a reduced
-    step).  Nodes never snap back.  The current nodes are re-triangulated every
-    ``retriangulate_every`` steps (K, default 30) or earlier when
-
-    - an element is inverted by the rigid motion (``"inverted"``) or shrank below a tenth of
-      its area (``"degenerate"``, typically a narrow-gap element whose anchor passes a
-      corner),
-    - bodies came within ``min_gap`` of each other, or a contact changed (``"contact"``;
-      a wall contact may breathe by ``contact_slack · h``, 0.02 h, first: a resting body
-      whose overlap or gap changes by a little more than ``min_gap`` keeps its outline),
-    - an element outside narrow gaps degraded ``angle_margin`` (10°) past 135°, or
-      ``min_angle_margin`` (3°) below ``min_angle_trigger`` (15°), or as far past its own
-      angles after the last triangulation if it was born outside them (``"quality"``, with
-      hysteresis: an element born near a bound does not fire as soon as it crosses it,
-      :func:`fluidem.mesh.triggers.quality_baseline`).
-
-    At re-triangulation nodes swallowed by (or closer than ``purge_clearance · h`` to) a
-    body are purged, an independent set of nodes is removed where the incident edges are on
-    average shorter than ``coarsen_ratio`` (0.7) of their target and nodes are added in
-    triangles larger than ``refine_area`` (1.6) target areas (at the midpoint of an edge on
-    a box side, else at the centroid; so vacated regions coarsen again, Fig. 6), and
-    junction points are recomputed.  The number of free and box nodes is held within
-    ``node_count_tolerance`` (2 %) of a budget, the first mesh's count per unit of
-    ``∫ h⁻² dA`` (``hold_node_count``): of two large neighbours only the larger is split, and
-    above the budget the most compressed free nodes are removed as well (the harmonic drag
-    compresses the whole region ahead of a body only mildly, below the coarsening
-    threshold, while it stretches the region behind it beyond the refinement one).
+    step, oscillating ones, Sec. 3.3, a halved one).  Nodes never snap back.  The current
+    nodes are re-triangulated every ``retriangulate_every`` steps (K, default 30) or earlier
+    when a trigger fires (inverted or degenerate elements, contacts, quality:
+    :mod:`fluidem.mesh.drag_step`); then the nodes are adapted to the target size, the node
+    count held to a budget (:mod:`fluidem.mesh.moving_triangulation`), and junction points are
+    recomputed.
 ``"fixed"``
     bodies do not move: the mesh is built once; :meth:`MovingMesh.update` checks that.
-
-Oscillating nodes (Sec. 3.3) are detected from the relaxation displacements
-(:class:`fluidem.mesh.quality.OscillationDetector`), reported, and their relaxation step is
-halved each time they are flagged, on top of the per-step iteration limit.
 
 Target size: the user's size field (``h`` and ``grading``); with grading, the bodies carry
 a fine zone with them, ``h_body(x) = h + (growth − 1) max(d(x) − w, 0)``, ``d`` the
@@ -81,10 +57,8 @@ side slide along it with the body (:mod:`fluidem.mesh.contact_outline`).  Fluid 
 on the merged outline: every facet keeps its owner, the body facets get the body's rigid
 motion and the wall facets the wall's condition; the node where they meet is a body (wall)
 node, so it moves with the body: the body condition applied after the wall one wins there,
-as at a corner of a lid-driven cavity.  A body overlapping a side by more than
-``max(wall_overlap · h, wall_overlap_fraction · its extent across the side)`` (0.1 h, a
-quarter of its height) or lying outside the box raises :class:`~fluidem.errors.InputError`
-(a ``ValueError``) naming the contact law's ``E``.
+as at a corner of a lid-driven cavity.  A body overlapping a side deeper than allowed or
+lying outside the box raises :class:`~fluidem.errors.InputError` (:mod:`fluidem.mesh.moving_input`).
 
 Narrow gaps: see :mod:`fluidem.mesh.quality`; an element counts as narrow-gap when the gap
 at its centroid is narrower than ``h/2`` or when one of its edges joins two different

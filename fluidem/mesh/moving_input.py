@@ -2,7 +2,9 @@
 
 * :func:`check_poses`: poses finite, of the right shape, every body inside the box: it may touch
   a wall or overlap it (the overlap is meshed as contact) by at most
-  :func:`allowed_wall_overlap`; periodic sides are no walls;
+  :func:`allowed_wall_overlap`, ``max(wall_overlap · h, wall_overlap_fraction · its extent
+  across the side)`` (0.1 h, a quarter of its height); the error of a deeper overlap names the
+  contact law's ``E``; periodic sides are no walls;
 * :func:`check_widths`: every vertex of a body less than half a period from its origin.
 
 Both raise :class:`~fluidem.errors.InputError` naming the body.

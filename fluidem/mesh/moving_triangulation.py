@@ -23,9 +23,20 @@
    steps 4–6 run once more.
 
 Then the drag association (:mod:`fluidem.mesh.drag`) and the quality trigger's baseline
-(:func:`set_quality_baseline`) of the new connectivity are set.  At a re-triangulation the
-candidates are adapted between steps 2 and 3 (:func:`fluidem.mesh.adaptation.adapt`) towards the
-target size, the count of free and box nodes held near :func:`node_budget`.
+(:func:`set_quality_baseline`) of the new connectivity are set.
+
+At a re-triangulation (``adapt``, :func:`fluidem.mesh.adaptation.adapt`, between steps 2 and 3)
+nodes swallowed by (or closer than ``purge_clearance · h`` to) a body are purged, an
+independent set of nodes is removed where the incident edges are on average shorter than
+``coarsen_ratio`` (0.7) of their target and nodes are added in triangles larger than
+``refine_area`` (1.6) target areas (at the midpoint of an edge on a box side, else at the
+centroid; so vacated regions coarsen again, Fig. 6), and junction points are recomputed.  The
+number of free and box nodes is held within ``node_count_tolerance`` (2 %) of a budget, the
+first mesh's count per unit of ``∫ h⁻² dA`` (``hold_node_count``, :func:`node_budget`): of two
+large neighbours only the larger is split, and above the budget the most compressed free nodes
+are removed as well (the harmonic drag compresses the whole region ahead of a body only mildly,
+below the coarsening threshold, while it stretches the region behind it beyond the refinement
+one).
 
 The functions take the mesh (``mesh``) and read or set its attributes; they add none.
 
