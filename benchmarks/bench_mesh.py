@@ -44,7 +44,8 @@ from scipy.spatial import cKDTree  # noqa: E402
 
 from fluidem.cases.packings import RandomMotion, collective_motion, packing  # noqa: E402
 from fluidem.mesh import MovingMesh  # noqa: E402
-from fluidem.mesh import moving as moving_module  # noqa: E402
+from fluidem.mesh import drag_step as drag_step_module  # noqa: E402
+from fluidem.mesh import moving_triangulation as triangulation_module  # noqa: E402
 from fluidem.mesh.quality import triangle_angles  # noqa: E402
 from fluidem.mesh.relax import relax  # noqa: E402
 
@@ -153,10 +154,13 @@ class StageTimer:
     def __enter__(self):
         for stage, name in STAGES.items():
             if name is not None:
-                self._wrap(moving_module, name, stage)
+                # the drag step's stages; relax also in the triangulation (counted there as re-triangulation)
+                for module in (drag_step_module, triangulation_module):
+                    if hasattr(module, name):
+                        self._wrap(module, name, stage)
         self._wrap(MovingMesh, "_carry_history", "history")
         self._wrap(MovingMesh, "retriangulate", "retriangulate")
-        self._wrap(moving_module, "harmonic_drag", "harmonic_factor")
+        self._wrap(drag_step_module, "harmonic_drag", "harmonic_factor")
         return self
 
     def __exit__(self, *exc):

@@ -5,9 +5,12 @@ fields).  The moving mesh, :class:`MovingMesh` (:mod:`~fluidem.mesh.moving`, par
 :class:`MeshParams`), composes one module per pipeline stage: :mod:`~fluidem.mesh.nodes`,
 :mod:`~fluidem.mesh.contact_outline`, :mod:`~fluidem.mesh.cutout` (with
 :mod:`~fluidem.mesh.junctions`), :mod:`~fluidem.mesh.relax`, :mod:`~fluidem.mesh.adaptation`,
-:mod:`~fluidem.mesh.drag`, :mod:`~fluidem.mesh.gaps` and :mod:`~fluidem.mesh.triggers`;
-:mod:`~fluidem.mesh.quality` measures it and :mod:`~fluidem.mesh.transfer` carries fields
-across re-triangulations.
+:mod:`~fluidem.mesh.drag`, :mod:`~fluidem.mesh.gaps` and :mod:`~fluidem.mesh.triggers`, through
+functions over its state by concern (:mod:`~fluidem.mesh.moving_triangulation`,
+:mod:`~fluidem.mesh.drag_step`, :mod:`~fluidem.mesh.moving_images`,
+:mod:`~fluidem.mesh.moving_history`, :mod:`~fluidem.mesh.moving_input`,
+:mod:`~fluidem.mesh.moving_state`); :mod:`~fluidem.mesh.quality` measures it and
+:mod:`~fluidem.mesh.transfer` carries fields across re-triangulations.
 """
 
 from .moving import STRATEGIES, MeshEvent, MovingMesh

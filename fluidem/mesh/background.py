@@ -17,7 +17,7 @@ import shapely
 
 from ..errors import InputError
 
-__all__ = ["SizeField", "UniformSize", "GradedSize", "as_size_field", "friedrichs_keller_grid"]
+__all__ = ["SizeField", "UniformSize", "GradedSize", "as_size_field", "size_from_grading", "friedrichs_keller_grid"]
 
 
 class SizeField:
@@ -96,6 +96,40 @@ def as_size_field(h: float | SizeField | Callable) -> SizeField | Callable:
     if isinstance(h, SizeField) or callable(h):
         return h
     return UniformSize(float(h))
+
+
+def size_from_grading(grading, h: float) -> tuple[SizeField | Callable, float, bool]:
+    """The size field of a moving mesh's ``grading`` (:class:`~fluidem.mesh.moving.MovingMesh`)
+    at target size ``h``: ``(field, growth, graded)``, ``growth`` the factor per cell of the zone
+    the bodies tow (1 without grading).
+
+    ``None``: uniform ``h``; a dict ``{"region", "growth" (1.2), "h_max" (8 h)}``: a
+    :class:`GradedSize`; a :class:`UniformSize`; a :class:`SizeField` or a callable, used as is
+    (its ``growth`` attribute, if any, else 1.2).
+
+    Examples
+    --------
+    >>> f, growth, graded = size_from_grading({"region": (0, 1, 0, 1), "growth": 1.1}, 0.1)
+    >>> type(f).__name__, growth, graded
+    ('GradedSize', 1.1, True)
+    """
+    if grading is None:
+        return UniformSize(h), 1.0, False
+    if isinstance(grading, dict):
+        allowed = {"region", "growth", "h_max"}
+        bad = set(grading) - allowed
+        if bad or "region" not in grading:
+            raise InputError(f"grading dict needs 'region' and may have 'growth', 'h_max'; "
+                             f"got keys {sorted(grading)}")
+        growth = float(grading.get("growth", 1.2))
+        h_max = float(grading.get("h_max", 8 * h))
+        return GradedSize(h, growth, h_max, grading["region"]), growth, True
+    if isinstance(grading, UniformSize):
+        return grading, 1.0, False
+    if isinstance(grading, SizeField) or callable(grading):
+        growth = float(getattr(grading, "growth", 1.2))
+        return grading, growth, True
+    raise InputError(f"grading = {grading!r}: expected None, a dict, a SizeField or a callable")
 
 
 def subdivide_segment(a: Sequence[float], b: Sequence[float], size, min_pieces: int = 1) -> np.ndarray:

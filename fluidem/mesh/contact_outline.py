@@ -241,7 +241,6 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
         across it is clipped there, :mod:`fluidem.mesh.seam`).  ``None``: all four.
     """
     n_bodies = len(polys)
-    outline_world = outline_world
     n_outline = len(outline_world)
     keep_outline = np.ones(n_outline, dtype=bool)
     solids = list(polys)
@@ -249,159 +248,39 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
     contact_wall, wall_solids = [], []
     clustered = np.zeros(n_bodies, dtype=bool)
     contacts = contact_pairs(polys, tree, min_gap) if n_bodies > 1 else np.zeros((0, 2), dtype=np.int64)
-    walls = np.zeros((0, 2), dtype=np.int64)
-    if box is not None and n_bodies:
-        coords, vertex_body = shapely.get_coordinates(shapely.get_exterior_ring(polys), return_index=True)
-        walls = wall_contacts(coords, vertex_body, n_bodies, box, min_gap)
-        if wall_sides is not None:
-            walls = walls[np.asarray(wall_sides, dtype=bool)[walls[:, 1]]]
+    walls = _wall_pairs(polys, box, min_gap, wall_sides)
     merge = params.contact_merge * h
-    spacing = params.contact_node_spacing * h
     tol_box = 1e-7 * h
-    if len(contacts) or len(walls):
-        g = coo_matrix((np.ones(len(contacts)), (contacts[:, 0], contacts[:, 1])), shape=(n_bodies, n_bodies))
-        _, cluster_of = connected_components(g, directed=False)
-        members_of = {}
-        for k in np.unique(cluster_of[np.concatenate([contacts[:, 0], contacts[:, 1], walls[:, 0]])]):
-            members_of[k] = np.flatnonzero(cluster_of == k)
-        n_contacts = 0
-        tol = 1e-7 * h
-        for k, members in members_of.items():  # one per contact cluster (few)
-            clustered[members] = True
-            sides = np.unique(walls[np.isin(walls[:, 0], members), 1])
-            r = 0.5 * min_gap
-            members_geom = (np.concatenate([polys[members], np.array(_slabs(sides, box, h), dtype=object)])
-                            if len(sides) else polys[members])
-            closed = shapely.union_all(shapely.buffer(members_geom, r, join_style="mitre",
-                                                      mitre_limit=params.mitre_limit))
-            closed = shapely.buffer(closed, -r, join_style="mitre", mitre_limit=params.mitre_limit)
-            # features below the gap scale (bridge steps) are noise: drop them
-            closed = shapely.simplify(closed, min_gap, preserve_topology=True)
-            if len(sides):
-                # the walls are outside the box: what the fluid loses is the part inside
-                # (vertices closer than min_gap to a side put on it first: that gap is filled
-                # anyway, and the simplification may have cut a chord of the wall slab across
-                # a shallow contact, a sliver along the wall)
-                xmin, xmax, ymin, ymax = box
-                closed = shapely.transform(closed, lambda q: _snap_to_box(q, box, max(tol_box, min_gap))[0])
-                if not shapely.is_valid(closed):
-                    closed = shapely.make_valid(closed)
-                closed = shapely.intersection(closed, shapely.box(xmin, ymin, xmax, ymax))
-                comps = [c for c in shapely.get_parts(closed)
-                         if shapely.get_type_id(c) == 3 and shapely.area(c) > tol_box * h]
-                wall_solids.extend(comps)
-            else:
-                comps = list(getattr(closed, "geoms", [closed]))
-            rings = []
-            for comp in comps:
-                solids.append(comp)
-                holes.append(np.array(shapely.get_coordinates(shapely.point_on_surface(comp))[0]))
-                rings.append(comp.exterior)
-                for ring in comp.interiors:
-                    rings.append(ring)
-                    pores.append(float(shapely.area(shapely.Polygon(ring))))
-            # per ring its vertices, the wall nodes among them and the part facing the fluid
-            ring_data = []
-            for ring in rings:
-                ring_vertices = shapely.get_coordinates(ring)[:-1]
-                forced = np.zeros(len(ring_vertices), dtype=bool)
-                wall_side = np.full(len(ring_vertices), -1, dtype=np.int64)
-                fluid = ring
-                if len(sides):
-                    ring_vertices, wall_side = _snap_to_box(ring_vertices, box, tol_box)
-                    on_box = wall_side >= 0
-                    nxt = np.roll(np.arange(len(ring_vertices)), -1)
-                    mid = 0.5 * (ring_vertices + ring_vertices[nxt])
-                    # edge i -> i + 1 along a box side: not fluid boundary
-                    wall_edge = on_box & on_box[nxt] & (np.abs(_box_distance(mid, box)) < tol_box)
-                    if wall_edge.any():
-                        ends = np.stack([ring_vertices[~wall_edge], ring_vertices[nxt[~wall_edge]]], axis=1)
-                        fluid = shapely.multilinestrings(shapely.linestrings(ends))
-                    # vertices on the box with a fluid-facing edge are wall nodes; the others go
-                    inner = on_box & wall_edge & np.roll(wall_edge, 1)
-                    forced = (on_box & ~inner)[~inner]
-                    ring_vertices, wall_side = ring_vertices[~inner], np.where(forced, wall_side[~inner], -1)
-                ring_data.append((ring, ring_vertices, forced, wall_side, fluid))
-            member_rows = np.flatnonzero(np.isin(outlines.body, members))
-            member_points = shapely.points(outline_world[member_rows])
-            dist_to_rings = np.column_stack([shapely.distance(rd[4], member_points) for rd in ring_data])
-            on = dist_to_rings.min(axis=1) < max(tol, params.on_outline_factor * min_gap)
-            # an outline node inside another member body (an overlap shallower than the
-            # tolerance above) is no node of the closed outline: kept, it would be a mesh node
-            # inside that body (the ring cuts across the notch, or a contact node takes its place)
-            member_body = outlines.body[member_rows]
-            for m in members:  # one per body of the cluster (few)
-                inside = (member_body != m) & shapely.contains_xy(polys[m], outline_world[member_rows])
-                on &= ~inside
-            keep_outline[member_rows[~on]] = False
-            which = np.argmin(dist_to_rings, axis=1)
-            for ri, (ring, ring_vertices, forced, wall_side, _) in enumerate(ring_data):
-                # ring vertices closer than contact_merge · h to the previous kept one are dropped
-                # (wall nodes stay; other vertices that close to one go)
-                if len(ring_vertices) > 3:
-                    step = np.linalg.norm(np.diff(ring_vertices, axis=0, append=ring_vertices[:1]), axis=1)
-                    sel = np.concatenate([[True], step[:-1] >= merge]) | forced
-                    if forced.any():
-                        d_wall, _ = cKDTree(ring_vertices[forced]).query(ring_vertices)
-                        sel &= forced | (d_wall >= merge)
-                    ring_vertices, forced, wall_side = ring_vertices[sel], forced[sel], wall_side[sel]
-                kept = member_rows[on & (which == ri)]
-                if forced.any() and len(kept):
-                    # outline nodes next to a wall node are merged into it
-                    d_wall, _ = cKDTree(ring_vertices[forced]).query(outline_world[kept])
-                    keep_outline[kept[d_wall < merge]] = False
-                    kept = kept[d_wall >= merge]
-                if len(kept):
-                    dist_to_kept, _ = cKDTree(outline_world[kept]).query(ring_vertices)
-                else:
-                    dist_to_kept = np.full(len(ring_vertices), np.inf)
-                # ring vertices off the body outline nodes (contact points, bridge corners)
-                # become contact nodes unless an outline node is within contact_node_spacing · h:
-                # then the ring cuts straight across the contact notch, which lies in the
-                # fluid (the union is concave there), so no element overlaps a body
-                new_sel = (dist_to_kept > spacing) | forced
-                new_contacts = ring_vertices[new_sel]
-                new_wall = wall_side[new_sel]
-                # owner of a contact node: nearest member body
-                if len(new_contacts):
-                    new_pts = shapely.points(new_contacts)
-                    dist_to_members = np.column_stack([shapely.distance(polys[m], new_pts) for m in members])
-                    owner = members[np.argmin(dist_to_members, axis=1)]
-                else:
-                    owner = np.zeros(0, dtype=np.int64)
-                # order the ring's nodes along it
-                ring_points = np.vstack([outline_world[kept], new_contacts])
-                ring_ids = np.concatenate([kept, n_outline + n_contacts + np.arange(len(new_contacts))])
-                ring_wall = np.concatenate([np.zeros(len(kept), dtype=bool), new_wall >= 0])
-                pos = shapely.line_locate_point(ring, shapely.points(ring_points))
-                o = np.argsort(pos)
-                ring_nodes = ring_ids[o]
-                ring_wall = ring_wall[o]
-                rp = ring_points[o]
-                rpos = pos[o]
-                # outline nodes closer than contact_merge · h to their predecessor on the ring
-                # (corners of two touching bodies) are merged into it
-                if len(ring_nodes) > 3:
-                    step = np.linalg.norm(rp - np.roll(rp, 1, axis=0), axis=1)
-                    drop = (step < merge) & (ring_nodes < n_outline)
-                    drop[0] = False
-                    keep_outline[ring_nodes[drop]] = False
-                    ring_nodes, ring_wall, rpos = ring_nodes[~drop], ring_wall[~drop], rpos[~drop]
-                if len(ring_nodes) >= 3:
-                    seg = np.column_stack([ring_nodes, np.roll(ring_nodes, -1)])
-                    if ring_wall.any():
-                        # the stretches along a box side between two wall nodes are no fluid boundary
-                        # (tested half-way along the ring, which may turn round a box corner)
-                        length = shapely.length(ring)
-                        mid_pos = (0.5 * (rpos + np.roll(rpos, -1) + np.r_[np.zeros(len(rpos) - 1), length])) % length
-                        mid = shapely.get_coordinates(shapely.line_interpolate_point(ring, mid_pos))
-                        along = ring_wall & np.roll(ring_wall, -1) & (np.abs(_box_distance(mid, box)) < tol_box)
-                        seg = seg[~along]
-                    cluster_segments.append(seg)
-                contact_points.append(new_contacts)
-                contact_body.append(owner)
-                contact_wall.append(new_wall)
-                n_contacts += len(new_contacts)
+    n_contacts = 0
+    for members in _clusters(contacts, walls, n_bodies):  # one per contact cluster (few)
+        clustered[members] = True
+        sides = np.unique(walls[np.isin(walls[:, 0], members), 1])
+        comps = _closed_cluster(polys[members], sides, box, h, min_gap, params)
+        if len(sides):
+            wall_solids.extend(comps)
+        rings = []
+        for comp in comps:
+            solids.append(comp)
+            holes.append(np.array(shapely.get_coordinates(shapely.point_on_surface(comp))[0]))
+            rings.append(comp.exterior)
+            for ring in comp.interiors:
+                rings.append(ring)
+                pores.append(float(shapely.area(shapely.Polygon(ring))))
+        ring_data = [_ring_parts(ring, sides, box, tol_box) for ring in rings]
+        member_rows, on, which = _outline_rows_on_rings(ring_data, members, polys, outlines, outline_world,
+                                                        h, min_gap, params)
+        keep_outline[member_rows[~on]] = False
+        for ri, (ring, ring_vertices, forced, wall_side, _) in enumerate(ring_data):
+            seg, new_contacts, owner, new_wall = _ring_nodes(
+                ring, ring_vertices, forced, wall_side, member_rows[on & (which == ri)], members, polys,
+                outline_world, keep_outline, n_outline, n_outline + n_contacts, merge, params.contact_node_spacing * h,
+                box, tol_box)
+            if seg is not None:
+                cluster_segments.append(seg)
+            contact_points.append(new_contacts)
+            contact_body.append(owner)
+            contact_wall.append(new_wall)
+            n_contacts += len(new_contacts)
 
     contact_points = np.vstack(contact_points) if contact_points else np.zeros((0, 2))
     contact_body = np.concatenate(contact_body).astype(np.int64) if len(contact_points) else np.zeros(0, dtype=np.int64)
@@ -415,15 +294,195 @@ def contact_outline(polys, tree, outline_world, outlines: BodyOutlines, h: float
     contact_wall = (np.concatenate(contact_wall).astype(np.int64) if len(contact_points)
                     else np.zeros(0, dtype=np.int64))
     if wall_solids:
-        # fluid cut off from the rest by bodies in contact with a wall (between the legs of an
-        # arch on the floor, between two bodies touching each other and the floor) is a pore too
-        xmin, xmax, ymin, ymax = box
-        filled = shapely.union_all(shapely.polygons(shapely.get_exterior_ring(np.asarray(wall_solids, dtype=object))))
-        parts = [q for q in shapely.get_parts(shapely.difference(shapely.box(xmin, ymin, xmax, ymax), filled))
-                 if shapely.get_type_id(q) == 3]
-        areas = sorted((float(shapely.area(q)) for q in parts), reverse=True)
-        pores.extend(a for a in areas[1:] if a > tol_box * h)
+        pores.extend(_cut_off_pores(wall_solids, box, tol_box * h))
     return ContactOutline(contacts=contacts, clustered=clustered, pore_areas=np.array(pores),
                           keep_outline=keep_outline, contact_points=contact_points, contact_body=contact_body,
                           segments=np.vstack([plain_segments] + cluster_segments), holes=hole_pts, solids=solids,
                           walls=walls, contact_wall=contact_wall, wall_solids=wall_solids, wall_merge=merge)
+
+
+def _wall_pairs(polys, box, min_gap: float, wall_sides) -> np.ndarray:
+    """``(body, side)`` pairs ``(w, 2)`` of the bodies ``polys`` closer than ``min_gap`` to a wall of
+    ``box`` (none without a box or bodies; ``wall_sides (4,)`` bool: the sides that are walls)."""
+    walls = np.zeros((0, 2), dtype=np.int64)
+    n_bodies = len(polys)
+    if box is not None and n_bodies:
+        coords, vertex_body = shapely.get_coordinates(shapely.get_exterior_ring(polys), return_index=True)
+        walls = wall_contacts(coords, vertex_body, n_bodies, box, min_gap)
+        if wall_sides is not None:
+            walls = walls[np.asarray(wall_sides, dtype=bool)[walls[:, 1]]]
+    return walls
+
+
+def _clusters(contacts, walls, n_bodies: int) -> list:
+    """The contact clusters: per connected component of the ``contacts (k, 2)`` graph that has a
+    contact or a wall (``walls (w, 2)``) its member bodies ``(m,)``, in the order of the components."""
+    if not (len(contacts) or len(walls)):
+        return []
+    g = coo_matrix((np.ones(len(contacts)), (contacts[:, 0], contacts[:, 1])), shape=(n_bodies, n_bodies))
+    _, cluster_of = connected_components(g, directed=False)
+    return [np.flatnonzero(cluster_of == k)
+            for k in np.unique(cluster_of[np.concatenate([contacts[:, 0], contacts[:, 1], walls[:, 0]])])]
+
+
+def _closed_cluster(member_polys, sides, box, h: float, min_gap: float, params) -> list:
+    """The polygons of the morphological closing of a cluster's bodies ``member_polys`` and its
+    walls ``sides`` (slabs outside the box): a mitre buffer by ``min_gap/2`` out and back in,
+    simplified at ``min_gap``; with walls clipped to the box (vertices closer than ``min_gap`` to a
+    side put on it first)."""
+    tol_box = 1e-7 * h
+    r = 0.5 * min_gap
+    members_geom = (np.concatenate([member_polys, np.array(_slabs(sides, box, h), dtype=object)])
+                    if len(sides) else member_polys)
+    closed = shapely.union_all(shapely.buffer(members_geom, r, join_style="mitre", mitre_limit=params.mitre_limit))
+    closed = shapely.buffer(closed, -r, join_style="mitre", mitre_limit=params.mitre_limit)
+    # features below the gap scale (bridge steps) are noise: drop them
+    closed = shapely.simplify(closed, min_gap, preserve_topology=True)
+    if not len(sides):
+        return list(getattr(closed, "geoms", [closed]))
+    # the walls are outside the box: what the fluid loses is the part inside (vertices closer
+    # than min_gap to a side put on it first: that gap is filled anyway, and the simplification
+    # may have cut a chord of the wall slab across a shallow contact, a sliver along the wall)
+    xmin, xmax, ymin, ymax = box
+    closed = shapely.transform(closed, lambda q: _snap_to_box(q, box, max(tol_box, min_gap))[0])
+    if not shapely.is_valid(closed):
+        closed = shapely.make_valid(closed)
+    closed = shapely.intersection(closed, shapely.box(xmin, ymin, xmax, ymax))
+    return [c for c in shapely.get_parts(closed) if shapely.get_type_id(c) == 3 and shapely.area(c) > tol_box * h]
+
+
+def _ring_parts(ring, sides, box, tol_box: float) -> tuple:
+    """A ring of a closed cluster: ``(ring, vertices (n, 2), forced (n,), wall_side (n,), fluid)``, its
+    vertices, which are wall nodes (vertices on the box with a fluid-facing edge) and their side
+    (-1 for the others), and the part facing the fluid (the ring less its edges along the box sides
+    ``sides``; vertices between two such edges are dropped)."""
+    ring_vertices = shapely.get_coordinates(ring)[:-1]
+    forced = np.zeros(len(ring_vertices), dtype=bool)
+    wall_side = np.full(len(ring_vertices), -1, dtype=np.int64)
+    fluid = ring
+    if len(sides):
+        ring_vertices, wall_side = _snap_to_box(ring_vertices, box, tol_box)
+        on_box = wall_side >= 0
+        nxt = np.roll(np.arange(len(ring_vertices)), -1)
+        mid = 0.5 * (ring_vertices + ring_vertices[nxt])
+        # edge i -> i + 1 along a box side: not fluid boundary
+        wall_edge = on_box & on_box[nxt] & (np.abs(_box_distance(mid, box)) < tol_box)
+        if wall_edge.any():
+            ends = np.stack([ring_vertices[~wall_edge], ring_vertices[nxt[~wall_edge]]], axis=1)
+            fluid = shapely.multilinestrings(shapely.linestrings(ends))
+        # vertices on the box with a fluid-facing edge are wall nodes; the others go
+        inner = on_box & wall_edge & np.roll(wall_edge, 1)
+        forced = (on_box & ~inner)[~inner]
+        ring_vertices, wall_side = ring_vertices[~inner], np.where(forced, wall_side[~inner], -1)
+    return ring, ring_vertices, forced, wall_side, fluid
+
+
+def _outline_rows_on_rings(ring_data, members, polys, outlines: BodyOutlines, outline_world, h: float,
+                           min_gap: float, params) -> tuple:
+    """The outline rows of the cluster ``members`` ``(r,)``, which of them lie on the fluid part of a
+    ring (``(r,)`` bool) and outside the other member bodies, and the nearest ring of each ``(r,)``."""
+    member_rows = np.flatnonzero(np.isin(outlines.body, members))
+    member_points = shapely.points(outline_world[member_rows])
+    dist_to_rings = np.column_stack([shapely.distance(rd[4], member_points) for rd in ring_data])
+    on = dist_to_rings.min(axis=1) < max(1e-7 * h, params.on_outline_factor * min_gap)
+    # an outline node inside another member body (an overlap shallower than the
+    # tolerance above) is no node of the closed outline: kept, it would be a mesh node
+    # inside that body (the ring cuts across the notch, or a contact node takes its place)
+    member_body = outlines.body[member_rows]
+    for m in members:  # one per body of the cluster (few)
+        inside = (member_body != m) & shapely.contains_xy(polys[m], outline_world[member_rows])
+        on &= ~inside
+    return member_rows, on, np.argmin(dist_to_rings, axis=1)
+
+
+def _ring_nodes(ring, ring_vertices, forced, wall_side, kept, members, polys, outline_world, keep_outline,
+                n_outline: int, first_id: int, merge: float, spacing: float, box, tol_box: float) -> tuple:
+    """The nodes of one ring: its contact nodes and its segments over the outline rows ``kept`` on it
+    (``keep_outline`` loses the rows merged away).
+
+    Returns ``(segments (s, 2) or None, contact points (c, 2), owners (c,), wall sides (c,))``;
+    contact node ``i`` is numbered ``first_id + i`` in the segments.
+    """
+    ring_vertices, forced, wall_side = _merged_ring_vertices(ring_vertices, forced, wall_side, merge)
+    if forced.any() and len(kept):
+        # outline nodes next to a wall node are merged into it
+        d_wall, _ = cKDTree(ring_vertices[forced]).query(outline_world[kept])
+        keep_outline[kept[d_wall < merge]] = False
+        kept = kept[d_wall >= merge]
+    if len(kept):
+        dist_to_kept, _ = cKDTree(outline_world[kept]).query(ring_vertices)
+    else:
+        dist_to_kept = np.full(len(ring_vertices), np.inf)
+    # ring vertices off the body outline nodes (contact points, bridge corners)
+    # become contact nodes unless an outline node is within contact_node_spacing · h:
+    # then the ring cuts straight across the contact notch, which lies in the
+    # fluid (the union is concave there), so no element overlaps a body
+    new_sel = (dist_to_kept > spacing) | forced
+    new_contacts = ring_vertices[new_sel]
+    new_wall = wall_side[new_sel]
+    # owner of a contact node: nearest member body
+    if len(new_contacts):
+        new_pts = shapely.points(new_contacts)
+        dist_to_members = np.column_stack([shapely.distance(polys[m], new_pts) for m in members])
+        owner = members[np.argmin(dist_to_members, axis=1)]
+    else:
+        owner = np.zeros(0, dtype=np.int64)
+    # order the ring's nodes along it
+    ring_points = np.vstack([outline_world[kept], new_contacts])
+    ring_ids = np.concatenate([kept, first_id + np.arange(len(new_contacts))])
+    ring_wall = np.concatenate([np.zeros(len(kept), dtype=bool), new_wall >= 0])
+    pos = shapely.line_locate_point(ring, shapely.points(ring_points))
+    o = np.argsort(pos)
+    ring_nodes = ring_ids[o]
+    ring_wall = ring_wall[o]
+    rp = ring_points[o]
+    rpos = pos[o]
+    # outline nodes closer than contact_merge · h to their predecessor on the ring
+    # (corners of two touching bodies) are merged into it
+    if len(ring_nodes) > 3:
+        step = np.linalg.norm(rp - np.roll(rp, 1, axis=0), axis=1)
+        drop = (step < merge) & (ring_nodes < n_outline)
+        drop[0] = False
+        keep_outline[ring_nodes[drop]] = False
+        ring_nodes, ring_wall, rpos = ring_nodes[~drop], ring_wall[~drop], rpos[~drop]
+    seg = _ring_segments(ring, ring_nodes, ring_wall, rpos, box, tol_box) if len(ring_nodes) >= 3 else None
+    return seg, new_contacts, owner, new_wall
+
+
+def _merged_ring_vertices(ring_vertices, forced, wall_side, merge: float) -> tuple:
+    """Ring vertices closer than ``merge`` to the previous kept one dropped (wall nodes ``forced``
+    stay; other vertices that close to one go): ``(vertices, forced, wall_side)``."""
+    if len(ring_vertices) > 3:
+        step = np.linalg.norm(np.diff(ring_vertices, axis=0, append=ring_vertices[:1]), axis=1)
+        sel = np.concatenate([[True], step[:-1] >= merge]) | forced
+        if forced.any():
+            d_wall, _ = cKDTree(ring_vertices[forced]).query(ring_vertices)
+            sel &= forced | (d_wall >= merge)
+        ring_vertices, forced, wall_side = ring_vertices[sel], forced[sel], wall_side[sel]
+    return ring_vertices, forced, wall_side
+
+
+def _ring_segments(ring, ring_nodes, ring_wall, rpos, box, tol_box: float) -> np.ndarray:
+    """Segments ``(s, 2)`` between consecutive ``ring_nodes`` along the ring (at ``rpos``), less the
+    stretches along a box side between two wall nodes (``ring_wall``): those are no fluid boundary."""
+    seg = np.column_stack([ring_nodes, np.roll(ring_nodes, -1)])
+    if ring_wall.any():
+        # tested half-way along the ring, which may turn round a box corner
+        length = shapely.length(ring)
+        mid_pos = (0.5 * (rpos + np.roll(rpos, -1) + np.r_[np.zeros(len(rpos) - 1), length])) % length
+        mid = shapely.get_coordinates(shapely.line_interpolate_point(ring, mid_pos))
+        along = ring_wall & np.roll(ring_wall, -1) & (np.abs(_box_distance(mid, box)) < tol_box)
+        seg = seg[~along]
+    return seg
+
+
+def _cut_off_pores(wall_solids, box, min_area: float) -> list:
+    """Areas of the fluid regions cut off from the rest of the box by the closed wall clusters
+    ``wall_solids`` (between the legs of an arch on the floor, between two bodies touching each
+    other and the floor): all but the largest region, larger than ``min_area``."""
+    xmin, xmax, ymin, ymax = box
+    filled = shapely.union_all(shapely.polygons(shapely.get_exterior_ring(np.asarray(wall_solids, dtype=object))))
+    parts = [q for q in shapely.get_parts(shapely.difference(shapely.box(xmin, ymin, xmax, ymax), filled))
+             if shapely.get_type_id(q) == 3]
+    areas = sorted((float(shapely.area(q)) for q in parts), reverse=True)
+    return [a for a in areas[1:] if a > min_area]

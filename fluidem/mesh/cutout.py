@@ -46,6 +46,7 @@ from .nodes import (
     box_ring,
     to_body,
 )
+from .periodic import partner_places
 from .relax import MeshTopology, signed_areas
 from .seam import SEAM_CODE, clip_at_seams, covered_side_nodes, pair_seam_nodes
 
@@ -160,21 +161,6 @@ def _on_periodic_sides(points, box, axes) -> np.ndarray:
     return on
 
 
-def _partners(points, box, axes) -> np.ndarray:
-    """The partners ``(k, 2)`` across the side pair of the ``points`` on a periodic side."""
-    xmin, xmax, ymin, ymax = box
-    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
-    out = []
-    for c, (lo, hi) in ((0, (xmin, xmax)), (1, (ymin, ymax))):
-        if "xy"[c] not in axes:
-            continue
-        for a, b in ((lo, hi), (hi, lo)):
-            q = points[np.abs(points[:, c] - a) < tol].copy()
-            q[:, c] = b
-            out.append(q)
-    return np.vstack(out) if out else np.zeros((0, 2))
-
-
 def _hole_points(solids, box) -> np.ndarray:
     """One point ``(k, 2)`` inside every part of the ``solids`` within the box."""
     xmin, xmax, ymin, ymax = box
@@ -224,103 +210,205 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
     MeshError
         The outlines intersect (bodies overlap by more than the contact policy handles).
     """
-    n_bodies = len(polys)
-    outline_world = outline_world
-    n_outline = len(outline_world)
+    points, kind, uid = _box_nodes_kept(points, kind, uid, contact, box, uids)
+    oc = _outline_nodes(outline_world, outlines, contact, poses, uids)
+    if seams is not None and len(oc.nodes):
+        points, kind, uid = _clip_at_seams(oc, points, kind, uid, contact, box, uids, seams)
+    # assemble nodes: [candidates | outline | contact and seam nodes | junctions]
+    n_cand = len(points)
+    nodes = np.vstack([points, oc.nodes])
+    outline_segments = n_cand + oc.segments
+    n_contact = len(oc.nodes) - oc.n_outline
+    kind = np.concatenate([kind, np.full(oc.n_outline, OUTLINE, np.int8), np.full(n_contact, CONTACT, np.int8)])
+    body_of = np.concatenate([np.full(n_cand, -1), oc.body])
+    outline_row = np.concatenate([np.full(n_cand, -1), oc.row])
+    uid = np.concatenate([uid, oc.uid])
+    # contact nodes: body coordinates for rigid motion
+    contact_local = oc.local[oc.n_outline:]
+    contact_wall_all = oc.wall[oc.n_outline:]
+    seam_outer_body, seam_outer_local = oc.outer_body[oc.n_outline:], oc.outer_local[oc.n_outline:]
+    first_contact = n_cand + oc.n_outline
+    wall_nodes = first_contact + np.flatnonzero(contact_wall_all >= 0)
+    has_seam_nodes = seams is not None and (contact_wall_all >= SEAM_CODE).any()
+    ring_seg, ring_mark = _box_segments(nodes, kind, box, wall_nodes, contact, seams[0] if has_seam_nodes else None)
+    contact_wall = contact_wall_all.copy()
+    # with seam nodes: hole points inside the parts of the bodies in the box
+    holes = _hole_points(contact.solids, box) if has_seam_nodes else contact.holes
+    t, neighbors, boundary_segments, boundary_markers, used = _run_triangle(
+        nodes, np.vstack([ring_seg, outline_segments]),
+        np.concatenate([ring_mark, _outline_markers(nodes, outline_segments, body_of, polys)]), holes)
+    if used is not None:
+        nodes, kind, body_of, outline_row, uid = nodes[used], kind[used], body_of[used], outline_row[used], uid[used]
+        contact_used = used[first_contact: first_contact + n_contact]
+        contact_local, contact_wall = contact_local[contact_used], contact_wall[contact_used]
+        seam_outer_body, seam_outer_local = seam_outer_body[contact_used], seam_outer_local[contact_used]
+    _make_counter_clockwise(nodes, t, neighbors)
+    junction_nodes = np.zeros(0, dtype=np.int64)
+    junction_verts = np.zeros((0, 3), dtype=np.int64)
+    junction_bary = np.zeros((0, 3))
+    if junctions and len(polys) >= 3:
+        # Voronoi junction points (Sec. 3.2): split junction triangles at a new node
+        owner = np.where((kind == OUTLINE) | (kind == CONTACT), body_of, -1)
+        junction_tris, junction_pts = junction_points(nodes, t, owner, poses[:, :2], polys, target,
+                                                      clearance=junction_clearance, tree=tree)
+        if len(junction_pts):
+            junction_nodes, junction_verts, junction_bary, t, neighbors = _split_at_junctions(
+                nodes, t, neighbors, junction_tris, junction_pts)
+            k = len(junction_pts)
+            nodes = np.vstack([nodes, junction_pts])
+            kind = np.concatenate([kind, np.full(k, JUNCTION, np.int8)])
+            body_of = np.concatenate([body_of, np.full(k, -1)])
+            outline_row = np.concatenate([outline_row, np.full(k, -1)])
+            uid = np.concatenate([uid, uids.take(k)])
+    edges, edge_tris = edges_from_neighbors(t, neighbors)
+    return Triangulation(
+        points=nodes, kind=kind, body_of=body_of.astype(np.int64), outline_row=outline_row.astype(np.int64),
+        uid=uid.astype(np.int64), triangles=t,
+        topo=MeshTopology(t, edges, edge_tris, edge_tris[:, 0] != edge_tris[:, 1]),
+        boundary_segments=boundary_segments, boundary_markers=boundary_markers, contact_local=contact_local,
+        junction_nodes=junction_nodes, junction_verts=junction_verts, junction_bary=junction_bary,
+        contact_wall=contact_wall, seam_outer_body=seam_outer_body, seam_outer_local=seam_outer_local)
+
+
+def _split_at_junctions(nodes, t, neighbors, junction_tris, junction_pts):
+    """Split the triangles ``junction_tris`` of ``t`` at the junction points ``junction_pts (k, 2)``, new
+    nodes after ``nodes``: ``(junction_nodes (k,), junction_verts (k, 3), junction_bary (k, 3), t,
+    neighbors)``.  Junction nodes follow their junction: fixed barycentric coordinates in the
+    triangle of outline nodes they split."""
+    jv = t[junction_tris]
+    P = nodes[jv]
+    junction_bary = barycentric(junction_pts, P[:, 0], P[:, 1], P[:, 2])
+    junction_nodes = len(nodes) + np.arange(len(junction_pts))
+    t, neighbors = split_with_neighbors(t, neighbors, junction_tris, junction_nodes)
+    return junction_nodes, jv, junction_bary, t, neighbors
+
+
+def _box_nodes_kept(points, kind, uid, contact: ContactOutline, box, uids: UidSource):
+    """The candidate nodes ``(points, kind, uid)`` with the box corners back (a corner dropped under
+    a body in contact with two walls comes back once the body left), less the box nodes under a
+    body in contact with a wall or next to its wall nodes (no boundary)."""
     xmin, xmax, ymin, ymax = box
     corners = np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]])
     have = (np.abs(points[kind == CORNER][:, None, :] - corners[None]).max(axis=2) == 0).any(axis=0)
     if not have.all():
-        # a box corner dropped under a body in contact with two walls comes back once the body left
         k = int((~have).sum())
         points = np.vstack([points, corners[~have]])
         kind = np.concatenate([kind, np.full(k, CORNER, np.int8)])
         uid = np.concatenate([uid, uids.take(k)])
     if contact.wall_solids:
-        # box nodes under a body in contact with a wall (or next to its wall nodes) are no boundary
         is_box = (kind == SIDE) | (kind == CORNER)
         drop = np.zeros(len(points), dtype=bool)
         drop[is_box] = covered_box_nodes(points[is_box], contact, 1e-9 * max(xmax - xmin, ymax - ymin),
                                          corner=kind[is_box] == CORNER)
         points, kind, uid = points[~drop], kind[~drop], uid[~drop]
+    return points, kind, uid
+
+
+@dataclass
+class _OutlineNodes:
+    """The outline PSLG: the kept outline nodes, then the contact (and seam) nodes, numbered from 0.
+
+    ``segments (s, 2)`` over ``nodes (m, 2)``; per node its ``body``, body-frame ``local``
+    position, outline ``row`` (-1: none), ``uid``, ``wall`` side (-2 outline nodes, else the
+    contact node's ``contact_wall``), and for seam nodes ``outer_body``/``outer_local``, the outer
+    end of their segment; ``n_outline``: the outline nodes first.
+    """
+
+    nodes: np.ndarray
+    segments: np.ndarray
+    body: np.ndarray
+    local: np.ndarray
+    row: np.ndarray
+    uid: np.ndarray
+    wall: np.ndarray
+    outer_body: np.ndarray
+    outer_local: np.ndarray
+    n_outline: int
+
+    def take(self, keep) -> None:
+        """Keep the nodes ``keep (m,)`` (bool) of the per-node arrays (``segments`` untouched)."""
+        self.nodes, self.body, self.local, self.row, self.uid = (self.nodes[keep], self.body[keep],
+                                                                 self.local[keep], self.row[keep], self.uid[keep])
+        self.wall, self.outer_body, self.outer_local = self.wall[keep], self.outer_body[keep], self.outer_local[keep]
+
+
+def _outline_nodes(outline_world, outlines: BodyOutlines, contact: ContactOutline, poses,
+                   uids: UidSource) -> _OutlineNodes:
+    """The outline PSLG of ``contact``: its kept outline rows and contact nodes (uids drawn for these)."""
+    n_outline = len(outline_world)
     contact_points, contact_body = contact.contact_points, contact.contact_body
     keep_outline = contact.keep_outline
     outline_rows = np.flatnonzero(keep_outline)
-    # outline and contact nodes (the outline PSLG), numbered from 0
     oc_nodes = np.vstack([outline_world[keep_outline], contact_points])
-    n_oc_outline = len(outline_rows)
     node_of_row = np.full(n_outline + len(contact_points), -1, dtype=np.int64)
     node_of_row[outline_rows] = np.arange(len(outline_rows))
     node_of_row[n_outline:] = len(outline_rows) + np.arange(len(contact_points))
     oc_segments = node_of_row[contact.segments]
     if (oc_segments < 0).any():
         raise MeshError("outline segment refers to a removed outline node")
-    oc_body = np.concatenate([outlines.body[outline_rows], contact_body]).astype(np.int64)
     contact_local = to_body(contact_points, poses[contact_body]) if len(contact_points) else np.zeros((0, 2))
-    oc_local = np.vstack([outlines.local[outline_rows], contact_local])
-    oc_row = np.concatenate([outline_rows, np.full(len(contact_points), -1)])
-    oc_uid = np.concatenate([outlines.row_uid(outline_rows), uids.take(len(contact_points))])
-    oc_wall = np.concatenate([np.full(len(outline_rows), -2), contact.contact_wall]).astype(np.int64)
-    oc_outer_body = np.full(len(oc_nodes), -1, dtype=np.int64)
-    oc_outer_local = np.zeros((len(oc_nodes), 2))
-    if seams is not None and len(oc_nodes):
-        # bodies across periodic sides: outlines clipped at the box, seam nodes where they leave it
-        axes, merge = seams
-        clip = clip_at_seams(oc_nodes, oc_segments, box, axes)
-        if len(clip.seam_points) or not clip.keep.all():
-            k = len(clip.seam_points)
-            keep = np.concatenate([clip.keep, np.ones(k, dtype=bool)])
-            # partners across a side pair at one place; a seam node without one gets a box node there
-            seam_points, lonely = pair_seam_nodes(clip.seam_points, clip.seam_side, box, 1e-3 * merge)
-            oc_nodes = np.vstack([oc_nodes, seam_points])
-            oc_body = np.concatenate([oc_body, oc_body[clip.seam_inner]])
-            oc_local = np.vstack([oc_local, oc_local[clip.seam_inner]])
-            oc_row = np.concatenate([oc_row, np.full(k, -1)])
-            oc_uid = np.concatenate([oc_uid, uids.take(k)])
-            oc_wall = np.concatenate([oc_wall, SEAM_CODE + clip.seam_side])
-            oc_outer_body = np.concatenate([oc_outer_body, oc_body[clip.seam_outer]])
-            oc_outer_local = np.vstack([oc_outer_local, oc_local[clip.seam_outer]])
-            remap = np.cumsum(keep) - 1
-            oc_segments = remap[clip.segments]
-            oc_nodes, oc_body, oc_local, oc_row, oc_uid = (oc_nodes[keep], oc_body[keep], oc_local[keep],
-                                                          oc_row[keep], oc_uid[keep])
-            oc_wall, oc_outer_body, oc_outer_local = oc_wall[keep], oc_outer_body[keep], oc_outer_local[keep]
-            n_oc_outline = int((oc_row >= 0).sum())
-            # box nodes on periodic sides under a body or next to a seam node (on both sides
-            # of the pair) are no boundary
-            ends = np.vstack([seam_points, _partners(seam_points, box, axes)])
-            on_periodic = _on_periodic_sides(points, box, axes) & ((kind == SIDE) | (kind == CORNER))
-            if on_periodic.any():
-                drop = np.zeros(len(points), dtype=bool)
-                drop[on_periodic] = covered_side_nodes(points[on_periodic], contact.solids, ends, merge, box)
-                points, kind, uid = points[~drop], kind[~drop], uid[~drop]
-            if len(lonely):
-                points = np.vstack([points, lonely])
-                kind = np.concatenate([kind, np.full(len(lonely), SIDE, dtype=kind.dtype)])
-                uid = np.concatenate([uid, uids.take(len(lonely))])
-    # assemble nodes: [candidates | outline | contact and seam nodes | junctions]
-    n_cand = len(points)
-    nodes = np.vstack([points, oc_nodes])
-    outline_segments = n_cand + oc_segments
-    n_contact = len(oc_nodes) - n_oc_outline
-    kind = np.concatenate([kind, np.full(n_oc_outline, OUTLINE, np.int8), np.full(n_contact, CONTACT, np.int8)])
-    body_of = np.concatenate([np.full(n_cand, -1), oc_body])
-    outline_row = np.concatenate([np.full(n_cand, -1), oc_row])
-    uid = np.concatenate([uid, oc_uid])
-    # contact nodes: body coordinates for rigid motion
-    contact_local = oc_local[n_oc_outline:]
-    contact_wall_all = oc_wall[n_oc_outline:]
-    seam_outer_body, seam_outer_local = oc_outer_body[n_oc_outline:], oc_outer_local[n_oc_outline:]
-    first_contact = n_cand + n_oc_outline
-    wall_nodes = first_contact + np.flatnonzero(contact_wall_all >= 0)
+    return _OutlineNodes(
+        nodes=oc_nodes, segments=oc_segments,
+        body=np.concatenate([outlines.body[outline_rows], contact_body]).astype(np.int64),
+        local=np.vstack([outlines.local[outline_rows], contact_local]),
+        row=np.concatenate([outline_rows, np.full(len(contact_points), -1)]),
+        uid=np.concatenate([outlines.row_uid(outline_rows), uids.take(len(contact_points))]),
+        wall=np.concatenate([np.full(len(outline_rows), -2), contact.contact_wall]).astype(np.int64),
+        outer_body=np.full(len(oc_nodes), -1, dtype=np.int64), outer_local=np.zeros((len(oc_nodes), 2)),
+        n_outline=len(outline_rows))
+
+
+def _clip_at_seams(oc: _OutlineNodes, points, kind, uid, contact: ContactOutline, box, uids: UidSource, seams):
+    """Bodies across periodic sides: the outline PSLG ``oc`` clipped at the box in place, seam nodes
+    where it leaves it (partners across a side pair at one place; a seam node without one gets a
+    box node there).  Returns the candidate nodes ``(points, kind, uid)`` without the box nodes on
+    periodic sides under a body or next to a seam node (on both sides of the pair), with those
+    box nodes added."""
+    axes, merge = seams
+    clip = clip_at_seams(oc.nodes, oc.segments, box, axes)
+    if not (len(clip.seam_points) or not clip.keep.all()):
+        return points, kind, uid
+    k = len(clip.seam_points)
+    keep = np.concatenate([clip.keep, np.ones(k, dtype=bool)])
+    seam_points, lonely = pair_seam_nodes(clip.seam_points, clip.seam_side, box, 1e-3 * merge)
+    oc.nodes = np.vstack([oc.nodes, seam_points])
+    oc.body = np.concatenate([oc.body, oc.body[clip.seam_inner]])
+    oc.local = np.vstack([oc.local, oc.local[clip.seam_inner]])
+    oc.row = np.concatenate([oc.row, np.full(k, -1)])
+    oc.uid = np.concatenate([oc.uid, uids.take(k)])
+    oc.wall = np.concatenate([oc.wall, SEAM_CODE + clip.seam_side])
+    oc.outer_body = np.concatenate([oc.outer_body, oc.body[clip.seam_outer]])
+    oc.outer_local = np.vstack([oc.outer_local, oc.local[clip.seam_outer]])
+    remap = np.cumsum(keep) - 1
+    oc.segments = remap[clip.segments]
+    oc.take(keep)
+    oc.n_outline = int((oc.row >= 0).sum())
+    ends = np.vstack([seam_points, partner_places(seam_points, clip.seam_side, box)])
+    on_periodic = _on_periodic_sides(points, box, axes) & ((kind == SIDE) | (kind == CORNER))
+    if on_periodic.any():
+        drop = np.zeros(len(points), dtype=bool)
+        drop[on_periodic] = covered_side_nodes(points[on_periodic], contact.solids, ends, merge, box)
+        points, kind, uid = points[~drop], kind[~drop], uid[~drop]
+    if len(lonely):
+        points = np.vstack([points, lonely])
+        kind = np.concatenate([kind, np.full(len(lonely), SIDE, dtype=kind.dtype)])
+        uid = np.concatenate([uid, uids.take(len(lonely))])
+    return points, kind, uid
+
+
+def _box_segments(nodes, kind, box, wall_nodes, contact: ContactOutline, seam_axes):
+    """The box ring's segments and markers (:func:`fluidem.mesh.nodes.box_ring`, split at the wall
+    nodes ``wall_nodes``) less those that are no fluid boundary: on a periodic side of
+    ``seam_axes`` wholly on a body (``None``: no seam nodes), under a body in contact with a wall."""
     ring_seg, ring_mark = box_ring(nodes, kind, box, extra=wall_nodes)
-    if seams is not None and (contact_wall_all >= SEAM_CODE).any():
+    xmin, xmax, ymin, ymax = box
+    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
+    if seam_axes is not None:
         # the seam under a body is no boundary: ring segments lying wholly on a body
         mid = 0.5 * (nodes[ring_seg[:, 0]] + nodes[ring_seg[:, 1]])
         under = np.zeros(len(ring_seg), dtype=bool)
-        on_periodic = np.flatnonzero(_on_periodic_sides(mid, box, seams[0]))
+        on_periodic = np.flatnonzero(_on_periodic_sides(mid, box, seam_axes))
         if len(on_periodic) and len(contact.solids):
-            tol = 1e-9 * max(box[1] - box[0], box[3] - box[2])
             u = shapely.buffer(shapely.union_all(np.asarray(contact.solids, dtype=object)), tol)
             lines = shapely.linestrings(np.stack([nodes[ring_seg[on_periodic, 0]], nodes[ring_seg[on_periodic, 1]]],
                                                  axis=1))
@@ -329,33 +417,35 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
     if len(wall_nodes):
         # the box segments under a body in contact are no fluid boundary
         mid_pts = shapely.points(0.5 * (nodes[ring_seg[:, 0]] + nodes[ring_seg[:, 1]]))
-        xmin, xmax, ymin, ymax = box
-        tol = 1e-9 * max(xmax - xmin, ymax - ymin)
         covered = np.zeros(len(ring_seg), dtype=bool)
         for solid in contact.wall_solids:
             covered |= shapely.distance(solid, mid_pts) < tol
         ring_seg, ring_mark = ring_seg[~covered], ring_mark[~covered]
-    contact_wall = contact_wall_all.copy()
+    return ring_seg, ring_mark
+
+
+def _outline_markers(nodes, outline_segments, body_of, polys) -> np.ndarray:
+    """Boundary markers ``(s,)`` of the outline segments: ``FIRST_BODY_MARKER`` + the body of their
+    ends, or of the body nearest their midpoint where the ends' bodies differ (a contact)."""
+    if not len(outline_segments):
+        return np.zeros(0, dtype=np.int64)
     mid = 0.5 * (nodes[outline_segments[:, 0]] + nodes[outline_segments[:, 1]])
-    if len(outline_segments):
-        owner = body_of[outline_segments[:, 0]]
-        same = owner == body_of[outline_segments[:, 1]]
-        if not same.all():
-            dd = shapely.distance(polys[None, :], shapely.points(mid[~same])[:, None])
-            owner = owner.copy()
-            owner[~same] = np.argmin(dd, axis=1)
-        outline_markers = FIRST_BODY_MARKER + owner
-    else:
-        outline_markers = np.zeros(0, dtype=np.int64)
-    pslg = {
-        "vertices": nodes,
-        "segments": np.vstack([ring_seg, outline_segments]).astype(np.int32),
-        "segment_markers": np.concatenate([ring_mark, outline_markers]).astype(np.int32)[:, None],
-    }
-    holes = contact.holes
-    if seams is not None and (contact_wall_all >= SEAM_CODE).any():
-        # hole points inside the parts of the bodies in the box
-        holes = _hole_points(contact.solids, box)
+    owner = body_of[outline_segments[:, 0]]
+    same = owner == body_of[outline_segments[:, 1]]
+    if not same.all():
+        dd = shapely.distance(polys[None, :], shapely.points(mid[~same])[:, None])
+        owner = owner.copy()
+        owner[~same] = np.argmin(dd, axis=1)
+    return FIRST_BODY_MARKER + owner
+
+
+def _run_triangle(nodes, segments, markers, holes):
+    """Triangle's constrained Delaunay triangulation (switches ``pQn``) of ``nodes (n, 2)``, with the
+    ``segments (s, 2)`` and their ``markers (s,)`` and the ``holes (h, 2)``: triangles, neighbours,
+    boundary segments and markers in the numbering of the nodes it used, and the mask of the
+    nodes used (``None``: all; unused: duplicates or points in holes, none expected)."""
+    pslg = {"vertices": nodes, "segments": segments.astype(np.int32),
+            "segment_markers": markers.astype(np.int32)[:, None]}
     if len(holes):
         pslg["holes"] = holes
     out = tr.triangulate(pslg, "pQn")
@@ -368,51 +458,18 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
         )
     boundary_segments = out["segments"].astype(np.int64)
     boundary_markers = out["segment_markers"].ravel().astype(np.int64)
-    # drop unused nodes (none expected; duplicates or points in holes)
     used = np.zeros(len(nodes), dtype=bool)
     used[t.ravel()] = True
-    if not used.all():
-        remap = np.cumsum(used) - 1
-        t = remap[t]
-        boundary_segments = remap[boundary_segments]
-        nodes, kind, body_of, outline_row, uid = nodes[used], kind[used], body_of[used], outline_row[used], uid[used]
-        contact_used = used[first_contact: first_contact + n_contact]
-        contact_local, contact_wall = contact_local[contact_used], contact_wall[contact_used]
-        seam_outer_body, seam_outer_local = seam_outer_body[contact_used], seam_outer_local[contact_used]
-    # Triangle returns counter-clockwise triangles; make sure (swap vertices 1, 2 and
-    # the neighbours opposite them together)
+    if used.all():
+        return t, neighbors, boundary_segments, boundary_markers, None
+    remap = np.cumsum(used) - 1
+    return remap[t], neighbors, remap[boundary_segments], boundary_markers, used
+
+
+def _make_counter_clockwise(nodes, t, neighbors) -> None:
+    """Triangle returns counter-clockwise triangles; make sure, in place (swap vertices 1, 2 of
+    ``t`` and the ``neighbors`` opposite them together)."""
     cw = signed_areas(nodes, t) < 0
     if cw.any():
         t[cw] = t[cw][:, [0, 2, 1]]
         neighbors[cw] = neighbors[cw][:, [0, 2, 1]]
-    junction_nodes = np.zeros(0, dtype=np.int64)
-    junction_verts = np.zeros((0, 3), dtype=np.int64)
-    junction_bary = np.zeros((0, 3))
-    if junctions and n_bodies >= 3:
-        # Voronoi junction points (Sec. 3.2): split junction triangles at a new node
-        owner = np.where((kind == OUTLINE) | (kind == CONTACT), body_of, -1)
-        junction_tris, junction_pts = junction_points(nodes, t, owner, poses[:, :2], polys, target,
-                                                      clearance=junction_clearance, tree=tree)
-        if len(junction_pts):
-            n0 = len(nodes)
-            # junction nodes follow their junction: fixed barycentric coordinates in
-            # the triangle of outline nodes they split
-            jv = t[junction_tris]
-            P = nodes[jv]
-            junction_bary = barycentric(junction_pts, P[:, 0], P[:, 1], P[:, 2])
-            junction_verts = jv
-            junction_nodes = n0 + np.arange(len(junction_pts))
-            t, neighbors = split_with_neighbors(t, neighbors, junction_tris, junction_nodes)
-            nodes = np.vstack([nodes, junction_pts])
-            kind = np.concatenate([kind, np.full(len(junction_pts), JUNCTION, np.int8)])
-            body_of = np.concatenate([body_of, np.full(len(junction_pts), -1)])
-            outline_row = np.concatenate([outline_row, np.full(len(junction_pts), -1)])
-            uid = np.concatenate([uid, uids.take(len(junction_pts))])
-    edges, edge_tris = edges_from_neighbors(t, neighbors)
-    return Triangulation(
-        points=nodes, kind=kind, body_of=body_of.astype(np.int64), outline_row=outline_row.astype(np.int64),
-        uid=uid.astype(np.int64), triangles=t,
-        topo=MeshTopology(t, edges, edge_tris, edge_tris[:, 0] != edge_tris[:, 1]),
-        boundary_segments=boundary_segments, boundary_markers=boundary_markers, contact_local=contact_local,
-        junction_nodes=junction_nodes, junction_verts=junction_verts, junction_bary=junction_bary,
-        contact_wall=contact_wall, seam_outer_body=seam_outer_body, seam_outer_local=seam_outer_local)

@@ -1,24 +1,9 @@
 """A mesh that follows rigid polygonal bodies in a box (paper Sec. 2–4).
 
-Pipeline of one *triangulation* (the "cut-out", Sec. 2.1):
-
-1. candidate nodes: the background (Friedrichs–Keller square grid for a uniform size, a
-   graded Delaunay point set for a graded one; Sec. 2.1, 2.3) or, when dragging, the
-   current nodes;
-2. nodes inside a body or closer than ``clearance · h`` to its outline are removed, and so
-   are nodes in gaps narrower than ``gap_purge · h`` (such a gap is spanned by one layer
-   of elements between the outline nodes);
-3. outline nodes are added: every body carries a fixed set of outline nodes in body
-   coordinates (its polygon edges subdivided at the target size around it);
-4. Triangle's constrained Delaunay triangulation of all nodes, with the outlines and the
-   box sides as segments and a hole point in every body: nothing is triangulated inside a
-   body;
-5. Voronoi junction points (Sec. 3.2, :mod:`fluidem.mesh.junctions`): triangles spanning
-   three bodies are split at a junction node;
-6. spring relaxation (:mod:`fluidem.mesh.relax`, eq. 1–3), then up to ``cleanup_passes``
-   (2) clean-up passes: free nodes of elements still outside the angle bounds (outside
-   narrow gaps) are removed, a node is added in such elements without free nodes, and
-   steps 4–6 run once more.
+One *triangulation* (the "cut-out", Sec. 2.1: candidate nodes cut out around the bodies,
+outline nodes added, Triangle's constrained Delaunay triangulation, junction points,
+relaxation and clean-up) is :func:`fluidem.mesh.moving_triangulation.triangulate_from`, whose
+module docstring has the pipeline step by step.
 
 Strategies (``strategy=``):
 
@@ -33,38 +18,14 @@ Strategies (``strategy=``):
     ``drag_reach · h``; :mod:`fluidem.mesh.drag`); junction nodes keep their barycentric
     place between their three outline nodes; then
     ``relax_iterations`` relaxation sweeps (default 3; dragged nodes relax with a reduced
-    step).  Nodes never snap back.  The current nodes are re-triangulated every
-    ``retriangulate_every`` steps (K, default 30) or earlier when
-
-    - an element is inverted by the rigid motion (``"inverted"``) or shrank below a tenth of
-      its area (``"degenerate"``, typically a narrow-gap element whose anchor passes a
-      corner),
-    - bodies came within ``min_gap`` of each other, or a contact changed (``"contact"``;
-      a wall contact may breathe by ``contact_slack · h``, 0.02 h, first: a resting body
-      whose overlap or gap changes by a little more than ``min_gap`` keeps its outline),
-    - an element outside narrow gaps degraded ``angle_margin`` (10°) past 135°, or
-      ``min_angle_margin`` (3°) below ``min_angle_trigger`` (15°), or as far past its own
-      angles after the last triangulation if it was born outside them (``"quality"``, with
-      hysteresis: an element born near a bound does not fire as soon as it crosses it,
-      :func:`fluidem.mesh.triggers.quality_baseline`).
-
-    At re-triangulation nodes swallowed by (or closer than ``purge_clearance · h`` to) a
-    body are purged, an independent set of nodes is removed where the incident edges are on
-    average shorter than ``coarsen_ratio`` (0.7) of their target and nodes are added in
-    triangles larger than ``refine_area`` (1.6) target areas (at the midpoint of an edge on
-    a box side, else at the centroid; so vacated regions coarsen again, Fig. 6), and
-    junction points are recomputed.  The number of free and box nodes is held within
-    ``node_count_tolerance`` (2 %) of a budget, the first mesh's count per unit of
-    ``∫ h⁻² dA`` (``hold_node_count``): of two large neighbours only the larger is split, and
-    above the budget the most compressed free nodes are removed as well (the harmonic drag
-    compresses the whole region ahead of a body only mildly, below the coarsening
-    threshold, while it stretches the region behind it beyond the refinement one).
+    step, oscillating ones, Sec. 3.3, a halved one).  Nodes never snap back.  The current
+    nodes are re-triangulated every ``retriangulate_every`` steps (K, default 30) or earlier
+    when a trigger fires (inverted or degenerate elements, contacts, quality:
+    :mod:`fluidem.mesh.drag_step`); then the nodes are adapted to the target size, the node
+    count held to a budget (:mod:`fluidem.mesh.moving_triangulation`), and junction points are
+    recomputed.
 ``"fixed"``
     bodies do not move: the mesh is built once; :meth:`MovingMesh.update` checks that.
-
-Oscillating nodes (Sec. 3.3) are detected from the relaxation displacements
-(:class:`fluidem.mesh.quality.OscillationDetector`), reported, and their relaxation step is
-halved each time they are flagged, on top of the per-step iteration limit.
 
 Target size: the user's size field (``h`` and ``grading``); with grading, the bodies carry
 a fine zone with them, ``h_body(x) = h + (growth − 1) max(d(x) − w, 0)``, ``d`` the
@@ -96,10 +57,8 @@ side slide along it with the body (:mod:`fluidem.mesh.contact_outline`).  Fluid 
 on the merged outline: every facet keeps its owner, the body facets get the body's rigid
 motion and the wall facets the wall's condition; the node where they meet is a body (wall)
 node, so it moves with the body: the body condition applied after the wall one wins there,
-as at a corner of a lid-driven cavity.  A body overlapping a side by more than
-``max(wall_overlap · h, wall_overlap_fraction · its extent across the side)`` (0.1 h, a
-quarter of its height) or lying outside the box raises :class:`~fluidem.errors.InputError`
-(a ``ValueError``) naming the contact law's ``E``.
+as at a corner of a lid-driven cavity.  A body overlapping a side deeper than allowed or
+lying outside the box raises :class:`~fluidem.errors.InputError` (:mod:`fluidem.mesh.moving_input`).
 
 Narrow gaps: see :mod:`fluidem.mesh.quality`; an element counts as narrow-gap when the gap
 at its centroid is narrower than ``h/2`` or when one of its edges joins two different
@@ -116,6 +75,13 @@ composes them and keeps the state between steps):
 * :mod:`fluidem.mesh.gaps` — gap widths and narrow-gap elements;
 * :mod:`fluidem.mesh.triggers` — when to re-triangulate;
 * :mod:`fluidem.mesh.params` — every parameter, validated (:class:`MeshParams`).
+
+The class keeps its state in its own attributes; functions over it, by concern:
+:mod:`fluidem.mesh.moving_triangulation` (one triangulation), :mod:`fluidem.mesh.drag_step`
+(a drag step and its triggers), :mod:`fluidem.mesh.moving_images` (periodic images, seam
+nodes), :mod:`fluidem.mesh.moving_history` (node trajectories, ALE mesh velocity),
+:mod:`fluidem.mesh.moving_input` (pose and width checks), :mod:`fluidem.mesh.moving_state`
+(the pickled state of earlier versions).
 """
 
 from __future__ import annotations
@@ -129,54 +95,21 @@ from scipy.spatial import cKDTree
 
 from .. import validate
 from ..errors import InputError
-from .adaptation import adapt as adapt_nodes
-from .adaptation import cleanup_candidates
-from .background import GradedSize, SizeField, UniformSize
-from .contact_outline import contact_outline, contact_pairs, wall_depths
-from .cutout import Triangulation, cut_out, triangulate
-from .drag import DragAssociation, HarmonicDrag, drag_association, dragged_positions, harmonic_drag
-from .gaps import (
-    anchored_across_gap,
-    boundary_owner,
-    gap_width,
-    narrow_gap,
-    narrow_gap_owners,
-    structural_narrow,
-)
-from .nodes import (
-    CONTACT,
-    CORNER,
-    FIRST_BODY_MARKER,
-    FREE,
-    JUNCTION,
-    OUTLINE,
-    SIDE,
-    UID_OUTLINE,
-    BackgroundNodes,
-    BodyOutlines,
-    UidSource,
-    background_nodes,
-    body_vertices,
-    mobility,
-    outline_nodes,
-    world,
-)
-from .periodic import match_side_nodes, periodic_axes, side_partners, slide_in_pairs
-from .seam import (SEAM_BAND, SEAM_CODE, SEAM_MERGE, PeriodicImages, period_of, periodic_images, seam_nudge,
-                   seam_positions)
+from .background import size_from_grading
+from .drag_step import drag_step
+from .gaps import anchored_across_gap, boundary_owner, gap_width, narrow_gap, narrow_gap_owners
+from .moving_history import carry_history, velocity_from_history, velocity_from_last_step
+from .moving_images import image_poses, image_set, set_images
+from .moving_input import allowed_wall_overlap, check_poses, check_widths
+from .moving_state import restored_state
+from .moving_triangulation import movable_count, size_integral, triangulate_from
+from .nodes import (FIRST_BODY_MARKER, BodyOutlines, UidSource, background_nodes,
+                    body_vertices, outline_nodes, world)
 from .params import PARAM_NAMES, STRATEGIES, MeshParams, mesh_params
+from .periodic import periodic_axes
 from .proximity import PolygonTable
 from .quality import MeshQuality, OscillationDetector, mesh_quality
-from .relax import relax, signed_areas
 from .triangulate import SIDE_NAMES, BoxDomain, _facet_lookup
-from .triggers import (
-    QualityBaseline,
-    contacts_changed,
-    element_shape,
-    quality_baseline,
-    quality_dropped,
-    retriangulation_reason,
-)
 
 __all__ = ["MovingMesh", "MeshEvent", "MeshParams", "STRATEGIES"]
 
@@ -363,7 +296,7 @@ class MovingMesh:
         self.periodic = periodic_axes(periodic)
 
         # size field
-        self._size, self._growth, self._graded = self._make_size(grading)
+        self._size, self._growth, self._graded = size_from_grading(grading, self.h)
         self.background_kind = p.background_for(self._graded)
 
         # bodies
@@ -380,10 +313,10 @@ class MovingMesh:
         self._real_nv = np.array([len(v) for v in verts], dtype=np.int64)
         self._real_vcat = np.vstack(verts) if verts else np.zeros((0, 2))
         self._real_vbody = np.repeat(np.arange(self.n_real), self._real_nv)
-        self._check_widths()
-        self.body_poses = self._check_poses(poses)
+        check_widths(self)
+        self.body_poses = check_poses(self, poses)
         self._real_outlines: BodyOutlines = outline_nodes(verts, self.body_poses, self._size, self.h)
-        self._set_images(self._image_set(self.body_poses))
+        set_images(self, image_set(self, self.body_poses))
         self.background_candidates = background_nodes(self.box, self.h, self._size, self.background_kind,
                                                      periodic=self.periodic)
         self.step_count = 0
@@ -397,10 +330,10 @@ class MovingMesh:
         self._prev_points = None
         self._prev_uid = None
         bg = self.background_candidates
-        self._triangulate_from(bg.points, bg.kind, bg.uid, purge=p.clearance, adapt=False,
-                               n_relax=p.initial_iterations)
+        triangulate_from(self, bg.points, bg.kind, bg.uid, purge=p.clearance, adapt=False,
+                         n_relax=p.initial_iterations)
         # free and box nodes per unit of ∫ h⁻² dA: the node budget of the re-triangulations
-        self._node_density = self._movable_count() / self._size_integral()
+        self._node_density = movable_count(self) / size_integral(self)
         self._prev_points = self.points.copy()
         self._prev_uid = self.uid.copy()
         self._trajectory = (None, None)  # node_history(): positions at t^n, t^{n-1} of the current nodes
@@ -451,156 +384,15 @@ class MovingMesh:
         return state
 
     def __setstate__(self, state):
-        """Unpickle; a mesh pickled before the split by stage (checkpoints) is converted."""
-        if "params" not in state:
-            state = _state_before_split(state)
-        state.setdefault("periodic", ())
-        if "images" not in state:  # pickled before bodies could cross periodic sides
-            n = state["n_bodies"]
-            state.update(n_real=n, body_poses=state["poses"], _body_verts=state["_verts_local"],
-                         _real_nv=state["_nv"], _real_vcat=state["_vcat"], _real_vbody=state["_vbody"],
-                         _real_outlines=state["outlines"],
-                         images=PeriodicImages(body=np.arange(n), cell=np.zeros((n, 2), dtype=np.int64),
-                                               shift=np.zeros((n, 2))))
-            nc = len(state.get("_contact_idx", ()))
-            state.setdefault("_seam_outer_body", np.full(nc, -1, dtype=np.int64))
-            state.setdefault("_seam_outer_local", np.zeros((nc, 2)))
-        self.__dict__.update(state)
-
+        """Unpickle; a mesh pickled by an earlier version (checkpoints) is converted
+        (:func:`fluidem.mesh.moving_state.restored_state`)."""
+        self.__dict__.update(restored_state(state))
     # ------------------------------------------------------------------ set-up
-    def _make_size(self, grading):
-        if grading is None:
-            return UniformSize(self.h), 1.0, False
-        if isinstance(grading, dict):
-            allowed = {"region", "growth", "h_max"}
-            bad = set(grading) - allowed
-            if bad or "region" not in grading:
-                raise InputError(f"grading dict needs 'region' and may have 'growth', 'h_max'; "
-                                 f"got keys {sorted(grading)}")
-            growth = float(grading.get("growth", 1.2))
-            h_max = float(grading.get("h_max", 8 * self.h))
-            return GradedSize(self.h, growth, h_max, grading["region"]), growth, True
-        if isinstance(grading, UniformSize):
-            return grading, 1.0, False
-        if isinstance(grading, SizeField) or callable(grading):
-            growth = float(getattr(grading, "growth", 1.2))
-            return grading, growth, True
-        raise InputError(f"grading = {grading!r}: expected None, a dict, a SizeField or a callable")
-
-    def _check_poses(self, poses) -> np.ndarray:
-        try:
-            p = np.asarray(poses, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"poses must be an (n_bodies, 3) array of numbers, got {poses!r}") from exc
-        if self.n_real == 0 and p.size == 0:
-            return np.zeros((0, 3))
-        if p.shape != (self.n_real, 3) or not np.all(np.isfinite(p)):
-            raise InputError(f"poses must be a finite ({self.n_real}, 3) array of x, y, angle; got shape {p.shape}")
-        w = world(self._real_vcat, self._real_vbody, p)
-        # a body may touch a wall or overlap it (the overlap is meshed as contact, the body with
-        # the wall as one outline), as deep as allowed_wall_overlap; periodic sides are no walls
-        depth = -wall_depths(w, self._real_vbody, self.n_real, self.box)  # (n_bodies, 4): > 0 outside
-        depth[:, ~self._wall_sides] = -np.inf
-        allowed = self.allowed_wall_overlap(p)
-        bad = np.flatnonzero((depth > allowed).any(axis=1))
-        if len(bad):
-            b = int(bad[0])
-            side = int(np.argmax(depth[b] - allowed[b]))
-            if self._outside(p[b]):
-                raise InputError(
-                    f"body {b} ({self.body_names[b]}) at pose {p[b].tolist()} is not inside the domain "
-                    f"{tuple(float(c) for c in self.box)}: it lies outside")
-            raise InputError(
-                f"body {b} ({self.body_names[b]}) at pose {p[b].tolist()} is not inside the domain "
-                f"{tuple(float(c) for c in self.box)}: it overlaps the {SIDE_NAMES[side]} wall by "
-                f"{depth[b, side]:.3g}; expected an overlap of at most {allowed[b, side]:.3g} = max(wall_overlap · h, "
-                f"wall_overlap_fraction · its extent across the wall) (the overlap is meshed as contact): a "
-                f"resting overlap this deep means a contact law too soft for the load (raise [contact] E) or a "
-                f"pose outside the box")
-        return p
-
     @property
     def _wall_sides(self) -> np.ndarray:
         """(4,) bool: which sides (bottom, right, top, left) are walls (not periodic)."""
         ax = self.__dict__.get("periodic", ())
         return np.array(["y" not in ax, "x" not in ax, "y" not in ax, "x" not in ax])
-
-    def _check_widths(self) -> None:
-        """Every vertex of a body lies less than half the period from its origin: the arm of a
-        point of a body across a periodic side is then the one to the nearest image of its
-        origin (:func:`fluidem.geometry.minimum_image`)."""
-        L = period_of(self.box, self.periodic)
-        for c, Lc in enumerate(L):
-            if not Lc or not self.n_real:
-                continue
-            r = np.zeros(self.n_real)
-            np.maximum.at(r, self._real_vbody, np.linalg.norm(self._real_vcat, axis=1))
-            b = int(np.argmax(r))
-            if r[b] >= 0.5 * Lc:
-                raise InputError(f"body {b} ({self.body_names[b]}) has a vertex {r[b]:.4g} from its origin, across "
-                                 f"periodic sides of period {Lc:.4g} in {'xy'[c]}: allowed: less than half the "
-                                 f"period, {0.5 * Lc:.4g} (the arms of its rigid motion go to its nearest image)")
-
-    # ------------------------------------------------------------------ periodic images
-    def _extent(self, body_poses) -> np.ndarray:
-        """Per real body ``(dx_min, dx_max, dy_min, dy_max)`` of its outline about its position."""
-        w = world(self._real_vcat, self._real_vbody, body_poses) - body_poses[self._real_vbody, :2]
-        ext = np.zeros((self.n_real, 4))
-        ext[:, [0, 2]], ext[:, [1, 3]] = np.inf, -np.inf
-        for c in range(2):
-            np.minimum.at(ext[:, 2 * c], self._real_vbody, w[:, c])
-            np.maximum.at(ext[:, 2 * c + 1], self._real_vbody, w[:, c])
-        return ext
-
-    def _image_set(self, body_poses, extent=None) -> PeriodicImages:
-        """The periodic images to mesh at ``body_poses`` (:func:`fluidem.mesh.seam.periodic_images`;
-        ``extent``: :meth:`_extent` at them, if the caller has it); without periodic sides every body once."""
-        if not self.periodic or not self.n_real:
-            n = self.n_real
-            return PeriodicImages(body=np.arange(n), cell=np.zeros((n, 2), dtype=np.int64), shift=np.zeros((n, 2)))
-        margin = (self.params.drag_reach + 1.0) * self.h
-        ext = self._extent(body_poses) if extent is None else extent
-        return periodic_images(body_poses, ext, self.box, self.periodic, margin)
-
-    def _set_images(self, images: PeriodicImages, nudge: bool = False) -> None:
-        """Make ``images`` the bodies the mesh holds: per image its outline, vertices and pose
-        (``nudge``: bodies with an outline node on a periodic side line are held nudged off it,
-        :func:`fluidem.mesh.seam.seam_nudge`)."""
-        if nudge and self.periodic and self.n_real:
-            ol = self._real_outlines
-            pts = world(ol.local, ol.body, self.body_poses)
-            shift = seam_nudge(pts, ol.body, self.n_real, self.box, self.periodic, SEAM_BAND * self.h)
-            images = PeriodicImages(body=images.body, cell=images.cell, shift=images.shift + shift[images.body])
-        self.images = images
-        nb = len(images.body)
-        self.n_bodies = nb
-        self._verts_local = [self._body_verts[b] for b in images.body]
-        self._nv = self._real_nv[images.body]
-        self._vcat = np.vstack(self._verts_local) if nb else np.zeros((0, 2))
-        self._vbody = np.repeat(np.arange(nb), self._nv)
-        ol = self._real_outlines
-        if nb == self.n_real and np.array_equal(images.body, np.arange(nb)) and not images.cell.any():
-            self.outlines = ol
-        else:
-            # every image carries its body's outline rows; uids per (row, image cell)
-            first = np.concatenate([[0], np.cumsum(np.bincount(ol.body, minlength=self.n_real))])
-            counts = first[images.body + 1] - first[images.body]
-            start = np.concatenate([[0], np.cumsum(counts)])[:-1]
-            rows = np.concatenate([np.arange(first[b], first[b + 1]) for b in images.body]) if nb else \
-                np.zeros(0, dtype=np.int64)
-            img = np.repeat(np.arange(nb), counts)
-            nxt = ol.next[rows] - np.repeat(first[images.body], counts) + np.repeat(start, counts)
-            code = (images.cell[:, 0] + 512) * 1024 + (images.cell[:, 1] + 512)
-            uid = UID_OUTLINE + rows + len(ol.body) * (np.repeat(code, counts) - (512 * 1024 + 512))
-            self.outlines = BodyOutlines(local=ol.local[rows], body=img, next=nxt, uid=uid)
-        self.poses = self._image_poses(self.body_poses)
-
-    def _image_poses(self, body_poses, images: PeriodicImages | None = None) -> np.ndarray:
-        """Poses ``(n_images, 3)`` of ``images`` (default: the images held), for real ``body_poses (n, 3)``."""
-        im = self.images if images is None else images
-        out = np.asarray(body_poses, dtype=float)[im.body].copy()
-        out[:, :2] += im.shift
-        return out
 
     def allowed_wall_overlap(self, poses=None) -> np.ndarray:
         """Deepest overlap ``(n_bodies, 4)`` of each body with each box side (bottom, right, top,
@@ -608,41 +400,7 @@ class MovingMesh:
         wall_overlap_fraction · e)``, ``e`` the body's extent across the side at ``poses``
         (default: the current ones; :class:`MeshParams`)."""
         poses = self.body_poses if poses is None else np.asarray(poses, dtype=float)
-        p = self.params
-        w = world(self._real_vcat, self._real_vbody, poses)
-        ext = np.zeros((self.n_real, 2))
-        for axis in range(2):
-            hi = np.full(self.n_real, -np.inf)
-            lo = np.full(self.n_real, np.inf)
-            np.maximum.at(hi, self._real_vbody, w[:, axis])
-            np.minimum.at(lo, self._real_vbody, w[:, axis])
-            ext[:, axis] = hi - lo
-        across = ext[:, [1, 0, 1, 0]]  # bottom/top: the height, right/left: the width
-        return np.maximum(p.wall_overlap * self.h, p.wall_overlap_fraction * across)
-
-    def _outside(self, pose) -> bool:
-        """The reference point of a body at ``pose`` lies outside the box (across a wall)."""
-        xmin, xmax, ymin, ymax = self.box
-        ax = self.__dict__.get("periodic", ())
-        return not (("x" in ax or xmin <= pose[0] <= xmax) and ("y" in ax or ymin <= pose[1] <= ymax))
-
-    def _movable_count(self) -> int:
-        """Free and box nodes of the current mesh (what the adaptation adds and removes)."""
-        return int(((self.kind == FREE) | (self.kind == SIDE) | (self.kind == CORNER)).sum())
-
-    def _size_integral(self) -> float:
-        """``∫ h⁻² dA`` over the current mesh (elements, mean per-node target), dimensionless."""
-        t = self.triangles
-        h_t = self.h_node[t].mean(axis=1)
-        return float((np.abs(signed_areas(self.points, t)) / h_t**2).sum())
-
-    def _node_budget(self) -> float | None:
-        """Free and box nodes the adaptation aims at (``hold_node_count``), ``None``: no aim."""
-        density = self.__dict__.get("_node_density")
-        if not self.params.hold_node_count or density is None:
-            return None
-        return density * self._size_integral()
-
+        return allowed_wall_overlap(self, poses)
     def _target(self, pts, outline_world=None) -> np.ndarray:
         """Target edge length at ``pts`` (size field, and the zone the bodies carry)."""
         hs = np.asarray(self._size(pts), dtype=float)
@@ -674,124 +432,6 @@ class MovingMesh:
         """:meth:`_outline_table`, or ``None`` without bodies."""
         return self._outline_table(poses) if self.n_bodies else None
 
-    # ------------------------------------------------------------------ triangulation
-    def _triangulate_from(self, cand, cand_kind, cand_uid, purge, adapt, n_relax, h_cand=None):
-        """Contacts + cut-out (+ adaptation) + CDT + junctions + relaxation + clean-up from
-        candidate nodes (Sec. 2.1); returns the counts of :class:`MeshEvent`."""
-        p = self.params
-        if self.periodic:
-            self._set_images(self._image_set(self.body_poses), nudge=True)
-        poses = self.poses
-        outline_world = self.outlines.world(poses)
-        polys = self._polygons(poses)
-        tree = shapely.STRtree(polys) if self.n_bodies else None
-        table = self._bodies_table(poses)
-
-        def target(q):
-            return self._target(q, outline_world)
-
-        contact = contact_outline(polys, tree, outline_world, self.outlines, self.h, self.min_gap, p, box=self.box,
-                                  wall_sides=self._wall_sides)
-        self.contacts = contact.contacts
-        self.walls = contact.walls
-        self.pore_areas = contact.pore_areas
-
-        cand = np.asarray(cand, dtype=float)
-        h_candidates = target(cand) if h_cand is None else h_cand
-        cut = cut_out(cand, cand_kind, h_candidates, table, purge, p.gap_purge, self.box)
-        info = {"n_purged": cut.n_purged, "n_removed": 0, "n_inserted": 0}
-        keep = cut.keep
-        kept_points, kept_kind, kept_uid = cand[keep], cand_kind[keep], cand_uid[keep]
-        if adapt:
-            # adaptation works on the current mesh: the candidates are its nodes
-            if len(cand) != len(self.points):
-                raise RuntimeError("adaptation needs the current nodes as candidates")
-            solid_tree = shapely.STRtree(np.asarray(contact.solids, dtype=object)) if self.n_bodies else None
-            ad = adapt_nodes(kept_points, kept_kind, kept_uid, self.points, self.topo, self.h_node, self.kind,
-                             np.where(keep, np.cumsum(keep) - 1, -1), solid_tree, target, self._uids,
-                             self.step_count, p.refine_area, p.coarsen_ratio, p.clearance, box=self.box,
-                             budget=self._node_budget(),
-                             budget_tolerance=p.node_count_tolerance)
-            kept_points, kept_kind, kept_uid = ad.points, ad.kind, ad.uid
-            info["n_removed"], info["n_inserted"] = ad.n_removed, ad.n_inserted
-
-        final_shape = None
-        for attempt in range(p.cleanup_passes + 1):
-            kept_points, kept_kind, kept_uid = match_side_nodes(kept_points, kept_kind, kept_uid, self.box,
-                                                                self.periodic, self._uids, merge=0.25 * self.h)
-            tri = triangulate(kept_points, kept_kind, kept_uid, outline_world, self.outlines, contact, poses, polys,
-                              tree, self.box, self._uids, p.junctions, p.junction_clearance, target,
-                              seams=(self.periodic, SEAM_MERGE * self.h) if self.periodic else None)
-            self._install(tri, outline_world)
-            if n_relax:
-                self.points, _ = relax(self.points, self.topo, self.h_node, self._mobility, n_relax,
-                                       p.relax_params, bounds=self.box)
-                self.points = slide_in_pairs(self.points, self._side_pairs, self.box, lead=self.kind == CONTACT)
-            if attempt == p.cleanup_passes:
-                break
-            # clean-up: bad elements outside narrow gaps lose their free nodes, or get one
-            cleanup = cleanup_candidates(self.points, self.topo, self.kind, self.uid, self.h_node, table, tree,
-                                         self.box, target, self._uids, p.min_angle_trigger, p.max_angle_trigger,
-                                         p.cleanup_clearance)
-            if cleanup.candidates is None:
-                final_shape = cleanup.shape  # of the mesh kept
-                break
-            kept_points, kept_kind, kept_uid = cleanup.candidates
-        self._steps_since = 0
-        self._near_pairs = contact_pairs(polys, tree, self.h)
-        self.drag: DragAssociation = drag_association(self.points, self.h_node, self._drag_mobility, table,
-                                                      p.drag_reach, p.drag_full, p.drag_stiffness)
-        self._harmonic = None  # built by the first drag step on this connectivity
-        self._set_quality_baseline(final_shape)
-        info["n_junctions"] = self.n_junctions
-        return info
-
-    def _install(self, tri: Triangulation, outline_world):
-        """Make ``tri`` the current mesh (node data, topology, targets, mobility)."""
-        self.points = tri.points
-        self.kind = tri.kind
-        self.body_of = tri.body_of
-        self.outline_row = tri.outline_row
-        self.uid = tri.uid
-        self.triangles = tri.triangles
-        self.topo = tri.topo
-        self.boundary_segments = tri.boundary_segments
-        self.boundary_markers = tri.boundary_markers
-        self.junction_nodes = tri.junction_nodes
-        self.junction_verts = tri.junction_verts
-        self.junction_bary = tri.junction_bary
-        self.n_junctions = int(len(tri.junction_nodes))
-        self._contact_local = tri.contact_local
-        self._contact_idx = np.flatnonzero(tri.kind == CONTACT)
-        self._contact_wall = (np.full(len(self._contact_idx), -1, dtype=np.int64) if tri.contact_wall is None
-                              else tri.contact_wall)
-        nc = len(self._contact_idx)
-        self._seam_outer_body = (np.full(nc, -1, dtype=np.int64) if tri.seam_outer_body is None
-                                 else tri.seam_outer_body)
-        self._seam_outer_local = np.zeros((nc, 2)) if tri.seam_outer_local is None else tri.seam_outer_local
-        self.h_node = self._target(tri.points, outline_world)
-        # periodic side nodes slide along their side in matched pairs (:func:`slide_in_pairs`)
-        self._mobility = mobility(tri.kind, tri.points, self.box)
-        self._side_pairs = side_partners(tri.points, tri.kind, self.box, self.periodic)
-        # junction nodes are dragged (they are not relaxed)
-        self._drag_mobility = self._mobility.copy()
-        self._drag_mobility[tri.kind == JUNCTION] = 1.0
-        self._osc.reset()
-        self._damping = None
-
-    def _set_quality_baseline(self, shape=None):
-        """Thresholds of the quality trigger after a triangulation (:func:`quality_baseline`).
-
-        Narrow-gap elements (the cheap geometric flag evaluated now, gaps change little
-        between re-triangulations, or'ed with the structural one) are left out.
-        ``shape``: :func:`element_shape` of the current mesh if the caller has it.
-        """
-        p = self.params
-        narrow = self._narrow_gap_owners() | structural_narrow(self.topo, self.kind, self.body_of)
-        shape = element_shape(self.points, self.topo) if shape is None else shape
-        self.baseline: QualityBaseline = quality_baseline(shape, narrow, p.min_angle_trigger, p.max_angle_trigger,
-                                                          p.angle_margin, p.min_angle_margin)
-
     # ------------------------------------------------------------------ stepping
     def update(self, poses) -> MeshEvent:
         """Move the bodies to ``poses`` ``(n_bodies, 3)`` (x, y, angle) and follow with the mesh.
@@ -803,11 +443,11 @@ class MovingMesh:
             nodes, contacts, pores, timing).
         """
         t0 = time.perf_counter()
-        real = self._check_poses(poses)
+        real = check_poses(self, poses)
         hist = self.__dict__.get("_body_pose_history", (None, None))
         self._body_pose_history = (self.body_poses, hist[0])  # body poses at t^n, t^{n-1}
         self.body_poses = real
-        new = self._image_poses(real)
+        new = image_poses(real, self.images)
         self.step_count += 1
         ev = MeshEvent(step=self.step_count)
         self._prev_points = self.points.copy()
@@ -821,13 +461,13 @@ class MovingMesh:
             old_p, old_t = self.points, self.triangles
             self.poses = new
             bg = self.background_candidates
-            info = self._triangulate_from(bg.points, bg.kind, bg.uid, purge=self.params.clearance, adapt=False,
-                                          n_relax=self.relax_iterations)
+            info = triangulate_from(self, bg.points, bg.kind, bg.uid, purge=self.params.clearance, adapt=False,
+                                    n_relax=self.relax_iterations)
             ev.retriangulated, ev.reason = True, "regenerate"
             ev.old_points, ev.old_triangles, ev.prev_points = old_p, old_t, old_p
             ev.n_purged, ev.n_junctions = info["n_purged"], info["n_junctions"]
         else:
-            self._drag_step(new, ev)
+            drag_step(self, new, ev)
         self._carry_history(ev, *before)
         ev.contacts = self.contacts
         ev.walls = self.__dict__.get("walls", ev.walls)
@@ -836,181 +476,16 @@ class MovingMesh:
         ev.seconds = time.perf_counter() - t0
         return ev
 
-    def _drag_step(self, new, ev):
-        """Drag (:mod:`fluidem.mesh.drag`), relax, and re-triangulate if a trigger fires."""
-        p = self.params
-        xd = dragged_positions(self.points, self.triangles, self.kind, self.outline_row, self.outlines.local,
-                               self.outlines.body, self._contact_idx, self._contact_local, self.body_of,
-                               self._drag_mobility, self.drag, self.junction_nodes, self.junction_verts,
-                               self.junction_bary, self.poses, new, p.drag_halvings, self._harmonic_drag(),
-                               wall_side=self.__dict__.get("_contact_wall"), box=self.box)
-        self.poses = new
-        if self.periodic:
-            seam_broken = self._place_seam_nodes(xd, new)
-            if seam_broken or self._needs_new_images():
-                # an outline left its seam or a body reached a side without its image: the
-                # clipped outlines change (:mod:`fluidem.mesh.seam`)
-                self.points = xd
-                self._steps_since += 1
-                self._retriangulate_step(ev, "seam")
-                return
-        # nodes dragged out of the box: movable ones are put back on it; a fixed one (an outline
-        # node of a body pressed into a wall) cannot be: no relaxation, re-triangulate now
-        # (the outline is rebuilt with the wall, :mod:`fluidem.mesh.contact_outline`)
-        xmin, xmax, ymin, ymax = self.box
-        lo, hi = np.array([xmin, ymin]), np.array([xmax, ymax])
-        outside = ((xd < lo) | (xd > hi)).any(axis=1)
-        pressed = seam = False
-        if outside.any():
-            movable = outside & self._mobility.any(axis=1)
-            xd[movable] = np.clip(xd[movable], lo, hi)
-            over = np.flatnonzero(outside & ~movable)
-            if len(over):
-                # outline nodes of a body meshed with a wall, pressed past it by at most
-                # contact_slack · h (a resting body's overlap breathing), are put back on it
-                # per node and side (bottom, right, top, left) how far past it
-                past = np.column_stack([ymin - xd[over, 1], xd[over, 0] - xmax, xd[over, 1] - ymax,
-                                        xmin - xd[over, 0]])
-                walls = self.__dict__.get("walls", np.zeros((0, 2), dtype=np.int64))
-                meshed = np.zeros((self.n_bodies, 4), dtype=bool)
-                meshed[walls[:, 0], walls[:, 1]] = True
-                ok = np.where(past > 0, meshed[self.body_of[over]] & (past <= self._contact_slack()), True)
-                if ok.all():
-                    xd[over] = np.clip(xd[over], lo, hi)
-                else:
-                    pressed = True
-                    if ((past > 0) & ~self._wall_sides[None, :]).any():
-                        seam = True
-        if pressed and seam:
-            # an outline node passed a periodic side: the body is clipped anew there
-            self.points = xd
-            self._steps_since += 1
-            self._retriangulate_step(ev, "seam")
-            return
-        if pressed:
-            self.points = xd
-            self._steps_since += 1
-            shape = element_shape(xd, self.topo)
-            reason = retriangulation_reason(shape, self.baseline, p.degenerate_area, 0, p.retriangulate_every,
-                                            lambda: False, lambda: False)
-            self._retriangulate_step(ev, reason if reason in ("inverted", "degenerate") else "contact")
-            return
-        # relaxation with the per-step iteration limit (Sec. 3.3)
-        damp = self.drag.relax_damping if self._damping is None else self.drag.relax_damping * self._damping
-        xd = slide_in_pairs(xd, self.__dict__.get("_side_pairs", np.zeros((0, 2), dtype=np.int64)), self.box,
-                            lead=self.kind == CONTACT)
-        xr, nb = relax(xd, self.topo, self.h_node, self._mobility, self.relax_iterations, p.relax_params,
-                       bounds=self.box, damping=damp)
-        ev.n_blocked = nb
-        osc = self._osc.update(xr - xd, self.h_node)
-        if len(osc):
-            if self._damping is None:
-                self._damping = np.ones(len(xd))
-            self._damping[osc] *= 0.5
-        ev.oscillating = osc
-        self.points = slide_in_pairs(xr, self.__dict__.get("_side_pairs", np.zeros((0, 2), dtype=np.int64)), self.box,
-                                     lead=self.kind == CONTACT)
-        self._steps_since += 1
-        # re-triangulate?  (one pass over the elements gives areas and angle cosines)
-        shape = element_shape(xr, self.topo)
-        reason = retriangulation_reason(
-            shape, self.baseline, p.degenerate_area, self._steps_since, p.retriangulate_every,
-            self._contacts_changed, lambda: quality_dropped(shape, self.baseline, self._anchored_across_gap))
-        if reason:
-            self._retriangulate_step(ev, reason)
-
-    def _retriangulate_step(self, ev, reason):
-        """Re-triangulate the current nodes in a drag step and record it in ``ev``."""
-        ev.old_points, ev.old_triangles = self.points.copy(), self.triangles.copy()
-        ev.prev_points = self._prev_points
-        info = self.retriangulate()
-        ev.retriangulated, ev.reason = True, reason
-        ev.n_purged, ev.n_removed, ev.n_inserted = info["n_purged"], info["n_removed"], info["n_inserted"]
-        ev.n_junctions = info["n_junctions"]
-
-    def _place_seam_nodes(self, xd, poses) -> bool:
-        """Put the seam nodes of ``xd (n, 2)`` at the crossings of their segments at ``poses``
-        (:func:`fluidem.mesh.seam.seam_positions`); ``True`` if a segment no longer crosses its
-        side (its inner end left the box or its outer end came in): re-triangulate."""
-        wall = self.__dict__.get("_contact_wall")
-        if wall is None:
-            return False
-        sel = wall >= SEAM_CODE
-        if not sel.any():
-            return False
-        idx = self._contact_idx[sel]
-        p_in = world(self._contact_local[sel], self.body_of[idx], poses)
-        p_out = world(self._seam_outer_local[sel], self._seam_outer_body[sel], poses)
-        side = wall[sel] - SEAM_CODE
-        xd[idx] = seam_positions(p_in, p_out, side, self.box, xd[idx])
-        xmin, xmax, ymin, ymax = self.box
-        level = np.select([side == 0, side == 1, side == 2, side == 3], [ymin, xmax, ymax, xmin])
-        c = np.where((side == 1) | (side == 3), 0, 1)
-        k = np.arange(len(side))
-        outward = np.where((side == 1) | (side == 2), 1.0, -1.0)
-        inner_in = outward * (level - p_in[k, c]) > 0.0
-        outer_out = outward * (p_out[k, c] - level) > 0.0
-        return bool(not (inner_in & outer_out).all())
-
-    def _needs_new_images(self) -> bool:
-        """A body reaches into the box through a periodic side where the mesh holds no image of it."""
-        ext = self._extent(self.body_poses)  # once per step: the image set and the test below
-        need = self._image_set(self.body_poses, ext)
-        p = self._image_poses(self.body_poses, need)
-        xmin, xmax, ymin, ymax = self.box
-        inside = ((p[:, 0] + ext[need.body, 1] > xmin) & (p[:, 0] + ext[need.body, 0] < xmax)
-                  & (p[:, 1] + ext[need.body, 3] > ymin) & (p[:, 1] + ext[need.body, 2] < ymax))
-        return bool(np.setdiff1d(need.key()[inside], self.images.key()).size)
-
-    def _harmonic_drag(self) -> HarmonicDrag | None:
-        """The harmonic extension of this connectivity (``drag_field="harmonic"``), factorised
-        once per triangulation; ``None`` for the ramp."""
-        if self.params.drag_field != "harmonic":
-            return None
-        if self.__dict__.get("_harmonic") is None:
-            self._harmonic = harmonic_drag(self.topo, self.kind, self._mobility, self.drag)
-        return self._harmonic
-
     def retriangulate(self, n_relax: int | None = None) -> dict:
         """Constrained Delaunay triangulation of the current nodes (cut-out, adaptation, junctions).
 
         Returns a dict with ``n_purged``, ``n_removed``, ``n_inserted``, ``n_junctions``.
         """
         n_relax = self.params.retriangulate_iterations if n_relax is None else n_relax
-        return self._triangulate_from(self.points, self.kind, self.uid, purge=self.params.purge_clearance,
-                                      adapt=True, n_relax=n_relax, h_cand=self.h_node)
+        return triangulate_from(self, self.points, self.kind, self.uid, purge=self.params.purge_clearance,
+                                adapt=True, n_relax=n_relax, h_cand=self.h_node)
 
-    # ------------------------------------------------------------------ gaps and triggers on the current mesh
-    def _contacts_changed(self) -> bool:
-        """:func:`fluidem.mesh.triggers.contacts_changed` at the current poses, or a body
-        came within ``min_gap`` of a wall, or one meshed with a wall left it by more than
-        :meth:`_contact_slack` (hysteresis: a body resting on a wall whose gap breathes
-        around ``min_gap`` does not re-trigger every step)."""
-        if self.n_bodies:
-            depth = wall_depths(world(self._vcat, self._vbody, self.poses), self._vbody, self.n_bodies, self.box)
-            depth[:, ~self._wall_sides] = np.inf
-            before = self.__dict__.get("walls", np.zeros((0, 2), dtype=np.int64))
-            was = np.zeros(depth.shape, dtype=bool)
-            was[before[:, 0], before[:, 1]] = True
-            if ((depth < self.min_gap) & ~was).any() or (was & (depth > self._contact_slack())).any():
-                return True
-            # a wall node held on its side while its body lifted off there (a body rocking on
-            # the wall): the closed outline no longer fits
-            wall = self.__dict__.get("_contact_wall")
-            if wall is not None and ((wall >= 0) & (wall < SEAM_CODE)).any():
-                sel = (wall >= 0) & (wall < SEAM_CODE)
-                idx = self._contact_idx[sel]
-                rigid = world(self._contact_local[sel], self.body_of[idx], self.poses)
-                if (np.abs(rigid - self.points[idx]).max() > self._contact_slack()):
-                    return True
-        return contacts_changed(self._polygons(), self._near_pairs, self.contacts, self.min_gap, self.points,
-                                self.body_of)
-
-    def _contact_slack(self) -> float:
-        """How far (length units) a wall contact may breathe between re-triangulations:
-        ``max(min_gap, contact_slack · h)`` (:class:`MeshParams`)."""
-        return max(self.min_gap, self.params.contact_slack * self.h)
-
+    # ------------------------------------------------------------------ gaps on the current mesh
     def _anchored_across_gap(self, tri_idx, table=None) -> np.ndarray:
         """:func:`fluidem.mesh.gaps.anchored_across_gap` of triangles ``tri_idx``."""
         table = self._bodies_table() if table is None else table
@@ -1056,82 +531,9 @@ class MovingMesh:
 
     # ------------------------------------------------------------------ node trajectories (ALE)
     def _carry_history(self, ev: MeshEvent, x_n: np.ndarray, x_nm1: np.ndarray | None) -> None:
-        """Positions at t^n and t^{n−1} of the trajectories of the nodes after :meth:`update`.
-
-        ``x_n`` (positions before the update) and ``x_nm1`` (their own history) belong to the
-        nodes before the update.  Without re-triangulation the nodes are the same.  After one
-        the new nodes y lie in the old connectivity at the positions reached this step
-        (``ev.old_points``, covering the new domain); the old mesh motion is affine on each
-        old element, so the trajectory of y is that of its barycentric combination of old
-        nodes: x^n(y) = Σ λ_k x_k^n, x^{n−1}(y) = Σ λ_k x_k^{n−1}.  If the old mesh is not valid
-        there (``"inverted"``) or did not move (``"regenerate"``) the nodes are at rest this
-        step (Eulerian).
-        """
-        if not ev.retriangulated:
-            self._trajectory = (x_n, x_nm1)
-            return
-        if ev.reason in ("inverted", "regenerate") or ev.old_points is None:
-            ev.history = "eulerian"
-            self._trajectory = (self.points.copy(), self.points.copy())
-            return
-        from skfem import MeshTri
-
-        from .transfer import locate_near
-
-        old = MeshTri(np.asarray(ev.old_points, float).T.copy(), np.asarray(ev.old_triangles).T.copy())
-        # a node that survived the re-triangulation moved little (relaxation): it is searched
-        # first in the old elements around its old position
-        hint = np.full(len(self.points), -1, dtype=np.int64)
-        prev_uid = self._prev_uid
-        if prev_uid is not None and len(prev_uid) == len(ev.old_points):
-            order = np.argsort(prev_uid)
-            pos = np.minimum(np.searchsorted(prev_uid[order], self.uid), len(order) - 1)
-            match = prev_uid[order][pos] == self.uid
-            hint[match] = order[pos[match]]
-        cells, bary = locate_near(old, self.points.T, hint)
-        tri = old.t[:, cells].T  # (n, 3), in the vertex order of the located cells
-
-        def pull(x):
-            return None if x is None else np.einsum("nk,nkd->nd", bary, x[tri])
-
-        ev.history = "ale"
-        self._trajectory = (pull(x_n), pull(x_nm1))
-        if self.periodic:
-            self._rigid_history()
-
-    def _rigid_history(self) -> None:
-        """Trajectories of the body nodes a re-triangulation created (nodes of an image entering
-        the box, seam nodes): the rigid motion of their body (the crossing of their segment for
-        seam nodes), not the old mesh's motion, which does not reach them (they lie beyond the
-        old clipped outline)."""
-        hist = self.__dict__.get("_body_pose_history", (None, None))
-        prev = self._prev_uid
-        new = np.ones(len(self.uid), dtype=bool)
-        if prev is not None and len(prev):
-            new = ~np.isin(self.uid, prev)
-        traj = list(self._trajectory)
-        for level, body_poses in enumerate(hist):
-            if body_poses is None or traj[level] is None:
-                continue
-            poses = self._image_poses(body_poses)
-            x = traj[level]
-            ol = np.flatnonzero(new & (self.kind == OUTLINE))
-            if len(ol):
-                rows = self.outline_row[ol]
-                x[ol] = world(self.outlines.local[rows], self.outlines.body[rows], poses)
-            ci = self._contact_idx
-            sel = new[ci]
-            if sel.any():
-                wall = self._contact_wall[sel]
-                idx = ci[sel]
-                x[idx] = world(self._contact_local[sel], self.body_of[idx], poses)
-                seam = wall >= SEAM_CODE
-                if seam.any():
-                    p_out = world(self._seam_outer_local[sel][seam], self._seam_outer_body[sel][seam], poses)
-                    x[idx[seam]] = seam_positions(x[idx[seam]], p_out, wall[seam] - SEAM_CODE, self.box,
-                                                  self.points[idx[seam]])
-        self._trajectory = tuple(traj)
-
+        """The trajectories of the nodes after :meth:`update` (``x_n``, ``x_nm1``: of the nodes
+        before it; :func:`fluidem.mesh.moving_history.carry_history`)."""
+        carry_history(self, ev, x_n, x_nm1)
     def node_history(self) -> tuple[np.ndarray | None, np.ndarray | None]:
         """Positions ``(x_n, x_nm1)``, each ``(n_nodes, 2)`` or None, of the current nodes' trajectories
         one and two :meth:`update` calls ago (length units).
@@ -1156,38 +558,10 @@ class MovingMesh:
         if not (np.isfinite(dt) and dt > 0):
             raise InputError(f"time step dt must be a positive number, got {dt!r}")
         if order == 2:
-            x_n, x_nm1 = self.node_history()
-            if x_n is None:
-                return np.zeros_like(self.points)
-            if x_nm1 is None:
-                return (self.points - x_n) / dt
-            return (3.0 * (self.points - x_n) - (x_n - x_nm1)) / (2.0 * dt)  # differences first: round-off
+            return velocity_from_history(self.points, *self.node_history(), dt)
         if order != 1:
             raise InputError(f"order = {order!r}: expected 1 or 2")
-        order = np.argsort(self._prev_uid)
-        pos = np.minimum(np.searchsorted(self._prev_uid[order], self.uid), len(order) - 1)
-        match = self._prev_uid[order][pos] == self.uid
-        w = np.zeros_like(self.points)
-        j = order[pos[match]]
-        w[match] = (self.points[match] - self._prev_points[j]) / dt
-        # nodes created by the re-triangulation: mean velocity of their known mesh
-        # neighbours, spreading outwards until every node has one (a few passes over the
-        # edges; Qhull-based interpolation of all nodes cost seconds at 100k nodes)
-        known = match.copy()
-        e0, e1 = self.topo.e0, self.topo.e1
-        n = len(w)
-        while not known.all():
-            k0, k1 = known[e0], known[e1]
-            cnt = np.bincount(e0, k1, n) + np.bincount(e1, k0, n)
-            sx = np.bincount(e0, k1 * w[e1, 0], n) + np.bincount(e1, k0 * w[e0, 0], n)
-            sy = np.bincount(e0, k1 * w[e1, 1], n) + np.bincount(e1, k0 * w[e0, 1], n)
-            new = ~known & (cnt > 0)
-            if not new.any():  # a component without any known node (cannot happen in a mesh with bodies)
-                break
-            w[new, 0] = sx[new] / cnt[new]
-            w[new, 1] = sy[new] / cnt[new]
-            known |= new
-        return w
+        return velocity_from_last_step(self.points, self.uid, self._prev_points, self._prev_uid, self.topo, dt)
 
     def nodes_inside_bodies(self) -> np.ndarray:
         """Indices of nodes strictly inside a body (other than on their own outline)."""
@@ -1229,33 +603,3 @@ class MovingMesh:
         bnd = key[~self.topo.interior]
         kb = bnd[:, 0] * n + bnd[:, 1]
         return bool(np.isin(kb, k_seg).all())
-
-
-#: keyword parameters stored as attributes by MovingMesh before the split by stage
-_FORMER_PARAM_ATTRS = ("strategy", "retriangulate_every", "relax_iterations", "initial_iterations",
-                       "retriangulate_iterations", "min_angle_trigger", "clearance", "purge_clearance", "gap_purge",
-                       "cleanup_passes", "relax_params", "drag_reach", "drag_full", "drag_stiffness", "tow_width",
-                       "refine_area", "coarsen_ratio")
-
-
-def _state_before_split(old: dict) -> dict:
-    """The pickled state of a MovingMesh from before the split by stage, in today's attributes."""
-    s = dict(old)
-    kw = {k: s.pop(k) for k in _FORMER_PARAM_ATTRS}
-    s["params"] = MeshParams(min_gap=s.pop("min_gap"), junctions=s.pop("use_junctions"),
-                             background=s["background_kind"], **kw)
-    s["outlines"] = BodyOutlines(s.pop("_ol_local"), s.pop("_ol_body"), s.pop("_ol_next"))
-    s["background_candidates"] = BackgroundNodes(s.pop("_bg_points"), s.pop("_bg_kind"), s.pop("_bg_uid"))
-    s["_uids"] = UidSource(s.pop("_next_uid"))
-    s["outline_row"] = s.pop("ol_id")
-    s["junction_nodes"] = s.pop("_junction_nodes")
-    s["junction_verts"] = s.pop("_junction_verts", np.zeros((0, 3), dtype=np.int64))
-    s["junction_bary"] = s.pop("_junction_bary", np.zeros((0, 3)))
-    s["drag"] = DragAssociation(s.pop("_drag_node"), s.pop("_drag_body"), s.pop("_drag_weight"),
-                                s.pop("_relax_damping"))
-    cos_max, cos_min = s.pop("_base_cos")
-    bound_lo, bound_hi = s.pop("_cos_bound")
-    s["baseline"] = QualityBaseline(cos_lo=s.pop("_cos_lo"), cos_hi=s.pop("_cos_hi"), area=s.pop("_base_area"),
-                                    narrow=s.pop("_base_narrow"), cos_max=cos_max, cos_min=cos_min,
-                                    cos_bound_lo=bound_lo, cos_bound_hi=bound_hi)
-    return s

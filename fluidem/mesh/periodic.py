@@ -36,7 +36,7 @@ from ..errors import InputError, MeshError
 from .kinds import CONTACT, SIDE
 
 __all__ = ["AXES", "SIDE_PAIRS", "periodic_axes", "axes_of_sides", "match_side_nodes", "side_partners",
-           "slide_in_pairs", "check_matched"]
+           "slide_in_pairs", "partner_places", "check_matched"]
 
 #: the periodic directions: ``"x"`` pairs left/right, ``"y"`` bottom/top
 AXES = ("x", "y")
@@ -209,6 +209,25 @@ def slide_in_pairs(points, pairs, box, lead=None) -> np.ndarray:
     p[pairs[k, 0], along] = mean
     p[pairs[k, 1], along] = mean
     return p
+
+
+def partner_places(points, side, box) -> np.ndarray:
+    """The places ``(k, 2)`` across the side pair of ``points (k, 2)`` on periodic sides ``side (k,)``
+    (0 bottom, 1 right, 2 top, 3 left): the same place along the side, on the partner side (the
+    coordinate across set exactly to its level).
+
+    Examples
+    --------
+    >>> partner_places([[0.0, 0.25], [0.5, 1.0]], [3, 2], (0, 2, 0, 1)).tolist()
+    [[2.0, 0.25], [0.5, 0.0]]
+    """
+    xmin, xmax, ymin, ymax = box
+    q = np.array(points, dtype=float).reshape(-1, 2)
+    side = np.asarray(side)
+    level = np.select([side == 0, side == 1, side == 2, side == 3], [ymax, xmin, ymin, xmax])
+    across = np.where((side == 1) | (side == 3), 0, 1)  # the coordinate across the side
+    q[np.arange(len(q)), across] = level
+    return q
 
 
 def check_matched(points, box, axes, boundary_nodes=None) -> None:

@@ -46,6 +46,8 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from .periodic import partner_places
+
 __all__ = ["SEAM_CODE", "SEAM_MERGE", "SEAM_BAND", "PeriodicImages", "periodic_images", "period_of",
            "clip_at_seams", "seam_nudge", "pair_seam_nodes", "covered_side_nodes", "seam_positions"]
 
@@ -250,11 +252,10 @@ def pair_seam_nodes(points, side, box, tol: float):
     partners are then made equal here, and a seam node without one gets a box node at its
     partner's place (:func:`fluidem.mesh.periodic.check_matched` needs every node matched).
     """
-    xmin, xmax, ymin, ymax = box
     p = np.array(points, dtype=float)
     side = np.asarray(side)
-    lonely = []
-    for lo_side, hi_side, c, (lo, hi) in ((3, 1, 1, (xmin, xmax)), (0, 2, 0, (ymin, ymax))):
+    alone = []
+    for lo_side, hi_side, c in ((3, 1, 1), (0, 2, 0)):
         a = np.flatnonzero(side == lo_side)
         b = np.flatnonzero(side == hi_side)
         paired_b = np.zeros(len(b), dtype=bool)
@@ -269,13 +270,9 @@ def pair_seam_nodes(points, side, box, tol: float):
             a_alone = a[~ok]
         else:
             a_alone = a
-        across = 1 - c  # the coordinate across the side
-        for idx, target in ((a_alone, hi), (b[~paired_b], lo)):
-            q = p[idx].copy()
-            q[:, across] = target
-            lonely.append(q)
-    lonely = np.vstack(lonely) if lonely else np.zeros((0, 2))
-    return p, lonely
+        alone += [a_alone, b[~paired_b]]
+    idx = np.concatenate(alone)
+    return p, partner_places(p[idx], side[idx], box)
 
 
 def covered_side_nodes(points, solids, seam_points, merge, box) -> np.ndarray:

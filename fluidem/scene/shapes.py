@@ -24,7 +24,8 @@ from ..validate import fail
 
 __all__ = ["SHAPES", "shape_outline", "bounding_factor", "inradius", "check_shape", "disk_area_factor"]
 
-#: shape names :func:`fluidem.scene.fill.fill` takes, and what each is; also ``"<N>-gon"`` for a regular N-gon, 3 <= N <= 64
+#: shape names :func:`fluidem.scene.fill.fill` takes, and what each is; also ``"<N>-gon"`` for a
+#: regular N-gon, 3 <= N <= 64
 SHAPES = {
     "disk": "circle (the curved outline of a fluid scene; the inscribed regular polygon with `segments`)",
     "rectangle": "rectangle of aspect ratio `aspect` (width / height)",
