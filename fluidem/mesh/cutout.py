@@ -161,10 +161,15 @@ def _on_periodic_sides(points, box, axes) -> np.ndarray:
     return on
 
 
-def _hole_points(solids, box) -> np.ndarray:
-    """One point ``(k, 2)`` inside every part of the ``solids`` within the box."""
+def _hole_points(solids, box, nodes) -> np.ndarray:
+    """One point ``(k, 2)`` inside every part of the ``solids`` within the box and within the convex
+    hull of the PSLG ``nodes (n, 2)``: where a body covers a corner of a doubly periodic box the
+    corner is no node, the triangulation ends at the hull (the chord between the two seam nodes
+    around the corner), and a hole point beyond it would be ignored (the body's part left meshed)."""
     xmin, xmax, ymin, ymax = box
-    inner = shapely.intersection(np.asarray(solids, dtype=object), shapely.box(xmin, ymin, xmax, ymax))
+    hull = shapely.convex_hull(shapely.multipoints(np.asarray(nodes, dtype=float)))
+    inner = shapely.intersection(np.asarray(solids, dtype=object),
+                                 shapely.intersection(shapely.box(xmin, ymin, xmax, ymax), hull))
     tiny = (1e-6 * max(xmax - xmin, ymax - ymin)) ** 2  # slivers along a side are no hole (a body edge on it)
     parts = [p for g in inner for p in shapely.get_parts(g)
              if shapely.get_type_id(p) == 3 and shapely.area(p) > tiny]
@@ -233,7 +238,7 @@ def triangulate(points, kind, uid, outline_world, outlines: BodyOutlines, contac
     ring_seg, ring_mark = _box_segments(nodes, kind, box, wall_nodes, contact, seams[0] if has_seam_nodes else None)
     contact_wall = contact_wall_all.copy()
     # with seam nodes: hole points inside the parts of the bodies in the box
-    holes = _hole_points(contact.solids, box) if has_seam_nodes else contact.holes
+    holes = _hole_points(contact.solids, box, nodes) if has_seam_nodes else contact.holes
     t, neighbors, boundary_segments, boundary_markers, used = _run_triangle(
         nodes, np.vstack([ring_seg, outline_segments]),
         np.concatenate([ring_mark, _outline_markers(nodes, outline_segments, body_of, polys)]), holes)
@@ -387,7 +392,10 @@ def _clip_at_seams(oc: _OutlineNodes, points, kind, uid, contact: ContactOutline
     on_periodic = _on_periodic_sides(points, box, axes) & ((kind == SIDE) | (kind == CORNER))
     if on_periodic.any():
         drop = np.zeros(len(points), dtype=bool)
-        drop[on_periodic] = covered_side_nodes(points[on_periodic], contact.solids, ends, merge, box)
+        # a corner goes only under a body: dropped for a seam node near it, the chord between the two
+        # seam nodes around it would cut a sliver of fluid off and leave the sides unmatched
+        near = np.where(kind[on_periodic] == CORNER, 0.0, merge)
+        drop[on_periodic] = covered_side_nodes(points[on_periodic], contact.solids, ends, near, box)
         points, kind, uid = points[~drop], kind[~drop], uid[~drop]
     if len(lonely):
         points = np.vstack([points, lonely])

@@ -412,11 +412,13 @@ def relax(points, topo: MeshTopology, h_node, mobility, n_iter: int = 1, params:
                     n_blocked += int((hit & ((dx != 0.0) | (dy != 0.0))).sum())
                     dx[hit] = 0.0
                     dy[hit] = 0.0
-                k += 1
                 xh, yh = x[hit] + dx[hit], y[hit] + dy[hit]
-                if bounds is not None:
+                if bounds is not None and k < params.max_halvings:
                     _clip(xh, bounds[0], bounds[1])
                     _clip(yh, bounds[2], bounds[3])
+                # given up: the node stays exactly where it was (not clipped: a node outside the
+                # bounds, a seam node's partner, would move on every pass and never stop the loop)
+                k += 1
                 xn[hit], yn[hit] = xh, yh
                 # only the elements around the changed nodes need a new shape
                 idx = np.flatnonzero(hit[t0] | hit[t1] | hit[t2])
