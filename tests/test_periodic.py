@@ -111,12 +111,11 @@ def test_body_crosses_a_periodic_side_with_matched_sides_and_valid_elements(angl
 def test_body_across_a_corner_of_a_doubly_periodic_box_is_cut_out():
     """A turning rectangle driven across the corner of a doubly periodic box: while it covers the corner
     its four images each hold a corner of the box, the corner is no node, and the triangulation ends at
-    the chord between the seam nodes around it; the hole points must lie inside that chord, and a corner
-    not under a body stays a node even with a seam node near it.  The fluid area is the box less the
-    bodies to round-off and the sides match at 22 of 23 steps; at k = 22 (a vertex 3e-4 past the
-    bottom side next to the corner, its segment leaving through two sides) the area misses 5.3e-5 and
-    the sides do not match (a flow run stops there with MeshError).  Before, the body's parts were
-    meshed as fluid at 15 steps (up to 3.0e-2, half the body), the sides were unmatched at 2, and the
+    the chord between the seam nodes around it; the hole points must lie inside that chord, a corner not
+    under a body stays a node even with a seam node near it, and an image edge that cuts a corner of the
+    box with both ends outside it gets two seam nodes.  Measured: the fluid area is the box less the
+    bodies to round-off and the sides match at every step.  Before, the body's parts were meshed as fluid
+    at 15 of 23 steps (up to 3.0e-2 of area, half the body), the sides were unmatched at 2, and the
     relaxation at k = 22 did not stop (a node outside the box clipped back on every halving pass)."""
     mm = MovingMesh((0, 2, 0, 2), [rectangle(0.3, 0.2), rectangle(0.2, 0.2)], [[1.7, 1.8, 0.0], [0.5, 0.5, 0.3]],
                     h=0.08, periodic=("x", "y"))
@@ -132,8 +131,7 @@ def test_body_across_a_corner_of_a_doubly_periodic_box_is_cut_out():
         except MeshError:
             pass
     errors = np.array(errors)
-    assert (errors < 1e-12).sum() >= 22 and matched >= 22  # measured 22 and 22 of 23
-    assert errors.max() < 1.6e-4  # measured 5.3e-5
+    assert errors.max() < 1e-12 and matched == 23  # measured 4.4e-16, 23 of 23
 
 
 def test_body_reaching_half_the_period_from_its_origin_is_an_input_error():

@@ -211,8 +211,60 @@ def clip_at_seams(nodes, segments, box, axes) -> SeamClip:
     # keep the orientation of the outline: replace the outside end by the seam node
     cs[:, 0] = np.where(ia[cross], cs[:, 0], seam)
     cs[:, 1] = np.where(ia[cross], seam, cs[:, 1])
+    # a segment with both ends outside that cuts a corner of the box: two seam nodes and the
+    # piece between them (an image's edge next to a corner of a doubly periodic box)
+    out = np.flatnonzero(~ia & ~ib)
+    t_in, t_out, side_in, side_out = _through_box(p[a[out]], p[b[out]], box, axes)
+    thru = out[t_out - t_in > 1e-9]
+    if len(thru):
+        keep = t_out - t_in > 1e-9
+        d = p[b[thru]] - p[a[thru]]
+        x_in = _on_side(p[a[thru]] + t_in[keep, None] * d, side_in[keep], box)
+        x_out = _on_side(p[a[thru]] + t_out[keep, None] * d, side_out[keep], box)
+        m = len(thru)
+        first = len(p) + len(inner)
+        x = np.vstack([x, x_in, x_out])
+        side = np.concatenate([side, side_in[keep], side_out[keep]])
+        inner = np.concatenate([inner, a[thru], a[thru]])
+        outer = np.concatenate([outer, b[thru], b[thru]])
+        cs = np.vstack([cs, np.column_stack([first + np.arange(m), first + m + np.arange(m)])])
     return SeamClip(keep=inside, segments=np.vstack([segments[both], cs]), seam_points=x, seam_side=side,
                     seam_inner=inner, seam_outer=outer)
+
+
+def _through_box(p, q, box, axes):
+    """Where segments ``p (k, 2)`` – ``q (k, 2)`` enter and leave the box across its periodic
+    ``axes`` (Liang & Barsky 1984): parameters ``t_in``, ``t_out (k,)`` (``t_out <= t_in``: the
+    segment misses the box) and the sides ``(k,)`` it enters and leaves by."""
+    xmin, xmax, ymin, ymax = box
+    d = q - p
+    k = len(p)
+    t_in, t_out = np.zeros(k), np.ones(k)
+    side_in, side_out = np.zeros(k, dtype=np.int64), np.zeros(k, dtype=np.int64)
+    for c, ax, lo, hi, lo_side, hi_side in ((0, "x", xmin, xmax, 3, 1), (1, "y", ymin, ymax, 0, 2)):
+        if ax not in axes:
+            continue
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_lo, t_hi = (lo - p[:, c]) / d[:, c], (hi - p[:, c]) / d[:, c]
+        flat = d[:, c] == 0.0
+        enter = np.where(flat, np.where((p[:, c] > lo) & (p[:, c] < hi), -np.inf, np.inf), np.minimum(t_lo, t_hi))
+        leave = np.where(flat, np.where((p[:, c] > lo) & (p[:, c] < hi), np.inf, -np.inf), np.maximum(t_lo, t_hi))
+        later, sooner = enter > t_in, leave < t_out
+        side_in = np.where(later, np.where(d[:, c] > 0, lo_side, hi_side), side_in)
+        side_out = np.where(sooner, np.where(d[:, c] > 0, hi_side, lo_side), side_out)
+        t_in, t_out = np.maximum(t_in, enter), np.minimum(t_out, leave)
+    return t_in, t_out, side_in, side_out
+
+
+def _on_side(x, side, box):
+    """Points ``x (k, 2)`` put exactly on their ``side (k,)`` line (0 bottom, 1 right, 2 top, 3 left)."""
+    xmin, xmax, ymin, ymax = box
+    x = x.copy()
+    x[side == 0, 1] = ymin
+    x[side == 1, 0] = xmax
+    x[side == 2, 1] = ymax
+    x[side == 3, 0] = xmin
+    return x
 
 
 def seam_nudge(points, body, n_bodies: int, box, axes, band: float) -> np.ndarray:
