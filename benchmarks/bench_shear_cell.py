@@ -18,9 +18,10 @@ Two parts (``--part``):
   [η] = 2 and φ_m = 0.8 (≈ 1.58 and 2.12 at φ = 0.2 and 0.3).  Reported, not tuned: the cell
   has walls (a layer of bodies next to each wall) and only 20 bodies.
 * ``cost``: the cost of seams.  The same 20 disks at φ = 0.1 (i) spread over the whole cell,
-  across the seams (the ``viscosity`` part's run), and (ii) filled into the band x ∈ [0.6, 1.4]
-  (local fraction 0.25) and run for 15 steps, in which no body comes within the moving mesh's
-  image margin of a side (checked: the run records the images it meshed).  Per step: wall time
+  across the seams (the ``viscosity`` part's run), and (ii) filled into the band x ∈ [0.4, 1.6]
+  (local fraction 0.17) and run for 10 steps, in which no body comes within the moving mesh's
+  image margin of a side (checked: the run records the images it meshed).
+* ``resolution``: φ = 0.1 and 0.3 (seed 1) again at h = 0.025.  Per step: wall time
   (median over steps 2…), re-triangulations per 100 steps and their reasons; run one after the
   other in one session (the load is in the machine line).
 
@@ -46,6 +47,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 HERE = pathlib.Path(__file__).resolve().parent
 N_BODIES = 20
+#: the cost part's cell without seams: the bodies start in this band of x
+BAND = (0.4, 1.6)
 BOX = (0.0, 2.0, -0.5, 0.5)
 SHEAR_RATE = 2.0
 #: Bystricky et al. (2D boundary integrals, Taylor–Couette), the issue's reference values
@@ -65,13 +68,14 @@ def radius_of(phi: float) -> float:
     return math.sqrt(phi * (x1 - x0) * (y1 - y0) / (N_BODIES * math.pi))
 
 
-def scene_dict(phi: float, seed: int, t_end: float, band=None) -> dict:
+def scene_dict(phi: float, seed: int, t_end: float, band=None, h=None) -> dict:
     """The shear cell with 20 free disks at area fraction ``phi`` (of the box), placed by
-    :func:`fluidem.scene.fill.fill` over the whole periodic cell or inside ``band`` (x0, x1)."""
+    :func:`fluidem.scene.fill.fill` over the whole periodic cell or inside ``band`` (x0, x1);
+    mesh size ``h`` (default min(0.04, r/1.4))."""
     from fluidem.scene.fill import fill
 
     r = radius_of(phi)
-    h = min(0.04, r / 1.4)
+    h = min(0.04, r / 1.4) if h is None else h
     x0, x1, y0, y1 = BOX
     if band is None:
         p = fill(BOX, n=N_BODIES, radius=r, periodic="x", min_gap=h, side_gap=h, seed=seed)
@@ -96,7 +100,7 @@ def worker(spec: dict) -> dict:
     sys.path.insert(0, str(HERE))
     from results_io import step_recorder
 
-    sc = scene_dict(spec["phi"], spec["seed"], spec["t_end"], spec.get("band"))
+    sc = scene_dict(spec["phi"], spec["seed"], spec["t_end"], spec.get("band"), spec.get("h"))
     sim = fluidem.Simulation(Scene.from_dict(sc))
     rows, progress = step_recorder(sim, lambda sim, cost: {"images": int(sim.flow.mm.n_bodies - sim.flow.mm.n_real)})
 
@@ -119,6 +123,12 @@ def run_worker(spec: dict) -> dict:
     return json.loads(lines[-1])
 
 
+def replace_row(runs: list, row: dict) -> None:
+    """Append ``row`` to ``runs``, dropping an older row of the same kind, φ and seed."""
+    runs[:] = [r for r in runs if (r["kind"], r["phi"], r["seed"]) != (row["kind"], row["phi"], row["seed"])]
+    runs.append(row)
+
+
 def step_summary(res: dict) -> dict:
     """Median step time (steps 2…), re-triangulations per 100 steps and their reasons, images met."""
     import numpy as np
@@ -136,12 +146,14 @@ def step_summary(res: dict) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--part", default="viscosity,cost")
+    ap.add_argument("--part", default="viscosity,cost,resolution")
     ap.add_argument("--phis", default="0.05,0.1,0.15,0.2,0.3")
     ap.add_argument("--seeds", type=int, default=3, help="seeds at phi <= 0.15 (default 3)")
     ap.add_argument("--dense-seeds", type=int, default=1, help="seeds at phi > 0.15 (default 1)")
     ap.add_argument("--t-end", type=float, default=2.5, help="end time (default 2.5: 5 strain units)")
     ap.add_argument("--out", default="shear_cell")
+    ap.add_argument("--add", action="store_true", help="keep the rows of the last results file that this run "
+                    "does not redo (same kind, phi and seed)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
@@ -150,10 +162,12 @@ def main() -> None:
     import numpy as np
 
     sys.path.insert(0, str(HERE))
-    from results_io import machine_description, markdown_table, write_json
+    from results_io import RESULTS, machine_description, markdown_table, write_json
 
     parts = args.part.split(",")
     runs = []
+    if args.add and (RESULTS / f"{args.out}.json").exists():
+        runs = json.loads((RESULTS / f"{args.out}.json").read_text())["rows"]
     if "viscosity" in parts:
         for phi in (float(p) for p in args.phis.split(",")):
             for seed in range(1, 1 + (args.seeds if phi <= 0.15 + 1e-12 else args.dense_seeds)):
@@ -162,21 +176,30 @@ def main() -> None:
                 rh = res.get("rheology") or {}
                 row = dict(kind="spread", phi=phi, seed=seed, wall_s=res.get("wall_s"), h=res.get("h"),
                            mu=rh.get("mu_eff_over_mu"), se=rh.get("standard_error"), error=res.get("error"), **s)
-                runs.append(row)
+                replace_row(runs, row)
                 print(json.dumps(row), flush=True)
+    if "resolution" in parts:
+        for phi in (0.1, 0.3):
+            res = run_worker({"phi": phi, "seed": 1, "t_end": args.t_end, "h": 0.025})
+            rh = res.get("rheology") or {}
+            row = dict(kind="fine", phi=phi, seed=1, wall_s=res.get("wall_s"), h=res.get("h"),
+                       mu=rh.get("mu_eff_over_mu"), se=rh.get("standard_error"), error=res.get("error"),
+                       **step_summary(res))
+            replace_row(runs, row)
+            print(json.dumps(row), flush=True)
     if "cost" in parts:
-        res = run_worker({"phi": 0.1, "seed": 1, "t_end": 0.3, "band": [0.6, 1.4]})
+        res = run_worker({"phi": 0.1, "seed": 1, "t_end": 0.2, "band": list(BAND)})
         row = dict(kind="band", phi=0.1, seed=1, wall_s=res.get("wall_s"), h=res.get("h"), error=res.get("error"),
                    **step_summary(res))
-        runs.append(row)
+        replace_row(runs, row)
         print(json.dumps(row), flush=True)
-        if not any(r["kind"] == "spread" and r["phi"] == 0.1 and r["seed"] == 1 for r in runs):
+        if "viscosity" not in parts:  # the cell with seams in the same session, for the ratio
             res = run_worker({"phi": 0.1, "seed": 1, "t_end": args.t_end})
             rh = res.get("rheology") or {}
             row = dict(kind="spread", phi=0.1, seed=1, wall_s=res.get("wall_s"), h=res.get("h"),
                        mu=rh.get("mu_eff_over_mu"), se=rh.get("standard_error"), error=res.get("error"),
                        **step_summary(res))
-            runs.append(row)
+            replace_row(runs, row)
             print(json.dumps(row), flush=True)
 
     machine = machine_description()
@@ -200,6 +223,14 @@ def main() -> None:
                           f"{1 + 2 * phi:.3f}", "–" if by is None else f"{by:.2f}", f"{krieger_dougherty(phi):.3f}"])
         lines += ["Mean over seeds (standard error across seeds):", "", *markdown_table(
             ["φ", "seeds", "μ_eff/μ", "± (seeds)", "1 + 2φ", "Bystricky et al.", "Krieger–Dougherty"], table), ""]
+    fine = [r for r in runs if r["kind"] == "fine" and r.get("mu") is not None]
+    if fine:
+        coarse = {r["phi"]: r for r in spread if r["seed"] == 1}
+        lines += ["Resolution (seed 1):", "", *markdown_table(
+            ["φ", "h", "μ_eff/μ", "at the table's h", "change"],
+            [[f"{r['phi']:g}", f"{r['h']:g}", f"{r['mu']:.4f}",
+              f"{coarse[r['phi']]['mu']:.4f} (h = {coarse[r['phi']]['h']:.4g})" if r["phi"] in coarse else "–",
+              f"{r['mu'] / coarse[r['phi']]['mu'] - 1:+.2%}" if r["phi"] in coarse else "–"] for r in fine]), ""]
     failed = [r for r in runs if r.get("error")]
     for r in failed:
         lines.append(f"* {r['kind']} φ = {r['phi']:g}, seed {r['seed']}: stopped: {r['error']}")
@@ -208,14 +239,12 @@ def main() -> None:
         b, s = cost["band"], cost["spread"]
         lines += ["", "## What seams cost (φ = 0.1, seed 1)", "", *markdown_table(
             ["cell", "steps", "images meshed (most)", "s/step (median)", "re-tri. / 100 steps", "reasons"],
-            [["bodies in x ∈ [0.6, 1.4], none near a seam", str(b["steps"]), str(b["max_images"]),
+            [[f"bodies in x ∈ [{BAND[0]:g}, {BAND[1]:g}], none near a seam", str(b["steps"]), str(b["max_images"]),
               f"{b['median_step_s']:.3f}", f"{b['per_100']:.0f}", json.dumps(b["reasons"])],
              ["bodies over the whole cell, crossing the seams", str(s["steps"]), str(s["max_images"]),
               f"{s['median_step_s']:.3f}", f"{s['per_100']:.0f}", json.dumps(s["reasons"])]]), "",
             f"Cost per step with seams / without: {s['median_step_s'] / b['median_step_s']:.2f} (target ≤ 1.3); "
             f"re-triangulations per 100 steps: {s['per_100'] / max(b['per_100'], 1e-9):.2f}× (target ≤ 2)."]
-    from results_io import RESULTS
-
     (RESULTS / f"{args.out}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 

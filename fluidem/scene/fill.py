@@ -310,6 +310,18 @@ def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, a
                    f"{Lx:.4g} x {Ly:.4g} leaves inside its side gaps (half the period along a periodic axis)")
 
     rng = np.random.default_rng(seed)
+    kind_names, radii = _draw_sizes(rng, weights, n, area_fraction, radius, r_lo, r_hi, segments, A, lab)
+    order = np.argsort(-radii * np.array([bounding_factor(s, aspect) for s in kind_names]), kind="stable")
+    placed = place([kind_names[i] for i in order], radii[order], aspect, segments, (x0, x1, y0, y1), gaps,
+                    period, min_gap, attempts, rng, area_fraction, n, lab)
+    bodies, areas = placed
+    return Packing(region=(x0, x1, y0, y1), bodies=bodies, kinds=[kind_names[i] for i in order],
+                   radii=radii[order].copy(), areas=areas, min_gap=min_gap, side_gap=side_gap, seed=seed)
+
+
+def _draw_sizes(rng, weights, n, area_fraction, radius, r_lo, r_hi, segments, A, lab):
+    """The shapes (names) and equal-area radii of the bodies to place: ``n`` of them, or as many as
+    cover ``area_fraction`` of the area ``A`` (to within half the last body's area)."""
     names, probs = list(weights), np.array(list(weights.values()))
     disk_factor = disk_area_factor({"disk": 1.0}, segments)
     if n is not None:
@@ -335,13 +347,7 @@ def fill(region, *, n=None, area_fraction=None, shapes=("disk",), radius=None, a
         k = int(np.argmin(np.abs(np.concatenate([[0.0], cum]) - target)))
         k = max(k, 1)
         radii, kinds = radii[:k], kinds[:k]
-    kind_names = [names[i] for i in kinds]
-    order = np.argsort(-radii * np.array([bounding_factor(s, aspect) for s in kind_names]), kind="stable")
-    placed = place([kind_names[i] for i in order], radii[order], aspect, segments, (x0, x1, y0, y1), gaps,
-                    period, min_gap, attempts, rng, area_fraction, n, lab)
-    bodies, areas = placed
-    return Packing(region=(x0, x1, y0, y1), bodies=bodies, kinds=[kind_names[i] for i in order],
-                   radii=radii[order].copy(), areas=areas, min_gap=min_gap, side_gap=side_gap, seed=seed)
+    return [names[i] for i in kinds], radii
 
 
 def _show(radius) -> str:
