@@ -207,8 +207,11 @@ def main() -> None:
     lines = ["# Sheared suspensions in a periodic Stokes shear cell", "",
              f"Machine: {machine}.  `benchmarks/bench_shear_cell.py`: 20 free disks, box 2 × 1 periodic in x, "
              f"walls at ∓1 (γ̇ = {SHEAR_RATE:g}), Stokes, Taylor–Hood, dt = 0.02, t_end = {args.t_end:g}; "
-             "μ_eff/μ over t ∈ [1, t_end] with its blocking standard error.", ""]
-    spread = [r for r in runs if r["kind"] == "spread" and r.get("mu") is not None]
+             "μ_eff/μ over t ∈ [1, t_end] with its blocking standard error.  The runs of the first table "
+             "shared the machine with other jobs (load 2–6): their times say little; the two rows of the cost "
+             "table ran one after the other.", ""]
+    spread = sorted((r for r in runs if r["kind"] == "spread" and r.get("mu") is not None),
+                    key=lambda r: (r["phi"], r["seed"]))
     if spread:
         lines += ["## Effective viscosity", "", *markdown_table(
             ["φ", "seed", "h", "μ_eff/μ", "standard error", "re-tri. / 100 steps", "s/step (median)", "wall s"],
