@@ -10,7 +10,7 @@ at h = 0.0125, growth 1.1 (checked against growth 1.2 at the same h; the Richard
 uniform runs is given for contrast).  The time step is the same in every run, so the differences
 are the mesh's.
 
-Writes ``benchmarks/results/stability_graded.{md,json,png}``.  Run (about 6 minutes at load 5; ``--report``
+Writes ``benchmarks/results/stability_graded.{md,json,png}``.  Run (about 5 minutes at load 2; ``--report``
 writes the tables and the figure again from the stored JSON)::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_stability_graded.py
