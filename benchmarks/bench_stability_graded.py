@@ -103,9 +103,10 @@ def figure(rows: list, u_ref: float) -> None:
     for ax in axes:
         ax.set_ylabel("|u(t*) / u_ref − 1|")
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=8)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8)
     fig.suptitle("settling disk, speed at t* = %g: uniform against graded meshes" % rows[0]["t_star"], fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.12, 1, 1))
     fig.savefig(RESULTS / "stability_graded.png", dpi=110)
     plt.close(fig)
 
