@@ -24,9 +24,8 @@ and then, in this order:
      a wall contact may breathe by ``contact_slack · h``, 0.02 h, first: a resting body
      whose overlap or gap changes by a little more than ``min_gap`` keeps its outline),
    - an element outside narrow gaps degraded ``angle_margin`` (10°) past 135°, or
-     ``min_angle_margin`` (0° by default; 3° is available) below ``min_angle_trigger`` (15°), or as
-     far past its own
-     angles after the last triangulation if it was born outside them (``"quality"``, with
+     ``min_angle_margin`` (0° by default; 3° is available) below ``min_angle_trigger`` (15°), or
+     as far past its own angles after the last triangulation if it was born outside them (``"quality"``, with
      hysteresis: an element born near a bound does not fire as soon as it crosses it,
      :func:`fluidem.mesh.triggers.quality_baseline`).
 
