@@ -27,7 +27,7 @@ import time
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from results_io import RESULTS, machine_description, markdown_table, write_json  # noqa: E402
+from results_io import RESULTS, markdown_table, run_or_report  # noqa: E402
 
 from fluidem.cases.curvature import couette_case, gap_case, lubrication_profile  # noqa: E402
 
@@ -148,14 +148,4 @@ def report(rows: list, machine: str) -> None:
 
 
 if __name__ == "__main__":
-    import json
-    import sys
-
-    if sys.argv[1:] == ["--report"]:  # the tables again from the stored rows
-        stored = json.loads((RESULTS / "stability_curvature.json").read_text())
-        report(stored["rows"], stored["machine"])
-    else:
-        rows = run()
-        machine = machine_description()
-        write_json("stability_curvature", machine, rows)
-        report(rows, machine)
+    run_or_report("stability_curvature", run, report)

@@ -25,7 +25,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from results_io import RESULTS, machine_description, markdown_table, write_json  # noqa: E402
+from results_io import RESULTS, markdown_table, run_or_report  # noqa: E402
 
 from fluidem.cases.graded import richardson_limit, sedimentation_run  # noqa: E402
 
@@ -171,14 +171,4 @@ def report(rows: list, machine: str) -> None:
 
 
 if __name__ == "__main__":
-    import json
-    import sys
-
-    if sys.argv[1:] == ["--report"]:  # the tables again from the stored rows
-        stored = json.loads((RESULTS / "stability_graded.json").read_text())
-        report(stored["rows"], stored["machine"])
-    else:
-        rows = run()
-        machine = machine_description()
-        write_json("stability_graded", machine, rows)
-        report(rows, machine)
+    run_or_report("stability_graded", run, report)

@@ -49,3 +49,18 @@ def step_recorder(sim, extra=None):
         last[0] = time.perf_counter()
 
     return rows, progress
+
+
+def run_or_report(name: str, run, report) -> None:
+    """A benchmark's entry point: ``--report`` rebuilds the tables from ``results/{name}.json``
+    (``report(rows, machine)``), otherwise ``run()`` gives the rows, which are stored and reported."""
+    import sys
+
+    if sys.argv[1:] == ["--report"]:  # the tables again from the stored rows
+        stored = json.loads((RESULTS / f"{name}.json").read_text())
+        report(stored["rows"], stored["machine"])
+    else:
+        rows = run()
+        machine = machine_description()
+        write_json(name, machine, rows)
+        report(rows, machine)

@@ -168,6 +168,7 @@ def triangulate_from(mesh: MovingMesh, cand, cand_kind, cand_uid, purge, adapt, 
     info["n_junctions"] = mesh.n_junctions
     return info
 
+
 def install(mesh: MovingMesh, tri: Triangulation, outline_world):
     """Make ``tri`` the current mesh (node data, topology, targets, mobility)."""
     mesh.points = tri.points
