@@ -114,9 +114,9 @@ def domain_period(domain) -> tuple:
     """The periods ``(L_x, L_y)`` of the box of ``domain`` (a :class:`~fluidem.scene.DomainSpec`) for
     :class:`fluidem.dem.DEM` (``period=...``), length: the box's width where ``left``/``right`` are
     ``"periodic"``, its height where ``bottom``/``top`` are, None on the other axes."""
-    x0, x1, y0, y1 = domain.box
-    return (float(x1 - x0) if domain.side("left").type == "periodic" else None,
-            float(y1 - y0) if domain.side("bottom").type == "periodic" else None)
+    from .boundary import period_of_domain
+
+    return tuple(None if L is None else float(L) for L in period_of_domain(domain))
 
 
 def _pairs_within(pos: np.ndarray, r: float, period: np.ndarray):
