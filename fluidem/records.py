@@ -277,6 +277,8 @@ def run_record(sim, out_dir, status: str, n_steps: int, checkpoint=None, message
                                                "note": "wall seconds per part summed over this run's steps"}}),
         **({} if summary is None else {"summary": summary}),
         **({} if dem is None else {"dem_sub_step": dem}),
+        **({} if getattr(sim.flow, "ordering", None) is None else
+           {"lu_ordering": {**sim.flow.ordering.state(), "note": sim.flow.ordering.summary()}}),
         **({} if sim.flow is None or not sim.diagnostics.enabled else
            {"diagnostics": sim.diagnostics.record()}),
         **rheology_record(sim, out_dir, status)})

@@ -557,3 +557,7 @@ def test_a_moving_mesh_run_factorises_with_the_ordering_of_least_fill(tmp_path):
     o = sim.flow.ordering
     assert isinstance(o, OrderingChoice) and o.counts["mmd"] == 1 and o.counts["colamd"] >= 3
     assert o.fill_ratio["mmd"] > 1.5 * o.fill_ratio["colamd"]  # measured 29.7 and 16.2 (1.83x)
+    import json
+
+    rec = json.loads((tmp_path / "run.json").read_text())["lu_ordering"]  # what the run chose, in run.json
+    assert rec["counts"] == o.counts and rec["note"].startswith("SuperLU orderings: mmd 1 (fill ")
