@@ -141,10 +141,10 @@ def report(rows: list, machine: str) -> None:
     lines += ["", f"The reference's own step-to-step change of F_x on this scale: {ref_dev['jitter_ref']:.1e} "
               "(the motion's physical force swing).",
               "", "## Per step (h = 0.05)", ""]
-    head = ["step", "y"] + [_label(r) + ": noise / κ₁ / F_x" for r in runs]
+    head = ["step", "y", "reference F_x"] + [_label(r) + ": noise / κ₁ / F_x" for r in runs]
     per = []
     for n in range(STEPS):
-        cells = [str(n + 1), f"{runs[0]['y'][n]:+.4f}"]
+        cells = [str(n + 1), f"{round(runs[0]['y'][n], 10) + 0.0:+.4f}", f"{ref['force'][n][0]:.4f}"]
         for r in runs:
             cells.append(f"{_e(r['noise'][n])} / {_e(r['condition'][n])} / {r['force'][n][0]:.4f}")
         per.append(cells)
