@@ -104,6 +104,7 @@ def sedimentation_run(h: float, grading: tuple[float, float] | None = None, t_st
         ``triangulations``, ``step_median`` (median wall time of a step, s), ``run_seconds``
         (the steps), ``build_seconds`` (scene to first mesh and solver set-up).
     """
+    from ..mesh.moving_triangulation import set_quality_baseline
     from ..simulation import Simulation
 
     t0 = time.perf_counter()
@@ -111,7 +112,7 @@ def sedimentation_run(h: float, grading: tuple[float, float] | None = None, t_st
     if min_angle_margin is not None:  # the quality thresholds of the first mesh again, with this margin
         mm = sim.flow.mm
         mm.params = dataclasses.replace(mm.params, min_angle_margin=float(min_angle_margin))
-        mm._set_quality_baseline()
+        set_quality_baseline(mm)
     build = time.perf_counter() - t0
     dofs, cells, h_body = int(sim.flow.dofs), int(sim.flow.mesh.t.shape[1]), size_near_body(sim)
     stamps = [time.perf_counter()]
