@@ -391,50 +391,40 @@ class Scene:
         a side is tested with its images shifted by one period back into the box."""
         import shapely
 
-        idx = np.repeat(np.arange(len(polys)), [len(p) for p in polys])
-        geoms = shapely.polygons(shapely.linearrings(np.vstack(polys), indices=idx))
-        owner = np.arange(len(polys))
-        images, image_owner = [], []
-        shifts = {c: np.where(lo[:, c] <= b0, b1 - b0, 0.0) - np.where(hi[:, c] >= b1, b1 - b0, 0.0)
-                  for c, _, (b0, b1) in self._periodic_sides()}
-        for sx in ((0.0, 1.0) if 0 in shifts else (0.0,)):
-            for sy in ((0.0, 1.0) if 1 in shifts else (0.0,)):
-                if sx == sy == 0.0:
-                    continue
-                d = np.column_stack([sx * shifts.get(0, np.zeros(len(polys))),
-                                     sy * shifts.get(1, np.zeros(len(polys)))])
-                moved = np.flatnonzero(np.abs(d).sum(axis=1) > 0.0)
-                if len(moved):
-                    rings = np.vstack([polys[k] + d[k] for k in moved])
-                    at = np.repeat(np.arange(len(moved)), [len(polys[k]) for k in moved])
-                    images.append(shapely.polygons(shapely.linearrings(rings, indices=at)))
-                    image_owner.append(moved)
-        if images:
-            geoms = np.concatenate([geoms, *images])
-            owner = np.concatenate([owner, *image_owner])
-        tree = shapely.STRtree(geoms)
-        pairs = tree.query(geoms, predicate="intersects")
-        keep = (pairs[0] < pairs[1]) & (owner[pairs[0]] != owner[pairs[1]]) if pairs.size else np.zeros(0, bool)
-        i, j = pairs[:, keep] if pairs.size else (np.zeros(0, int), np.zeros(0, int))
-        if not len(i):
+        def polygons(rings):
+            at = np.repeat(np.arange(len(rings)), [len(r) for r in rings])
+            return shapely.polygons(shapely.linearrings(np.vstack(rings), indices=at))
+
+        n = len(polys)
+        back = np.zeros((n, 2))  # per body: the shift by one period back into the box, per periodic axis
+        for c, _, (b0, b1) in self._periodic_sides():
+            back[:, c] = np.where(lo[:, c] <= b0, b1 - b0, 0.0) - np.where(hi[:, c] >= b1, b1 - b0, 0.0)
+        rings, owner = list(polys), list(range(n))
+        for use in ((1, 0), (0, 1), (1, 1)):  # the images along x, along y, and at a corner
+            d = back * use
+            for k in np.flatnonzero(np.all((d != 0.0) | (np.array(use) == 0), axis=1) & d.any(axis=1)):
+                rings.append(polys[k] + d[k])
+                owner.append(int(k))
+        geoms, owner = polygons(rings), np.array(owner)
+        pairs = shapely.STRtree(geoms).query(geoms, predicate="intersects")
+        pairs = pairs[:, (pairs[0] < pairs[1]) & (owner[pairs[0]] != owner[pairs[1]])]
+        if not pairs.shape[1]:
             return
+        i, j = pairs
         area = shapely.area(shapely.intersection(geoms[i], geoms[j]))
         ref = np.minimum(shapely.area(geoms[i]), shapely.area(geoms[j]))
         bad = np.flatnonzero(area > 1e-9 * ref)
-        across = " (through a periodic side)" if len(bad) and (i[bad[0]] >= len(polys) or j[bad[0]] >= len(polys)) \
-            else ""
+        first = int(bad[0]) if len(bad) else 0
+        a, b = sorted((int(owner[i[first]]), int(owner[j[first]])))
+        where = f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position " \
+                f"{list(self.bodies[b].position)})"
         if len(bad):
-            a, b = sorted((int(owner[i[bad[0]]]), int(owner[j[bad[0]]])))
-            raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
-                             f"{list(self.bodies[b].position)}) overlap at start{across} by {area[bad[0]]:.3g} "
-                             f"(length²); allowed: bodies that do not overlap"
-                             + (" or touch" if self.fluid is None else ""))
+            across = " (through a periodic side)" if max(i[first], j[first]) >= n else ""
+            raise SceneError(f"{where} overlap at start{across} by {area[first]:.3g} (length²); allowed: bodies "
+                             "that do not overlap" + (" or touch" if self.fluid is None else ""))
         if self.fluid is not None:  # touching outlines leave no fluid between them: no mesh can be built
-            a, b = sorted((int(owner[i[0]]), int(owner[j[0]])))
-            raise SceneError(f"bodies[{a}] (position {list(self.bodies[a].position)}) and bodies[{b}] (position "
-                             f"{list(self.bodies[b].position)}) touch at start; in a fluid scene bodies need "
-                             f"fluid between them: move them apart (a gap of at least mesh.h = {self.mesh.h:g}) "
-                             "or make them one polygon body")
+            raise SceneError(f"{where} touch at start; in a fluid scene bodies need fluid between them: move them "
+                             f"apart (a gap of at least mesh.h = {self.mesh.h:g}) or make them one polygon body")
 
     def world_outlines(self) -> list:
         """Initial outlines in world coordinates, list of (n_i, 2) arrays."""
