@@ -340,8 +340,8 @@ def test_auto_choice_by_size(stokes_p2b, monkeypatch):
     s = make_solver("auto", n_u=P.n_u, pressure_mass=P.Mp, rtol=1e-10)
     assert isinstance(s, AutoSolver)
     x = s.factorize(P.K).solve(P.b)
-    assert s.chosen == "direct" and s.last_info.method == solvers.default_direct_backend()
-    monkeypatch.setitem(solvers.DIRECT_MAX_DOFS, solvers.default_direct_backend(), 100)
+    assert s.chosen == "direct" and s.last_info.method == solvers.default_direct_backend(P.K.shape[0])
+    monkeypatch.setitem(solvers.DIRECT_MAX_DOFS, solvers.default_direct_backend(P.K.shape[0]), 100)
     y = s.factorize(P.K).solve(P.b)
     assert s.chosen == "iterative" and s.last_info.iterations > 0
     assert reldiff(y, x) < 1e-7
@@ -420,10 +420,13 @@ def test_solver_error_is_a_fluidem_solver_error(stokes_p2b):
     assert SolverError is solvers.LinearSolverError
 
 
-def test_choose_solver_rule_by_kind_and_size():
+def test_choose_solver_rule_by_kind_and_size(monkeypatch):
     from fluidem.errors import InputError
+    from fluidem.fluid.solvers import memory
 
     choose_solver = solvers.choose_solver
+    # the size rule on a machine with memory to spare; then the memory rule on one with 4 GiB free
+    monkeypatch.setattr(memory, "available_bytes", lambda: 2.0**50)
     for backend in ("superlu", "pardiso"):
         for kind, table, small, large in (("steady", solvers.DIRECT_MAX_DOFS_CONVECTIVE, "direct", "lagged"),
                                           ("stokes", solvers.DIRECT_MAX_DOFS, "direct", "iterative"),
@@ -432,10 +435,16 @@ def test_choose_solver_rule_by_kind_and_size():
             assert choose_solver(limit - 1, kind, backend=backend)[0] == small
             name, reason = choose_solver(limit, kind, backend=backend)
             assert name == large and str(limit) in reason and backend in reason
-    # the measured choices: steady Newton direct, Stokes iterative from 20k, time stepping lagged
-    assert choose_solver(50_000, "steady")[0] == "direct"
-    assert choose_solver(50_000, "stokes")[0] == "iterative"
-    assert choose_solver(50_000, "unsteady")[0] == "lagged"
+    monkeypatch.setattr(memory, "available_bytes", lambda: 4.0 * 2**30)
+    name, reason = choose_solver(250_000, "unsteady", backend="superlu")  # its LU: ~3.5 GiB predicted
+    assert name == "iterative" and "does not fit" in reason
+    assert choose_solver(250_000, "unsteady", backend="pardiso")[0] == "lagged"  # ~0.8 GiB
+    assert choose_solver(250_000, "steady", backend="superlu")[0] == "direct"  # Newton: GMRES does not converge
+    monkeypatch.setattr(memory, "available_bytes", lambda: 2.0**50)
+    # the measured choices with SuperLU: steady Newton direct, Stokes iterative from 20k, time stepping lagged
+    assert choose_solver(50_000, "steady", backend="superlu")[0] == "direct"
+    assert choose_solver(50_000, "stokes", backend="superlu")[0] == "iterative"
+    assert choose_solver(50_000, "unsteady", backend="superlu")[0] == "lagged"
     with pytest.raises(InputError, match="kind = 'bdf2': expected one of 'steady'"):
         choose_solver(10, "bdf2")
 
@@ -452,7 +461,7 @@ def test_auto_solver_follows_the_rule(monkeypatch):
     assert s.chosen == "lagged" and isinstance(s.solver, LaggedLUSolver) and "unsteady" in s.reason
     assert s.factorizations == 1 and s.solves == 1 and s.total_iterations == 0
     assert reldiff(x, x_direct) < 1e-10
-    monkeypatch.setitem(solvers.LAGGED_MAX_DOFS, solvers.default_direct_backend(), 100)
+    monkeypatch.setitem(solvers.LAGGED_MAX_DOFS, solvers.default_direct_backend(P.K.shape[0]), 100)
     y = s.factorize(P.K).solve(P.b)
     assert s.chosen == "iterative" and s.solver.schur == "cahouet-chabard"
     assert s.last_info.iterations > 0 and reldiff(y, x_direct) < 1e-7
@@ -461,7 +470,7 @@ def test_auto_solver_follows_the_rule(monkeypatch):
     assert a.chosen == "direct" and a.reason.startswith("steady convective")
     x_oseen = a.solve(oseen.b)
     # above the convective limit: the LU kept over a run of Newton/Oseen systems, not block GMRES
-    monkeypatch.setitem(solvers.DIRECT_MAX_DOFS_CONVECTIVE, solvers.default_direct_backend(), 100)
+    monkeypatch.setitem(solvers.DIRECT_MAX_DOFS_CONVECTIVE, solvers.default_direct_backend(oseen.K.shape[0]), 100)
     a = make_solver("auto", n_u=oseen.n_u, pressure_mass=oseen.Mp, rtol=1e-10).factorize(oseen.K)
     assert a.chosen == "lagged" and a.reason.startswith("steady convective")
     assert reldiff(a.solve(oseen.b), x_oseen) < 1e-9

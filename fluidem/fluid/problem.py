@@ -402,9 +402,16 @@ class FlowProblem:
     #: the run's :class:`~fluidem.fluid.solvers.ordering.OrderingChoice` (set by a flow that
     #: rebuilds its problems: the choice outlives a re-triangulation), or None
     ordering = None
+    #: the LU backend of :meth:`direct_solver`: ``"auto"`` (PARDISO for large systems when
+    #: ``pypardiso`` is installed, :func:`~fluidem.fluid.solvers.default_direct_backend`),
+    #: ``"superlu"`` or ``"pardiso"`` (a flow sets the scene's ``fluid.lu_backend``)
+    lu_backend = "auto"
 
     def direct_solver(self) -> DirectSolver:
-        """The fastest reliable sparse LU for this element pair.
+        """The fastest reliable sparse LU for this element pair and size (:attr:`lu_backend`).
+
+        PARDISO when :attr:`lu_backend` says so or, for ``"auto"``, from
+        :data:`~fluidem.fluid.solvers.direct.PARDISO_MIN_DOFS` DOFs when it is installed.  With SuperLU:
 
         Continuous pressure (th, p3, mini): SuperLU with a symmetric minimum-degree ordering
         (2-3x faster than COLAMD, half the fill on DFG systems), or, with :attr:`ordering` set,
@@ -415,8 +422,8 @@ class FlowProblem:
         :class:`DirectSolver`'s ``pivot_threshold``).
         """
         if self.space.pair.pressure_discontinuous:
-            return DirectSolver(backend="superlu", pivot_threshold=P2B_PIVOT_THRESHOLD)
-        return DirectSolver(backend="superlu", symmetric_mode=True, ordering=self.ordering)
+            return DirectSolver(backend=self.lu_backend, pivot_threshold=P2B_PIVOT_THRESHOLD)
+        return DirectSolver(backend=self.lu_backend, symmetric_mode=True, ordering=self.ordering)
 
     def initial_vector(self, t: float = 0.0) -> np.ndarray:
         x = np.zeros(self.space.n_dofs)

@@ -10,7 +10,9 @@ of 10k, 50k and 200k DOFs, one thread; the table is in that file's docstring):
 * ``"stokes"``: ``"direct"`` below ``DIRECT_MAX_DOFS`` (SuperLU 20k, PARDISO 2M),
   ``"iterative"`` above;
 * ``"unsteady"`` (a run of time steps): ``"lagged"`` below ``LAGGED_MAX_DOFS``
-  (SuperLU 300k, PARDISO 2M), ``"iterative"`` above.
+  (SuperLU 300k, PARDISO 2M), ``"iterative"`` above;
+* ``"stokes"`` and ``"unsteady"``: ``"iterative"`` also where the LU would not fit in the memory
+  available (:func:`fluidem.fluid.solvers.memory.lu_fits`).
 
 Why:
 
@@ -37,7 +39,7 @@ module-level dicts keyed by the direct backend and can be changed at run time.
 
 Examples
 --------
->>> choose_solver(50_000, "steady")[0], choose_solver(50_000, "stokes")[0]
+>>> choose_solver(50_000, "steady", "superlu")[0], choose_solver(50_000, "stokes", "superlu")[0]
 ('direct', 'iterative')
 >>> choose_solver(50_000, "unsteady")[0], choose_solver(10**7, "unsteady")[0]
 ('lagged', 'iterative')
@@ -54,6 +56,7 @@ from ._sparse import _as_csr, _is_symmetric
 from .block import BlockKrylovSolver
 from .direct import DirectSolver, default_direct_backend
 from .lagged import LaggedLUSolver
+from .memory import lu_fits
 from .results import SolveInfo, SolverError
 
 __all__ = ["choose_solver", "choose_method", "AutoSolver", "PROBLEM_KINDS", "DIRECT_MAX_DOFS",
@@ -127,7 +130,7 @@ def choose_method(n_dofs: int, convective: bool = False, dt: float | None = None
     >>> choose_method(10**8)[0]
     'iterative'
     """
-    backend = backend or default_direct_backend()
+    backend = backend or default_direct_backend(n_dofs)
     if dt is not None:
         limit, kind = DIRECT_MAX_DOFS_UNSTEADY[backend], "unsteady"
     elif convective:
@@ -174,7 +177,7 @@ def choose_solver(n_dofs: int, kind: str = "steady", backend: str | None = None)
     fluidem.errors.InputError: kind = 'newton': expected one of 'steady', 'stokes', 'unsteady'
     """
     kind = validate.choice("kind", kind, PROBLEM_KINDS)
-    backend = backend or default_direct_backend()
+    backend = backend or default_direct_backend(n_dofs)
     if kind == "steady" and n_dofs >= DIRECT_MAX_DOFS_CONVECTIVE[backend]:
         limit = DIRECT_MAX_DOFS_CONVECTIVE[backend]
         return "lagged", (f"steady convective: {n_dofs} DOFs >= {limit}: one {backend} LU kept over the "
@@ -182,10 +185,17 @@ def choose_solver(n_dofs: int, kind: str = "steady", backend: str | None = None)
     if kind == "unsteady":
         limit = LAGGED_MAX_DOFS[backend]
         where = f"(lagged {backend} LU up to its memory limit)"
-        if n_dofs < limit:
-            return "lagged", f"unsteady: {n_dofs} DOFs < {limit} {where}"
-        return "iterative", f"unsteady: {n_dofs} DOFs >= {limit} {where}"
-    return choose_method(n_dofs, convective=kind == "steady", backend=backend)
+        if n_dofs >= limit:
+            return "iterative", f"unsteady: {n_dofs} DOFs >= {limit} {where}"
+        name, reason = "lagged", f"unsteady: {n_dofs} DOFs < {limit} {where}"
+    else:
+        name, reason = choose_method(n_dofs, convective=kind == "steady", backend=backend)
+    if name != "iterative" and kind != "steady":
+        # block GMRES, whose memory grows linearly, where the LU would not fit (Stokes, time steps)
+        fits, why = lu_fits(n_dofs, backend)
+        if not fits:
+            return "iterative", f"{kind}: {why}"
+    return name, reason
 
 
 class AutoSolver:
@@ -272,7 +282,7 @@ class AutoSolver:
         opts = self.iterative_options
         kind = self._kind(K)
         backend = self.direct_options.get("backend", "auto")
-        backend = default_direct_backend() if backend == "auto" else backend
+        backend = default_direct_backend(K.shape[0]) if backend == "auto" else backend
         method, reason = choose_solver(K.shape[0], kind, backend=backend)
         if method == "iterative" and (self.n_u is None or (
                 opts.get("pressure_mass") is None and opts.get("schur") != "lsc")):

@@ -18,9 +18,10 @@ import scipy.sparse.linalg as spla
 
 from ... import validate
 from ._sparse import _as_csr, _relres, _same_values
+from .pardiso import PardisoLU, pardiso_available
 from .results import SolveInfo, SolverError, _notify_factorization, _notify_solve
 
-__all__ = ["DirectSolver", "default_direct_backend", "COLAMD_PIVOT_THRESHOLD"]
+__all__ = ["DirectSolver", "default_direct_backend", "COLAMD_PIVOT_THRESHOLD", "PARDISO_MIN_DOFS"]
 
 #: SuperLU's diagonal pivot threshold with COLAMD when an :class:`~.ordering.OrderingChoice`
 #: picks it (as ``pivot_threshold`` for P2-bubble: half the fill of partial pivoting)
@@ -29,22 +30,34 @@ COLAMD_PIVOT_THRESHOLD = 0.01
 
 # ==========================================================================
 def _pardiso_available() -> bool:
-    try:
-        import pypardiso  # noqa: F401
-    except Exception:  # ImportError, or mkl_rt missing
-        return False
-    return True
+    return pardiso_available()
 
 
-def default_direct_backend() -> str:
-    """The default direct backend: ``"superlu"``.
+#: ``"auto"`` factorises systems of at least this many DOFs with PARDISO when ``pypardiso`` is
+#: installed.  Second factorisations of coupled moving-mesh systems, one thread (MKL loaded):
+#: 15 135 DOFs (10 settling polygons, P2+bubble) SuperLU/COLAMD 0.41 s, PARDISO 0.29 s;
+#: 10 307 (20 disks, Taylor–Hood) 0.66 / 0.23 s; 149 285 (100 polygons) 18.5 / 4.3 s, with a
+#: quarter of the fill (78.2M / 19.5M entries; ``benchmarks/results/solver_scale.md``).  Below
+#: it the gain is a fraction of a second per LU and SuperLU keeps small runs as they were.
+PARDISO_MIN_DOFS = 20_000
 
-    PARDISO (optional ``pypardiso``) factorises faster at large sizes but is opt-in: with its
-    default pivot perturbation it returned relative residuals of 3e-3 (33k DOFs) and 2e-2
-    (85k DOFs) on P2-bubble/P1-discontinuous DFG systems, and each ``pypardiso`` solve call
-    costs ~30 ms of overhead, which dominates Krylov iterations preconditioned by an LU.
+
+def default_direct_backend(n_dofs: int | None = None) -> str:
+    """The direct backend ``"auto"`` means for a system of ``n_dofs`` (``None``: a large one).
+
+    ``"pardiso"`` when the optional ``pypardiso`` is installed and ``n_dofs`` is at least
+    :data:`PARDISO_MIN_DOFS`, else ``"superlu"``.  PARDISO factorised the coupled systems of
+    settling suspensions 1.4x (15k DOFs) to 4.3x (149k) faster than SuperLU with a quarter of
+    its fill (:mod:`.pardiso` has the settings that make its solves accurate).
+
+    Examples
+    --------
+    >>> default_direct_backend(5_000)
+    'superlu'
     """
-    return "superlu"
+    if n_dofs is not None and n_dofs < PARDISO_MIN_DOFS:
+        return "superlu"
+    return "pardiso" if pardiso_available() else "superlu"
 
 
 class DirectSolver:
@@ -55,10 +68,12 @@ class DirectSolver:
     backend : {"auto", "superlu", "pardiso"}
         ``"superlu"`` is :func:`scipy.sparse.linalg.splu`.  ``"pardiso"`` uses
         Intel MKL PARDISO through the optional ``pypardiso`` package (raises
-        ``ImportError`` if it is missing); it was 4x faster than SuperLU at
-        50k DOFs and 5-14x at 200k on one thread (see the benchmarks).
-        ``"auto"``: :func:`default_direct_backend` (SuperLU; PARDISO is opt-in,
-        see there why).  PARDISO runs on ``MKL_NUM_THREADS`` threads.
+        ``ImportError`` if it is missing; settings in :mod:`.pardiso`); it was 4x
+        faster than SuperLU at 50k DOFs and 5-14x at 200k on one thread (see the
+        benchmarks).  ``"auto"``: :func:`default_direct_backend` of the size of
+        each matrix factorised (PARDISO from :data:`PARDISO_MIN_DOFS` DOFs when
+        installed); :attr:`backend` is then the one last used.  PARDISO runs on
+        ``MKL_NUM_THREADS`` threads.
     permc_spec : str
         Column ordering for SuperLU, ``"COLAMD"`` by default.  ``"MMD_AT_PLUS_A"``
         is allowed only through ``symmetric_mode``.
@@ -103,14 +118,15 @@ class DirectSolver:
                  check_rtol: float = 1e-8, symmetric_mode: bool = False, pivot_threshold: float = 1.0,
                  ordering=None):
         backend = validate.choice("backend", backend, ("auto", "superlu", "pardiso"))
-        if backend == "auto":
+        self.auto = backend == "auto"
+        if self.auto:
             backend = default_direct_backend()
         if permc_spec == "MMD_AT_PLUS_A" and not symmetric_mode:
             raise ValueError("permc_spec='MMD_AT_PLUS_A' with pivoting does not finish on "
                              "saddle-point systems of practical size; use 'COLAMD' or "
                              "symmetric_mode=True")
-        if backend == "pardiso" and not _pardiso_available():
-            raise ImportError("backend='pardiso' needs the optional package pypardiso")
+        if backend == "pardiso" and not self.auto and not _pardiso_available():
+            raise ImportError("backend='pardiso' needs the optional package pypardiso: pip install 'fluidem[pardiso]'")
         self.backend = backend
         self.max_refinements = 3
         self.symmetric_mode = bool(symmetric_mode)
@@ -123,7 +139,7 @@ class DirectSolver:
         self._lu = None
         self._setup_s = 0.0
         self._reused = False
-        self.ordering = ordering if (backend in ("auto", "superlu") and self.symmetric_mode) else None
+        self.ordering = ordering if (backend == "superlu" or self.auto) and self.symmetric_mode else None
         self._threshold_pivoting = self.pivot_threshold < 1.0
 
     @property
@@ -145,6 +161,8 @@ class DirectSolver:
         """
         K = _as_csr(K)
         t0 = time.perf_counter()
+        if self.auto:
+            self.backend = default_direct_backend(K.shape[0])
         if self.backend == "superlu":
             how = self.ordering.next() if self.ordering is not None else None
             try:
@@ -165,19 +183,15 @@ class DirectSolver:
             if how is not None:
                 self.ordering.record(how, self._lu.L.nnz + self._lu.U.nnz, K.nnz)
         else:
-            import pypardiso
-
             self._free()
-            ps = pypardiso.PyPardisoSolver()  # mtype 11: real non-symmetric
-            ps.set_statistical_info_off()
             try:
-                ps.factorize(K)
-            except pypardiso.pardiso_wrapper.PyPardisoError as err:
+                self._lu = PardisoLU(K)
+            except RuntimeError as err:
                 raise SolverError(
                     f"PARDISO factorisation of the {K.shape[0]}x{K.shape[0]} system failed "
                     f"({err}); with velocity Dirichlet conditions on the whole boundary pin one "
                     "pressure DOF") from err
-            self._lu = ps
+            self._threshold_pivoting = True  # perturbed pivots: one refinement step always
         self.K = K
         self.factorizations += 1
         self._setup_s = time.perf_counter() - t0
@@ -187,8 +201,8 @@ class DirectSolver:
 
     def _free(self):
         """Release PARDISO's memory for the previous factorisation."""
-        if self.backend == "pardiso" and self._lu is not None:
-            self._lu.free_memory()
+        if isinstance(self._lu, PardisoLU):
+            self._lu.free()
             self._lu = None
 
     def refactorize_if_changed(self, K) -> bool:
@@ -211,9 +225,7 @@ class DirectSolver:
         return True
 
     def _apply(self, b: np.ndarray) -> np.ndarray:
-        if self.backend == "superlu":
-            return self._lu.solve(b)
-        return self._lu.solve(self.K, b)
+        return self._lu.solve(b)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """Solve ``K x = b`` with the stored factorisation.
@@ -271,14 +283,12 @@ class DirectSolver:
 
     def inverse_operator(self) -> spla.LinearOperator | None:
         """The stored LU as ``K⁻¹`` with its transpose: ``matvec`` solves ``K x = v``, ``rmatvec``
-        solves ``Kᵀ x = v`` (SuperLU's ``trans="T"``), shape (n, n); what a 1-norm estimate of
-        ``‖K⁻¹‖₁`` needs (:func:`fluidem.diagnostics.condition_estimate`).  No refinement: the
-        factors as they are.  ``None`` for PARDISO (no transposed solve through ``pypardiso``).
+        solves ``Kᵀ x = v`` (``trans="T"`` of SuperLU and of :class:`~.pardiso.PardisoLU`), shape
+        (n, n); what a 1-norm estimate of ``‖K⁻¹‖₁`` needs
+        (:func:`fluidem.diagnostics.condition_estimate`).  No refinement: the factors as they are.
         """
         if self._lu is None:
             raise RuntimeError("call factorize(K) first")
-        if self.backend != "superlu":
-            return None
         lu, n = self._lu, self.n
         return spla.LinearOperator((n, n), matvec=lu.solve, matmat=lu.solve,
                                    rmatvec=lambda v: lu.solve(v, trans="T"),

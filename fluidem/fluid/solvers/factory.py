@@ -68,7 +68,7 @@ def flow_solver_options(problem) -> dict:
     Mp = asm(forms.pressure_mass, problem.space.pb).tocsr()[pf][:, pf]
     Mu = problem.M[free_u][:, free_u]
     d = problem.direct_solver()
-    direct = {"backend": d.backend, "permc_spec": d.permc_spec, "check_rtol": d.check_rtol,
+    direct = {"backend": "auto" if d.auto else d.backend, "permc_spec": d.permc_spec, "check_rtol": d.check_rtol,
               "symmetric_mode": d.symmetric_mode, "pivot_threshold": d.pivot_threshold, "ordering": d.ordering}
     return {"n_u": int(free_u.size), "pressure_mass": Mp, "velocity_mass": Mu,
             "nu": problem.nu, "direct": direct}
