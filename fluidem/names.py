@@ -51,6 +51,11 @@ REGISTRY: dict[str, Kind] = {
         "iterative": "block-preconditioned Krylov (FGMRES, pyamg on the velocity block)",
         "lagged": "an LU reused as a GMRES preconditioner while its iterations stay low",
     }, aliases={"lagged-lu": "lagged"}),
+    "LU backend": Kind("LU backend", {
+        "auto": "PARDISO for systems of 20 000 DOFs and more when pypardiso is installed, else SuperLU",
+        "superlu": "SuperLU (scipy.sparse.linalg.splu)",
+        "pardiso": "Intel MKL PARDISO (the optional pypardiso: pip install 'fluidem[pardiso]')",
+    }),
     "convection": Kind("convection scheme", {
         "semi-implicit": "linear in u^{n+1}, extrapolated convecting velocity (2u^n - u^{n-1} with BDF2)",
         "newton": "fully implicit, Newton's method every step",

@@ -279,6 +279,7 @@ def run_record(sim, out_dir, status: str, n_steps: int, checkpoint=None, message
         **({} if dem is None else {"dem_sub_step": dem}),
         **({} if getattr(sim.flow, "ordering", None) is None else
            {"lu_ordering": {**sim.flow.ordering.state(), "note": sim.flow.ordering.summary()}}),
+        **({} if getattr(sim.flow, "solver_choice", None) is None else {"linear_solver": sim.flow.solver_choice}),
         **({} if sim.flow is None or not sim.diagnostics.enabled else
            {"diagnostics": sim.diagnostics.record()}),
         **rheology_record(sim, out_dir, status)})

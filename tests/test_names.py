@@ -73,6 +73,18 @@ def _scene_ale_form(v):
     return Scene.from_dict(d).fluid.ale_form
 
 
+def _scene_lu_backend(v):
+    from fluidem.fluid.solvers.pardiso import pardiso_available
+
+    d = _fluid_scene()
+    d["fluid"]["lu_backend"] = v
+    if v == "pardiso" and not pardiso_available():
+        with pytest.raises(SceneError, match=r"fluid.lu_backend = 'pardiso' needs the optional package pypardiso"):
+            Scene.from_dict(d)
+        return "pardiso"
+    return Scene.from_dict(d).fluid.lu_backend
+
+
 def _scene_side_type(v):
     d = _fluid_scene()
     d["domain"] = {"box": _BOX, "left": v, "right": v, "inflow_profile": {"type": "uniform", "umax": 1.0}}
@@ -110,7 +122,7 @@ SCENE = {"units": _scene_units, "time scheme": _scene_time_scheme,
          "solver": _scene_solver, "convection": _scene_convection, "element": _scene_element,
          "fluid model": _scene_model, "strategy": _scene_strategy, "shape": _scene_shape, "motion": _scene_motion,
          "side type": _scene_side_type, "side": _scene_side, "profile": _scene_profile,
-         "coupling": _scene_coupling, "ALE form": _scene_ale_form}
+         "coupling": _scene_coupling, "ALE form": _scene_ale_form, "LU backend": _scene_lu_backend}
 
 
 # ---------------------------------------------------------------------------------------

@@ -79,6 +79,7 @@ class FixedMeshFlow(FlowLoads):
         self.rho = fl.density
         self.problem = FlowProblem(self.space, fl.viscosity, bcs, rho=fl.density, body_force=fl.body_force,
                                    periodic=self.periodic, viscous=viscous_form_of(bodies))
+        self.problem.lu_backend = getattr(fl, "lu_backend", "auto")
         self.stokes = fl.model == "stokes"
         self.centers = [b.position for b in bodies]
         self.names = [b.name for b in bodies]

@@ -135,6 +135,23 @@ class FreeBodyFlow(MovingMeshFlow):
             self.coupled = FreeBodyStepper(self.stepper, self.system, self.mass, self.inertia, rho_f,
                                            velocities=self.body_velocities[self.free], solver=self._coupled_solver())
 
+    #: how ``fluid.solver = "auto"`` solved the coupled system: DOFs, LU backend, path and why (run.json)
+    solver_choice = None
+
+    def _lu_fits(self) -> bool:
+        """Whether the LU of ``fluid.lu_backend`` for the current system fits in memory
+        (:func:`fluidem.fluid.solvers.memory.lu_fits`); records the choice in :attr:`solver_choice`."""
+        from ..fluid.solvers.direct import default_direct_backend
+        from ..fluid.solvers.memory import lu_fits
+
+        n = int(self.dofs)
+        backend = getattr(self.fluid, "lu_backend", "auto")
+        backend = default_direct_backend(n) if backend == "auto" else backend
+        fits, why = lu_fits(n, backend)
+        self.solver_choice = {"dofs": n, "lu_backend": backend, "path": "lagged LU" if fits else "block GMRES",
+                              "note": why}
+        return fits
+
     def _coupled_solver(self):
         """The coupled system's solver, by ``fluid.solver``: the fluid's LU (fresh or
         lagged) for ``"direct"`` and ``"lagged"``; block-preconditioned GMRES with the bodies in the
@@ -153,7 +170,9 @@ class FreeBodyFlow(MovingMeshFlow):
         dt = self.dt
         if self.fluid.solver == "iterative":
             return BodyBlockKrylovSolver(self, dt)
-        if isinstance(s, AutoSolver):  # "auto" without the iterative path: lagged for a run of steps
+        if isinstance(s, AutoSolver):  # "auto": the lagged LU while it fits in memory
+            if not self._lu_fits():
+                return BodyBlockKrylovSolver(self, dt)
             return AutoSolver(direct_options=s.direct_options, iterative_options={"dt": dt},
                               lagged_options=s.lagged_options)
         return LaggedLUSolver(direct=self.problem.direct_solver(), **MOVING_MESH_STEPPING)
@@ -310,6 +329,11 @@ class FreeBodyFlow(MovingMeshFlow):
 
         if self.fluid.solver == "direct":
             return self.problem.direct_solver()
+        if self.fluid.solver == "auto" and self._lagged_mobility is None and not self._lu_fits():
+            from ..fluid.solvers import SolverError
+
+            raise SolverError(self.solver_choice["note"] + "; Stokes free bodies have no iterative path: "
+                              "coarsen the mesh (mesh.h) or free memory")
         s = self._lagged_mobility
         if s is None or rebuilt:
             s = self._lagged_mobility = LaggedLUSolver(direct=self.problem.direct_solver(),

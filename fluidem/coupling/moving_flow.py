@@ -240,6 +240,7 @@ class MovingMeshFlow(FlowLoads):
                                    rho=fl.density, body_force=fl.body_force, moving=True, periodic=self.mm.periodic,
                                    viscous=viscous_form_of(self.body_specs))
         self.problem.ordering = self.ordering
+        self.problem.lu_backend = getattr(fl, "lu_backend", "auto")
         self.rigid = RigidModes(self.space, self.names, self.centers, period=period_of(self.mm.box, self.mm.periodic))
 
     def _outline_dofs(self) -> np.ndarray:

@@ -59,7 +59,7 @@ TABLES = {
 #: names a key takes from :mod:`fluidem.names` (key -> registry kind)
 NAME_KINDS = {
     ".units": "units", "fluid.model": "fluid model", "fluid.element": "element", "fluid.convection": "convection",
-    "fluid.solver": "solver", "fluid.coupling": "coupling",
+    "fluid.solver": "solver", "fluid.coupling": "coupling", "fluid.lu_backend": "LU backend",
     "fluid.ale_form": "ALE form", "time.scheme": "time scheme", "domain.bottom": "side type",
     "domain.right": "side type", "domain.top": "side type", "domain.left": "side type",
     "domain.<side>.type": "side type", "domain.inflow_profile.type": "profile", "bodies.shape": "shape",
@@ -127,6 +127,9 @@ KEY_DOCS = {
                             "volume of each); in a doubly periodic cell G·L_x L_y = Σ (ρ_s − ρ_f) A g.  Carrying "
                             "the weight by a `body_force` on the fluid alone makes the bodies settle 1/(1 − φ) too "
                             "fast (φ the area fraction of bodies).  Not with a `body_force` along a periodic axis"),
+    "fluid.lu_backend": ("name", "—", "the sparse LU of the direct and lagged solvers: `auto` is PARDISO (the "
+                         "optional pypardiso) for systems of 20 000 DOFs and more when it is installed, SuperLU "
+                         "otherwise; `pardiso` without pypardiso is refused"),
     "domain.box": ("[xmin, xmax, ymin, ymax]", "length", "the rectangular domain; coordinates of magnitude at most "
                    "1e50, sides at least 1e-50 long"),
     "domain.bottom": ("name or table", "—", "side y = ymin: a side type, or a table (below)"),
