@@ -45,7 +45,7 @@ __all__ = ["BOUNDS", "RANDOM_PHI_MAX", "POCKET_MOTIONS", "pocket_scene", "pocket
            "SequencePath", "stress_scene", "stress_run", "within_bounds"]
 
 #: What a finished run's diagnostics must stay within: largest condition estimate κ₁ of a step's LU
-#: (1e14: about 1/100 of 1/ε, so that a solve keeps 2 digits; the runs measured 1e6–1e10,
+#: (1e14: about 1/100 of 1/ε, so that a solve keeps 2 digits; the runs measured 2e8–1.2e11,
 #: ``benchmarks/results/stability_stress.md``), largest relative residual of a solve (the direct
 #: solver's own check, :class:`fluidem.fluid.solvers.DirectSolver`), smallest angle of the mesh
 #: (degrees, all elements; > 0: none degenerate) and inverted elements.
