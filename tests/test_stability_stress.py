@@ -136,9 +136,10 @@ def test_random_pockets_move_rigidly_or_stop_with_the_reason(motion, gap, speed,
     """Frames with random contact gaps (1e-7–5e-5, below the mesh's contact gap 1e-3 h), speeds and
     meshes: a motion keeping the pocket's area moves it rigidly, the piston stops with PocketError.
     Velocity error and divergence: round-off amplified by the thin elements at the contacts, measured
-    1e-15 to 3.6e-9 and 3.7e-15 to 3.1e-9 of the speed over 24 frames drawn outside the test and the
-    drawn ones (the largest at h = 0.1, where the mesher leaves a sliver of 0.0006° at a contact:
-    2e-15 for h = 0.08 and 0.12); a pocket without its own reference is off by O(1)."""
+    1e-15 to 1.7e-10 and 3.7e-15 to 1.4e-10 of the speed over the drawn frames and 24 drawn outside
+    the test, 3.6e-9 and 3.1e-9 for the gap 1e-6 at speed 0.1 (all the large ones at h = 0.1, where
+    the mesher leaves a sliver of 0.0006° at a contact; below 4e-14 at h = 0.08 and 0.12); a pocket
+    without its own reference is off by O(1)."""
     r = pocket_run(motion, gap=gap, speed=speed, h=h, outflow=outflow)
     assert r["pockets"] == 1
     if motion == "piston":
