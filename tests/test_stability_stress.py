@@ -203,3 +203,35 @@ def test_packings_at_three_area_fractions_finish_bounded():
         assert r["ended"] == "finished"
         assert r["min_gap_run"] < 0.015  # the narrow gaps are there
         assert r["retriangulations"] >= 1
+
+
+def test_a_run_reports_its_pocket_and_stops_on_a_squeezed_one(tmp_path):
+    """Through ``Simulation.run``: the translated frame's run.json holds the pockets (1, at all 3 steps)
+    and the warning naming it, also in events.log; the piston's run stops at step 1 with RunStopped
+    carrying the pocket's message, written to events.log."""
+    import json
+
+    from fluidem.errors import RunStopped
+    from fluidem.simulation import Simulation
+
+    Simulation(pocket_scene("translate", steps=3)).run(out_dir=tmp_path / "t")
+    d = json.loads((tmp_path / "t" / "run.json").read_text())["diagnostics"]
+    assert d["pockets"] == {"max": 1, "max_step": 1, "steps": 3}
+    assert any("1 enclosed pocket of area 0.36" in w for w in d["warnings"])
+    assert "enclosed pocket" in (tmp_path / "t" / "events.log").read_text()
+    with pytest.raises(RunStopped, match="step 1 .* would change its area at dA/dt = -0.06"):
+        Simulation(pocket_scene("piston", steps=3)).run(out_dir=tmp_path / "p")
+    assert "would change its area" in (tmp_path / "p" / "events.log").read_text()
+
+
+def test_bad_stress_input_is_refused_naming_the_value():
+    from fluidem.cases.packings import hexagon_packing
+
+    with pytest.raises(InputError, match=r"phi = 0.9: expected at most 0.7\d+ for 4 x 4 hexagons"):
+        hexagon_packing(4, 4, phi=0.9)
+    with pytest.raises(InputError, match=r"spread = 1.5: expected a number in \[0, 1\)"):
+        hexagon_packing(spread=1.5)
+    with pytest.raises(InputError, match="pocket motion = 'squeeze': expected one of"):
+        pocket_scene("squeeze")
+    with pytest.raises(InputError, match="layout = 'grid': expected 'random', 'hexagons' or None"):
+        stress_run(layout="grid")
