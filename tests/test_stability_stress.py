@@ -192,7 +192,7 @@ def test_random_moving_packings_finish_bounded_or_stop_with_a_message(packed, se
     assert r["min_gap_run"] >= 0.01 - 1e-12
 
 
-@pytest.mark.slow(seconds=13)
+@pytest.mark.slow(seconds=6)
 def test_packings_at_three_area_fractions_finish_bounded():
     """φ = 0.3, 0.5 (random convex polygons) and 0.7 (hexagons), 16 bodies, 20 random steps each, gaps
     down to 1 % of the body size (measured 0.0120, 0.0107, 0.0101): all finish; largest κ₁ 2.3e9,
