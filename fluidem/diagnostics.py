@@ -108,6 +108,10 @@ MECHANISMS = {
     "krylov": "the preconditioner no longer fits the matrices, likely a growing condition number (a narrowing "
               "gap) or a stale lagged LU / AMG hierarchy; refactorise more often (fluid.solver = \"direct\") or "
               "refine the mesh near the bodies",
+    "pocket": "fluid enclosed by touching bodies, with no way out; its pressure is fixed by its own reference "
+              "(zero mean over the pocket), its velocity follows the bodies around it, and the run stops with a "
+              "message if their prescribed motion would change the pocket's area; for the flow through the gap, "
+              "keep the bodies apart by more than the mesh's contact gap (contact.repulsion_range)",
     "noise": "the fields are transferred too often or onto a mesh too coarse for them; re-triangulate less often "
              "(mesh.retriangulate_every), loosen the quality triggers, or refine mesh.h (the transfer error falls "
              "with the element order)",
@@ -289,6 +293,9 @@ class StepHealth:
         ``oscillating`` over the mesh nodes.
     swing : float or None
         Largest relaxation move of an oscillating node over its target size h.
+    pockets : int
+        Fluid pockets enclosed by touching bodies in the step's mesh, each with its own pressure
+        reference (:mod:`fluidem.fluid.pockets`).
     """
 
     step: int
@@ -304,10 +311,12 @@ class StepHealth:
     oscillating: int = 0
     oscillating_share: float = 0.0
     swing: float | None = None
+    pockets: int = 0
 
     def text(self) -> str:
         """The compact health part of a ``--verbose`` line: ``cond1 <κ> (x<growth>)`` at an LU,
-        ``noise <n> %`` at a re-triangulation, ``osc <k> nodes`` when nodes oscillate; ``""`` if none."""
+        ``noise <n> %`` at a re-triangulation, ``osc <k> nodes`` when nodes oscillate, ``pockets <k>``
+        when the mesh holds enclosed fluid pockets; ``""`` if none."""
         parts = []
         if self.condition is not None:
             parts.append(f"cond1 {self.condition:.2e}" + (f" (x{self.growth:.3g})" if self.growth is not None else ""))
@@ -315,6 +324,8 @@ class StepHealth:
             parts.append(f"noise {100 * self.noise:.2g} %")
         if self.oscillating:
             parts.append(f"osc {self.oscillating} nodes")
+        if self.pockets:
+            parts.append(f"pockets {self.pockets}")
         return "  ".join(parts)
 
 
@@ -372,7 +383,9 @@ class RunDiagnostics:
         self._noise_total = 0.0
         self._iter_per_step: list[float] = []
         self._counts = {"factorizations": 0, "estimates": 0, "solves": 0, "krylov_solves": 0,
-                        "krylov_iterations": 0, "retriangulations": 0, "oscillation_steps": 0}
+                        "krylov_iterations": 0, "retriangulations": 0, "oscillation_steps": 0,
+                        "pocket_steps": 0}
+        self._pocket_text = ""
 
     # -- the solvers' reports ------------------------------------------------------------------
     def factorized(self, solver) -> None:
@@ -411,7 +424,7 @@ class RunDiagnostics:
         return cm()
 
     # -- per step ----------------------------------------------------------------------------
-    def finish_step(self, step: int, t: float, event=None, mesh=None) -> StepHealth:
+    def finish_step(self, step: int, t: float, event=None, mesh=None, problem=None) -> StepHealth:
         """Close the step: its :class:`StepHealth` from what the solvers reported and the mesh event.
 
         Parameters
@@ -424,6 +437,9 @@ class RunDiagnostics:
             ``oscillating``).
         mesh : MovingMesh, optional
             For the node count and the swing of the oscillating nodes.
+        problem : FlowProblem, optional
+            For the enclosed fluid pockets of its mesh (``problem.components``; reported when the
+            problem gives each its own pressure reference, ``pin_pockets``).
         """
         h = StepHealth(step=int(step), t=float(t))
         infos, self._infos = self._infos, []
@@ -449,6 +465,10 @@ class RunDiagnostics:
                 n_nodes = len(getattr(mesh, "points", ())) or 1
                 h.oscillating_share = osc.size / n_nodes
                 h.swing = _swing(mesh, osc)
+        comp = getattr(problem, "components", None)
+        if comp is not None and getattr(problem, "pin_pockets", False):  # free bodies: the coupling holds them
+            h.pockets = int(len(comp.pockets))
+            self._pocket_text = comp.text()
         if self.enabled:
             self._add(h, n_krylov=sum(1 for i in its if i > 0))
         self.last = h
@@ -463,9 +483,11 @@ class RunDiagnostics:
         c["retriangulations"] += h.noise is not None
         self._noise_total += h.noise or 0.0
         c["oscillation_steps"] += h.oscillating > 0
+        c["pocket_steps"] += h.pockets > 0
         for key, value in (("condition", h.condition), ("iterations", h.iterations if h.solves else None),
                            ("residual", h.residual), ("noise", h.noise),
-                           ("oscillating", h.oscillating or None), ("swing", h.swing)):
+                           ("oscillating", h.oscillating or None), ("swing", h.swing),
+                           ("pockets", h.pockets or None)):
             if value is None:
                 continue
             old = self._ext.get(key)
@@ -516,6 +538,8 @@ class RunDiagnostics:
                         f"step {h.step}: the interpolation noise of the last {len(noise)} re-triangulations "
                         f"sums to {100 * sum(noise):.3g} % of the velocity (warned above "
                         f"{100 * NOISE_BOUND:g} % over {NOISE_WINDOW}): " + MECHANISMS["noise"]))
+        if h.pockets and "pocket" not in self._warned:
+            new.append(("pocket", f"step {h.step}: {self._pocket_text}: " + MECHANISMS["pocket"]))
         for key, msg in new:
             self._warned.add(key)
             self.warnings.append(msg)
@@ -560,6 +584,8 @@ class RunDiagnostics:
                        "residual": ext("residual")},
             "interpolation_noise": noise,
             "oscillation": osc,
+            "pockets": None if "pockets" not in e else {"max": int(e["pockets"][0]), "max_step": e["pockets"][1],
+                                                        "steps": c["pocket_steps"]},
             "series": {k: [_num(v) for v in vals] for k, vals in s.items()},
             "warnings": list(self.warnings),
         }

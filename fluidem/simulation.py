@@ -275,7 +275,8 @@ class Simulation:
         """Close the step's health record (:class:`fluidem.diagnostics.RunDiagnostics`); a threshold
         crossed is a :class:`RunWarning` and a ``health`` line in events.log."""
         d = self.diagnostics
-        d.finish_step(self.step_index, self.t, ev_mesh, getattr(self.flow, "mm", None))
+        d.finish_step(self.step_index, self.t, ev_mesh, getattr(self.flow, "mm", None),
+                      getattr(self.flow, "problem", None))
         for w in d.check():
             if writer is not None:
                 writer.event(self.step_index, self.t, "health", w)

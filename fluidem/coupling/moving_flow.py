@@ -238,7 +238,8 @@ class MovingMeshFlow(FlowLoads):
         self.centers = self._poses(t)[:, :2]
         self.problem = FlowProblem(self.space, fl.viscosity, velocity_bcs(self.domain, self.body_specs, self.centers),
                                    rho=fl.density, body_force=fl.body_force, moving=True, periodic=self.mm.periodic,
-                                   viscous=viscous_form_of(self.body_specs))
+                                   viscous=viscous_form_of(self.body_specs),
+                                   pin_pockets=not any(b.motion == "free" for b in self.body_specs))
         self.problem.ordering = self.ordering
         self.problem.lu_backend = getattr(fl, "lu_backend", "auto")
         self.rigid = RigidModes(self.space, self.names, self.centers, period=period_of(self.mm.box, self.mm.periodic))
@@ -293,6 +294,7 @@ class MovingMeshFlow(FlowLoads):
         cost = CostSplit()
         t_new = self.t + dt
         ev, rebuilt, old_space = self._move_mesh(self._poses(t_new), t_new, cost)
+        self.problem.check_pockets(t_new)  # an enclosed pocket whose area the bodies change: stop, say why
         if self.stokes:
             t0 = time.perf_counter()
             solve0 = self.problem.timings.solve

@@ -82,9 +82,19 @@ class FlowProblem:
         (natural condition: do-nothing, ν ∂u/∂n − p n = 0; exact loads on fixed and
         translating bodies) or ``"stress"`` 2ν ε(u) : ε(v) (natural condition: traction-free;
         exact torques on rotating bodies too).
+    pin_pockets : bool
+        Give every closed fluid region its own pressure reference: one pinned pressure DOF per
+        region whose boundary has no natural part, its pressure shifted to zero mean over the
+        region afterwards (:mod:`fluidem.fluid.pockets`; fluid enclosed by touching bodies).
+        False: one pin for the whole mesh when it has no natural boundary (a coupled system whose
+        body velocities are unknowns, held by the pockets' pressures).  With one fluid region both
+        are the same.
 
     Attributes
     ----------
+    components : FluidComponents
+        The fluid regions of the mesh, which are closed and which are enclosed pockets
+        (:func:`fluidem.fluid.pockets.fluid_components`, once per triangulation).
     free : (n_free,) int
         The unknowns of the condensed system: free DOFs of ``[u, p]`` (with periodic sides
         only the representatives of identified DOFs).
@@ -93,7 +103,8 @@ class FlowProblem:
     """
 
     def __init__(self, space: FlowSpace, nu: float, bcs: Sequence[VelocityBC] = (), rho: float = 1.0,
-                 body_force=(0.0, 0.0), moving: bool = False, periodic=(), viscous: str = "laplacian"):
+                 body_force=(0.0, 0.0), moving: bool = False, periodic=(), viscous: str = "laplacian",
+                 pin_pockets: bool = True):
         if viscous not in ("laplacian", "stress"):
             raise ValueError(f"viscous must be 'laplacian' or 'stress', got {viscous!r}")
         self.viscous = viscous
@@ -130,6 +141,7 @@ class FlowProblem:
         self.pressure_pinned = not self.natural_boundaries
         self.rep = None
         pin = space.n_u
+        alone = None
         if self.periodic:
             from .periodic import periodic_pairs, representatives
 
@@ -137,8 +149,19 @@ class FlowProblem:
             # pin a pressure DOF identified with no other (off the periodic sides)
             alone = np.bincount(self.rep, minlength=n)[self.rep] == 1
             pin = space.n_u + int(np.argmax(alone[space.n_u:]))
+        # fluid regions no fluid connects (pockets enclosed by touching bodies): one pin per closed one
+        # (fluidem.fluid.pockets); with a single region the rule above is the same
+        from .pockets import fluid_components
+
+        self.pin_pockets = bool(pin_pockets)
+        self.components = fluid_components(space, self._dirichlet_dofs, self.natural_boundaries, self.rep)
+        self._pocket_pins = self.pin_pockets and self.components.n_components > 1
         fixed = self._dirichlet_dofs
-        if self.pressure_pinned:
+        if self._pocket_pins:
+            pins = space.n_u + self.components.pins(pin - space.n_u, None if alone is None else alone[space.n_u:])
+            self.pressure_pinned = bool(len(pins))
+            fixed = np.concatenate([fixed, pins])
+        elif self.pressure_pinned:
             fixed = np.concatenate([fixed, [pin]])
         self.fixed = np.unique(fixed)
         mask = np.ones(n, dtype=bool)
@@ -392,12 +415,53 @@ class FlowProblem:
         """Shift the pressure to zero mean when it is defined only up to a constant (and, with
         periodic sides, make the identified DOFs equal: :meth:`make_periodic`)."""
         self.make_periodic(x)
-        if self.pressure_pinned:
+        if self._pocket_pins:
+            self._normalise_closed_regions(x)
+        elif self.pressure_pinned:
             one = np.ones(self.space.n_p)
             pm = self.space.pb
             area = pm.dx.sum()
             mean = (np.asarray(pm.interpolate(x[self.space.n_u:])) * pm.dx).sum() / area
             x[self.space.n_u:] -= mean * one
+
+    def _normalise_closed_regions(self, x: np.ndarray) -> None:
+        """Shift the pressure of every closed region to zero mean over that region (open ones stay)."""
+        fc = self.components
+        pm = self.space.pb
+        p = x[self.space.n_u:]
+        area = pm.dx.sum(axis=1)
+        integral = (np.asarray(pm.interpolate(p)) * pm.dx).sum(axis=1)
+        n = fc.n_components
+        mean = np.bincount(fc.element_label, weights=integral, minlength=n) / \
+            np.bincount(fc.element_label, weights=area, minlength=n)
+        mean[~fc.closed] = 0.0
+        x[self.space.n_u:] -= mean[fc.pressure_label]
+
+    def check_pockets(self, t: float) -> None:
+        """Raise :class:`~fluidem.fluid.pockets.PocketError` when the velocity conditions at ``t`` change the
+        area of an enclosed pocket (:func:`~fluidem.fluid.pockets.pocket_area_rates`; above
+        :data:`~fluidem.fluid.pockets.POCKET_RATE_TOL` of its boundary flux).  One sparse product; nothing
+        to do without pockets or with ``pin_pockets = False`` (free bodies: their velocities are unknowns
+        that the pocket's pressure holds)."""
+        from .pockets import POCKET_RATE_TOL, PocketError, pocket_area_rates
+
+        fc = self.components
+        pk = fc.pockets
+        if not self._pocket_pins or not len(pk):
+            return
+        rate, scale = pocket_area_rates(self, t, pk)
+        bad = np.abs(rate) > POCKET_RATE_TOL * np.maximum(scale, 1e-300)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            c = int(pk[k])
+            names = fc.boundaries[c]
+            raise PocketError(
+                f"the fluid pocket of area {fc.areas[c]:.4g} enclosed by {', '.join(map(repr, names))} would change "
+                f"its area at dA/dt = {rate[k]:.4g} per unit time ({abs(rate[k]) / scale[k]:.2g} of its boundary "
+                f"flux; allowed {POCKET_RATE_TOL:g}) at t = {t:.6g}: the prescribed motion of the bodies around it "
+                "squeezes or stretches fluid that has no way out; move them so that the pocket keeps its area, "
+                "or keep a gap wider than the mesh's contact gap (mesh min_gap) open to the rest of the fluid",
+                c, float(fc.areas[c]), float(rate[k]), names)
 
     #: the run's :class:`~fluidem.fluid.solvers.ordering.OrderingChoice` (set by a flow that
     #: rebuilds its problems: the choice outlives a re-triangulation), or None
