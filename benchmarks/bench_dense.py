@@ -15,6 +15,7 @@ Target (issue "Hundreds of bodies in fluid"): the DEM's share of a dense step �
 Run (tens of minutes)::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py [--before PATH] [N ...]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py --apart [N]   # a dense step against the same bodies apart
 
 writes ``benchmarks/results/dense.{md,json}``.  ``--before PATH`` also runs every case, side by side,
 with the fluidem package found at ``PATH`` (a checkout of an earlier version; keys it does not know
@@ -42,15 +43,21 @@ NEW_KEYS = ("zero_net_flux", "rheology_window")
 H, DT = 0.012, 0.01
 
 
-def scene_dict(n: int, steps: int) -> dict:
-    """``n`` polygons at area fraction 0.35 in the lower part of a closed box (width ∝ √n)."""
+#: gap between the bodies of the "apart" variant (:func:`scene_dict`): 2.5 h, beyond the lubrication range h
+APART_GAP = 0.03
+
+
+def scene_dict(n: int, steps: int, apart: bool = False) -> dict:
+    """``n`` polygons at area fraction 0.35 in the lower part of a closed box (width ∝ √n); ``apart``: the same
+    polygons (the same draws of shapes and sizes) over the whole box with gaps of :data:`APART_GAP`."""
     from fluidem.scene.fill import fill
 
     mean_area = np.pi * 0.0325**2
     width = float(np.sqrt(n * mean_area / 0.35 / 0.8))  # the bed region is 0.8 as tall as wide
-    region = (0.0, width, 0.0, 0.8 * width)
+    region = (0.0, width, 0.0, (1.3 if apart else 0.8) * width)
+    gap = APART_GAP if apart else 0.004
     p = fill(region, n=n, shapes=("disk", "rectangle", "triangle", "hexagon"), radius=(0.025, 0.04), seed=2,
-             min_gap=0.004)
+             min_gap=gap, **({"side_gap": gap} if apart else {}))
     bodies = [dict(b, density=2.0) for b in p.bodies]
     return {"name": f"dense-{n}", "gravity": [0.0, -9.81],
             "fluid": {"density": 1.0, "viscosity": 0.01, "element": "p2b"},
@@ -113,6 +120,9 @@ def main(argv: list[str]) -> None:
     if argv[:1] == ["--case"]:
         print(json.dumps(run_case(argv[1], int(argv[2]))))
         return
+    if argv[:1] == ["--apart"]:
+        dense_against_apart(int(argv[1]) if len(argv) > 1 else 100)
+        return
     before = None
     if argv[:1] == ["--before"]:
         before, argv = argv[1], argv[2:]
@@ -159,6 +169,51 @@ def main(argv: list[str]) -> None:
                      f"{r['retriangulations_per_100']:.0f} | {r['peak_mib']:.0f} | {r['error'] or ''} |")
     lines += ["", "Machines:"] + sorted({f"- {r['bodies']} bodies: {r.get('machine', '')}" for r in rows})
     (RESULTS / "dense.md").write_text("\n".join(lines) + "\n")
+
+
+def dense_against_apart(n: int, steps: int = 12) -> None:
+    """A dense step against a step of the same bodies apart: the ``n`` polygons packed in the bed region
+    (gaps 0.004, settling onto the floor and each other) and spread over the whole box with gaps of
+    :data:`APART_GAP`, ``steps`` steps each, one after the other; writes ``results/dense_apart.{md,json}``."""
+    from results_io import markdown_table
+
+    rows = []
+    for apart in (False, True):
+        path = RESULTS / f"dense-{n}-{'apart' if apart else 'packed'}.toml"
+        from fluidem.scene import Scene
+
+        Scene.from_dict(scene_dict(n, steps, apart=apart)).to_toml(str(path))
+        out = subprocess.run([sys.executable, __file__, "--case", str(path), str(steps)], capture_output=True,
+                             text=True, check=True)
+        path.unlink()
+        res = json.loads(out.stdout.strip().splitlines()[-1])
+        r = res["rows"][1:]
+        contact = [x for x in r if x["passes"] > 0]
+        rows.append({"bodies": n, "variant": "apart" if apart else "packed", "dofs": res["dofs"],
+                     "steps": len(res["rows"]), "s_per_step": float(np.median([x["wall"] for x in r])),
+                     "solve_s": float(np.median([x["solve"] for x in r])),
+                     "dem_s": float(np.median([x["dem"] for x in r])),
+                     "contact_steps": len(contact), "substeps_per_step": float(np.median([x["substeps"] for x in r])),
+                     "retriangulations": int(sum(x["retriangulated"] for x in res["rows"])),
+                     "peak_mib": res["peak_mib"], "error": res["error"], "load": os.getloadavg()[0]})
+        print(rows[-1], flush=True)
+    machine = machine_description()
+    write_json("dense_apart", machine, rows)
+    ratio = rows[0]["s_per_step"] / rows[1]["s_per_step"]
+    lines = ["# A dense step against the same bodies apart", "",
+             f"Machine: {machine}.  `benchmarks/bench_dense.py --apart {n}`: the {n} polygons of the settling "
+             f"suspension (h = {H}, dt = {DT}, P2+bubble, the LU of `fluid.lu_backend = \"auto\"`) packed in the bed "
+             f"region with gaps of 0.004 (they settle onto the floor and each other: contacts, lubrication, "
+             f"repulsion) and spread over the whole box with gaps of {APART_GAP} (2.5 h: no short-range force); "
+             f"{steps} steps each, one after the other; medians over the steps after the first.", "",
+             *markdown_table(["variant", "DOFs", "steps", "s/step", "solve s", "DEM s", "steps with contact passes",
+                              "DEM sub-steps/step", "re-triangulations", "peak MiB", "load"],
+                             [[r["variant"], str(r["dofs"]), str(r["steps"]), f"{r['s_per_step']:.3g}",
+                               f"{r['solve_s']:.3g}", f"{r['dem_s']:.3g}", str(r["contact_steps"]),
+                               f"{r['substeps_per_step']:.0f}", str(r["retriangulations"]), f"{r['peak_mib']:.0f}",
+                               f"{r['load']:.1f}"] for r in rows]),
+             "", f"Dense step / apart step: {ratio:.2f} (target ≤ 2)."]
+    (RESULTS / "dense_apart.md").write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":
