@@ -63,6 +63,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 __all__ = ["condition_estimate", "lu_condition", "inf_sup_constant", "flow_inf_sup", "oscillation_text",
+           "gap_elements", "GAP_LOCKING_ELEMENTS",
            "StepHealth", "RunDiagnostics", "CONDITION_GROWTH", "KRYLOV_RISE", "KRYLOV_MIN_ITERATIONS",
            "KRYLOV_WINDOW", "NOISE_WINDOW", "NOISE_BOUND", "NOISE_MIN_TRANSFERS", "SERIES_POINTS", "MECHANISMS"]
 
@@ -112,6 +113,10 @@ MECHANISMS = {
               "(zero mean over the pocket), its velocity follows the bodies around it, and the run stops with a "
               "message if their prescribed motion would change the pocket's area; for the flow through the gap, "
               "keep the bodies apart by more than the mesh's contact gap (contact.repulsion_range)",
+    "gap": "wrong element curvature (paper Sec. 3.1): a gap spanned by one element carries only a linear velocity "
+           "profile with MINI's P1 velocity, too stiff between surfaces moving relative to each other (measured "
+           "+13 % sliding and +227 % turning at gap/a = 0.005; Taylor-Hood +0.1-0.5 %, P2+bubble +0.2-2.3 %, "
+           "docs/stability.md); use fluid.element = 'th' or 'p2b', or refine mesh.h near the bodies",
     "noise": "the fields are transferred too often or onto a mesh too coarse for them; re-triangulate less often "
              "(mesh.retriangulate_every), loosen the quality triggers, or refine mesh.h (the transfer error falls "
              "with the element order)",
@@ -296,6 +301,9 @@ class StepHealth:
     pockets : int
         Fluid pockets enclosed by touching bodies in the step's mesh, each with its own pressure
         reference (:mod:`fluidem.fluid.pockets`).
+    gap_elements : int
+        Triangles of the step's moving mesh that span a gap with one element: their three vertices on
+        the outlines of at least two bodies, or of a body and a wall (:func:`gap_elements`).
     """
 
     step: int
@@ -312,6 +320,7 @@ class StepHealth:
     oscillating_share: float = 0.0
     swing: float | None = None
     pockets: int = 0
+    gap_elements: int = 0
 
     def text(self) -> str:
         """The compact health part of a ``--verbose`` line: ``cond1 <κ> (x<growth>)`` at an LU,
@@ -386,6 +395,7 @@ class RunDiagnostics:
                         "krylov_iterations": 0, "retriangulations": 0, "oscillation_steps": 0,
                         "pocket_steps": 0}
         self._pocket_text = ""
+        self._element = None  # the element pair of the last step's problem (the gap warning's condition)
 
     # -- the solvers' reports ------------------------------------------------------------------
     def factorized(self, solver) -> None:
@@ -465,6 +475,11 @@ class RunDiagnostics:
                 n_nodes = len(getattr(mesh, "points", ())) or 1
                 h.oscillating_share = osc.size / n_nodes
                 h.swing = _swing(mesh, osc)
+        if mesh is not None and hasattr(mesh, "body_of"):
+            h.gap_elements = gap_elements(mesh)
+            pair = getattr(getattr(getattr(problem, "space", None), "pair", None), "name", None)
+            if pair is not None:
+                self._element = pair
         comp = getattr(problem, "components", None)
         if comp is not None and getattr(problem, "pin_pockets", False):  # free bodies: the coupling holds them
             h.pockets = int(len(comp.pockets))
@@ -487,7 +502,7 @@ class RunDiagnostics:
         for key, value in (("condition", h.condition), ("iterations", h.iterations if h.solves else None),
                            ("residual", h.residual), ("noise", h.noise),
                            ("oscillating", h.oscillating or None), ("swing", h.swing),
-                           ("pockets", h.pockets or None)):
+                           ("pockets", h.pockets or None), ("gap_elements", h.gap_elements or None)):
             if value is None:
                 continue
             old = self._ext.get(key)
@@ -538,6 +553,11 @@ class RunDiagnostics:
                         f"step {h.step}: the interpolation noise of the last {len(noise)} re-triangulations "
                         f"sums to {100 * sum(noise):.3g} % of the velocity (warned above "
                         f"{100 * NOISE_BOUND:g} % over {NOISE_WINDOW}): " + MECHANISMS["noise"]))
+        element = getattr(self, "_element", None)  # a run checkpointed before the count holds none
+        if h.gap_elements and element in GAP_LOCKING_ELEMENTS and "gap" not in self._warned:
+            new.append(("gap", f"step {h.step}: {h.gap_elements} triangles span a gap between bodies (or a body and "
+                               f"a wall) with one element across, with element {element!r}: "
+                               + MECHANISMS["gap"]))
         if h.pockets and "pocket" not in self._warned:
             new.append(("pocket", f"step {h.step}: {self._pocket_text}: " + MECHANISMS["pocket"]))
         for key, msg in new:
@@ -589,6 +609,37 @@ class RunDiagnostics:
             "series": {k: [_num(v) for v in vals] for k, vals in s.items()},
             "warnings": list(self.warnings),
         }
+
+
+#: Element pairs whose velocity is linear across a one-element gap and so locks between surfaces moving
+#: relative to each other (paper Sec. 3.1): measured in ``benchmarks/results/stability_curvature.md``
+#: (MINI +13.5 % sliding, +227 % turning at gap/a = 0.005 with one layer); the quadratic pairs were off by
+#: at most 2.3 % there, so a one-layer gap with them is counted (``gap_elements``) but not warned about.
+GAP_LOCKING_ELEMENTS = ("mini",)
+
+
+def gap_elements(mesh) -> int:
+    """Triangles of a moving ``mesh`` (``triangles``, ``kind``, ``body_of``) whose three vertices lie on
+    boundaries of at least two owners, one of them a body: a gap between two bodies, or a body and a
+    wall, spanned by one element (:func:`fluidem.mesh.gaps.boundary_owner`; vectorised, one pass).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> from fluidem.mesh.kinds import FREE, OUTLINE
+    >>> m = SimpleNamespace(triangles=np.array([[0, 1, 2], [1, 2, 3]]),
+    ...                     kind=np.array([OUTLINE, OUTLINE, OUTLINE, FREE]), body_of=np.array([0, 0, 1, -1]))
+    >>> gap_elements(m)
+    1
+    """
+    from .mesh.gaps import NOT_ON_BOUNDARY, boundary_owner
+
+    tri = np.asarray(mesh.triangles)
+    if not len(tri):
+        return 0
+    own = boundary_owner(np.asarray(mesh.kind), np.asarray(mesh.body_of))[tri]
+    spans = (own != NOT_ON_BOUNDARY).all(axis=1) & (own.min(axis=1) != own.max(axis=1)) & (own >= 0).any(axis=1)
+    return int(spans.sum())
 
 
 def _swing(mesh, osc: np.ndarray) -> float | None:
