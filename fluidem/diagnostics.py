@@ -595,7 +595,8 @@ class RunDiagnostics:
                     "factors); iterations: most Krylov iterations of a solve in a step; residual: largest true "
                     "relative residual of a step's solves; noise: relative L2 change of u by the field transfer at a "
                     "re-triangulation; oscillating: mesh nodes flipping between two positions in the relaxation, "
-                    "swing_max their largest move over the local h; series: "
+                    "swing_max their largest move over the local h; gap_elements: triangles spanning a gap "
+                    "between two bodies (or a body and a wall) with one element; series: "
                     + ("every step" if self._stride == 1 else f"one step in {self._stride}") + " of this run",
             "seconds": self.seconds, "steps": self._steps,
             "condition": cond,
@@ -606,6 +607,7 @@ class RunDiagnostics:
             "oscillation": osc,
             "pockets": None if "pockets" not in e else {"max": int(e["pockets"][0]), "max_step": e["pockets"][1],
                                                         "steps": c["pocket_steps"]},
+            "gap_elements": ext("gap_elements"),
             "series": {k: [_num(v) for v in vals] for k, vals in s.items()},
             "warnings": list(self.warnings),
         }
