@@ -49,9 +49,10 @@ def ellipse_sides(a: float, b: float, h: float, least: int = 12) -> int:
 
 
 def turning_ellipse_scene(h: float, steps: int = 120, dt: float = 0.01, omega: float = 0.5,
-                          plain: bool = False) -> Scene:
+                          plain: bool = False, sides: int | None = None) -> Scene:
     """The prescribed translating and turning ellipse at Re 30 (module docstring).
 
+    ``sides``: the polygon's sides (default :func:`ellipse_sides` at ``h``).
     ``plain``: the scene as written with the fewest keys instead: ``shape = "ellipse"`` with its
     default outline (2π·0.15 / h sides, even, ≥ 16) on a uniform mesh.
     """
@@ -62,7 +63,8 @@ def turning_ellipse_scene(h: float, steps: int = 120, dt: float = 0.01, omega: f
     if plain:
         body |= {"shape": "ellipse", "a": a, "b": b}
     else:
-        body |= {"shape": "polygon", "vertices": ellipse_polygon(a, b, ellipse_sides(a, b, h)).tolist()}
+        n = sides or ellipse_sides(a, b, h)
+        body |= {"shape": "polygon", "vertices": ellipse_polygon(a, b, n).tolist()}
         mesh["grading"] = {"region": "bodies", "growth": 1.2, "h_max": min(8 * h, 0.1)}
     return Scene.from_dict({
         "fluid": {"model": "navier-stokes", "viscosity": 0.01},
