@@ -8,7 +8,7 @@ and 90th percentile of the relative force change between ordinary steps, the rel
 change at each re-triangulation step, their ratio, the interpolation noise of the transfer
 (relative L2 change of u^n), and the same against the rms force with second differences.
 
-Writes ``benchmarks/results/stability_jumps.{md,json}``.  Run (about 10 minutes on one core)::
+Writes ``benchmarks/results/stability_jumps.{md,json}``.  Run (about 16 minutes on one core)::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_stability_jumps.py [--report] [label ...]
 """

@@ -13,9 +13,9 @@ import pytest
 from fluidem.cases.jumps import jump_figures, jump_run, settling_ellipse_scene, turning_ellipse_scene
 
 
-@pytest.mark.slow(seconds=65)
+@pytest.mark.slow(seconds=71)
 def test_turning_ellipse_jump_is_an_ordinary_step_at_40_edges():
-    """Turning ellipse, 120 steps at h = 0.018 (40 edges; 39 s at load 2.3) and h = 0.04 (18 edges, 22 s)."""
+    """Turning ellipse, 120 steps at h = 0.018 (40 edges) and h = 0.04 (18 edges): 71 s at load 2.8."""
     fine = jump_run(turning_ellipse_scene(0.018, steps=120))
     coarse = jump_run(turning_ellipse_scene(0.04, steps=120))
     f, c = jump_figures(fine["rows"]), jump_figures(coarse["rows"])
@@ -28,9 +28,9 @@ def test_turning_ellipse_jump_is_an_ordinary_step_at_40_edges():
     assert c["d2_jump_median"] > 3.0 * f["d2_jump_median"]  # measured 7.9x (1.18e-2 at 18 edges)
 
 
-@pytest.mark.slow(seconds=40)
+@pytest.mark.slow(seconds=49)
 def test_settling_ellipse_jump_is_an_ordinary_step_at_40_edges():
-    """Free ellipse settling and turning, 150 steps at h = 0.012 (40 edges; 35 s at load 2.3)."""
+    """Free ellipse settling and turning, 150 steps at h = 0.012 (40 edges): 49 s at load 2.8."""
     run = jump_run(settling_ellipse_scene(0.012, steps=150))
     f = jump_figures(run["rows"])
     assert run["edges"] == 40
