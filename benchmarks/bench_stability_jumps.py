@@ -79,10 +79,26 @@ def _bdf1_restart(flow):
     flow._transfer = _transfer
 
 
+def _first_order_w(flow):
+    """Switch: at a re-triangulation step the mesh velocity is the last step's displacement over dt,
+    new nodes taking their old neighbours' mean (``MovingMesh.node_velocity(order=1)``), instead of the
+    BDF2 derivative of the inherited node trajectories."""
+    mm = flow.mm
+    inner = mm.node_velocity
+
+    def node_velocity(dt, order=1):
+        return inner(dt, order=1 if flow.last_event.retriangulated else order)
+
+    mm.node_velocity = node_velocity
+
+
 #: label -> (base run, switch, what it changes)
 ABLATIONS = {
     "turn h=0.018, L2 projection": ("turn h=0.018", _l2_transfer, "u^n, u^{n−1} by L2 projection"),
     "turn h=0.018, BDF1 restart": ("turn h=0.018", _bdf1_restart, "BDF1 at the re-triangulation step"),
+    "turn h=0.018, first-order w": ("turn h=0.018", _first_order_w,
+                                    "mesh velocity of the last displacement (new nodes: neighbours' mean) "
+                                    "at the re-triangulation step"),
     "turn h=0.018, Stokes": ("turn h=0.018", "stokes", "no history: quasi-steady Stokes, the geometry alone"),
     "turn h=0.04, L2 projection": ("turn h=0.04", _l2_transfer, "u^n, u^{n−1} by L2 projection"),
     "turn h=0.04, Stokes": ("turn h=0.04", "stokes", "no history: quasi-steady Stokes, the geometry alone"),
