@@ -26,7 +26,8 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from results_io import RESULTS, machine_description, markdown_table  # noqa: E402
 
-from fluidem.cases.jumps import jump_figures, jump_run, settling_ellipse_scene, turning_ellipse_scene  # noqa: E402
+from fluidem.cases.jumps import (jump_figures, jump_run, settling_ellipse_scene,  # noqa: E402
+                                 switch_ingredient, turning_ellipse_scene)
 
 TURN_STEPS = 120
 SETTLE_STEPS = 150
@@ -48,59 +49,15 @@ RUNS = {
 OUT = RESULTS / "stability_jumps.json"
 
 
-def _l2_transfer(flow):
-    """Switch: u^n, u^{n−1} carried over by the conservative L2 projection on the supermesh
-    (:func:`fluidem.mesh.transfer.project_l2`) instead of interpolation at the new DOFs."""
-    from skfem import Basis, ElementVector, MeshTri
-
-    from fluidem.coupling.moving_flow import transfer_change
-    from fluidem.mesh import transfer
-
-    def _transfer(ev, old_space, u_n, u_p):
-        src = ev.old_points if ev.history == "ale" else ev.prev_points
-        old = MeshTri(np.asarray(src, float).T.copy(), np.asarray(ev.old_triangles).T.copy())
-        ob = Basis(old, ElementVector(old_space.pair.velocity()))
-        sm = transfer.supermesh(old, flow.space.ub.mesh)
-        new_n = transfer.project_l2(ob, u_n, flow.space.ub, sm=sm)
-        new_p = None if u_p is None else transfer.project_l2(ob, u_p, flow.space.ub, sm=sm)
-        ev.transfer_change = transfer_change(ob, u_n, flow.space.ub, new_n)
-        return new_n, new_p
-
-    flow._transfer = _transfer
-
-
-def _bdf1_restart(flow):
-    """Switch: the step after a re-triangulation is BDF1 (u^{n−1} dropped) instead of BDF2."""
-    inner = flow._transfer
-
-    def _transfer(ev, old_space, u_n, u_p):
-        return inner(ev, old_space, u_n, None)[0], None
-
-    flow._transfer = _transfer
-
-
-def _first_order_w(flow):
-    """Switch: at a re-triangulation step the mesh velocity is the last step's displacement over dt,
-    new nodes taking their old neighbours' mean (``MovingMesh.node_velocity(order=1)``), instead of the
-    BDF2 derivative of the inherited node trajectories."""
-    mm = flow.mm
-    inner = mm.node_velocity
-
-    def node_velocity(dt, order=1):
-        return inner(dt, order=1 if flow.last_event.retriangulated else order)
-
-    mm.node_velocity = node_velocity
-
-
 #: label -> (base run, switch, what it changes)
 ABLATIONS = {
-    "turn h=0.018, L2 projection": ("turn h=0.018", _l2_transfer, "u^n, u^{n−1} by L2 projection"),
-    "turn h=0.018, BDF1 restart": ("turn h=0.018", _bdf1_restart, "BDF1 at the re-triangulation step"),
-    "turn h=0.018, first-order w": ("turn h=0.018", _first_order_w,
+    "turn h=0.018, L2 projection": ("turn h=0.018", "l2", "u^n, u^{n−1} by L2 projection"),
+    "turn h=0.018, BDF1 restart": ("turn h=0.018", "bdf1", "BDF1 at the re-triangulation step"),
+    "turn h=0.018, first-order w": ("turn h=0.018", "first-order-w",
                                     "mesh velocity of the last displacement (new nodes: neighbours' mean) "
                                     "at the re-triangulation step"),
     "turn h=0.018, Stokes": ("turn h=0.018", "stokes", "no history: quasi-steady Stokes, the geometry alone"),
-    "turn h=0.04, L2 projection": ("turn h=0.04", _l2_transfer, "u^n, u^{n−1} by L2 projection"),
+    "turn h=0.04, L2 projection": ("turn h=0.04", "l2", "u^n, u^{n−1} by L2 projection"),
     "turn h=0.04, Stokes": ("turn h=0.04", "stokes", "no history: quasi-steady Stokes, the geometry alone"),
     "turn h=0.018, dt = 0.02": ("turn h=0.018", "dt", "twice the time step, the same 1.2 time units"),
     "turn h=0.018, 80-gon": ("turn h=0.018", "80", "the 80-sided polygon of the h = 0.009 run"),
@@ -125,7 +82,8 @@ def one(label: str) -> dict:
         d["fluid"]["model"] = "stokes"
         scene, switch = type(scene).from_dict(d), None
     t0 = time.perf_counter()
-    r = jump_run(scene, min_angle_margin=margin, flow_hook=switch)
+    hook = None if switch is None else (lambda flow: switch_ingredient(flow, switch))
+    r = jump_run(scene, min_angle_margin=margin, flow_hook=hook)
     wall = time.perf_counter() - t0
     return {"case": case, "h": h, "min_angle_margin": margin, "dofs": r["dofs"], "edges": r["edges"],
             "steps": len(r["rows"]), "wall_seconds": wall, "machine": machine_description(),

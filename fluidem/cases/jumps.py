@@ -40,8 +40,8 @@ import numpy as np
 from ..geometry import ellipse_polygon
 from ..scene import Scene
 
-__all__ = ["ellipse_perimeter", "ellipse_sides", "jump_figures", "jump_run", "settling_ellipse_scene",
-           "turning_ellipse_scene"]
+__all__ = ["INGREDIENTS", "ellipse_perimeter", "ellipse_sides", "jump_figures", "jump_run", "settling_ellipse_scene",
+           "switch_ingredient", "turning_ellipse_scene"]
 
 
 def ellipse_perimeter(a: float, b: float) -> float:
@@ -92,6 +92,65 @@ def settling_ellipse_scene(h: float, steps: int = 120, dt: float = 0.01, density
                     "angle": 0.6, "density": density}],
         "mesh": {"h": h, "strategy": "drag", "grading": {"region": "bodies", "growth": 1.2, "h_max": min(8 * h, 0.1)}},
         "time": {"dt": dt, "t_end": dt * steps}})
+
+
+def _l2_transfer(flow):
+    """Switch: u^n, u^{n−1} carried over by the conservative L2 projection on the supermesh
+    (:func:`fluidem.mesh.transfer.project_l2`) instead of interpolation at the new DOFs."""
+    from skfem import Basis, ElementVector, MeshTri
+
+    from ..coupling.moving_flow import transfer_change
+    from ..mesh import transfer
+
+    def _transfer(ev, old_space, u_n, u_p):
+        src = ev.old_points if ev.history == "ale" else ev.prev_points
+        old = MeshTri(np.asarray(src, float).T.copy(), np.asarray(ev.old_triangles).T.copy())
+        ob = Basis(old, ElementVector(old_space.pair.velocity()))
+        sm = transfer.supermesh(old, flow.space.ub.mesh)
+        new_n = transfer.project_l2(ob, u_n, flow.space.ub, sm=sm)
+        new_p = None if u_p is None else transfer.project_l2(ob, u_p, flow.space.ub, sm=sm)
+        ev.transfer_change = transfer_change(ob, u_n, flow.space.ub, new_n)
+        return new_n, new_p
+
+    flow._transfer = _transfer
+
+
+def _bdf1_restart(flow):
+    """Switch: the step after a re-triangulation is BDF1 (u^{n−1} dropped) instead of BDF2."""
+    inner = flow._transfer
+
+    def _transfer(ev, old_space, u_n, u_p):
+        return inner(ev, old_space, u_n, None)[0], None
+
+    flow._transfer = _transfer
+
+
+def _first_order_w(flow):
+    """Switch: at a re-triangulation step the mesh velocity is the last step's displacement over dt,
+    new nodes taking their old neighbours' mean (``MovingMesh.node_velocity(order=1)``), instead of the
+    BDF2 derivative of the inherited node trajectories."""
+    mm = flow.mm
+    inner = mm.node_velocity
+
+    def node_velocity(dt, order=1):
+        return inner(dt, order=1 if flow.last_event.retriangulated else order)
+
+    mm.node_velocity = node_velocity
+
+
+#: the ingredients :func:`switch_ingredient` can change, and what each does
+INGREDIENTS = {"l2": _l2_transfer, "bdf1": _bdf1_restart, "first-order-w": _first_order_w}
+
+
+def switch_ingredient(flow, name: str) -> None:
+    """Change one ingredient of the re-triangulation step of ``flow`` (a ``MovingMeshFlow``), to measure it.
+
+    ``"l2"``: u^n, u^{n−1} by the conservative L2 projection; ``"bdf1"``: the step after a
+    re-triangulation is BDF1; ``"first-order-w"``: the mesh velocity of that step from the last
+    displacement (new nodes: their old neighbours' mean).  The package's own step is none of these
+    (interpolation at t + dt, BDF2, the BDF2 derivative of the inherited node trajectories).
+    """
+    INGREDIENTS[name](flow)
 
 
 def jump_run(scene: Scene, min_angle_margin: float | None = None, flow_hook=None) -> dict:
