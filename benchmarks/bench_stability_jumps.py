@@ -90,6 +90,24 @@ def one(label: str) -> dict:
             "figures": jump_figures(r["rows"]), "rows": r["rows"]}
 
 
+def _round(v):
+    """Floats to 9 significant digits (the kink is 1e-4 of the force), in nested lists and dicts."""
+    if isinstance(v, float):
+        return float(f"{v:.9g}")
+    if isinstance(v, list):
+        return [_round(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _round(x) for k, x in v.items()}
+    return v
+
+
+def _write(data: dict) -> None:
+    """``stability_jumps.json``: one line per run."""
+    runs = ",\n".join(f"{json.dumps(k)}: {json.dumps(_round(v), separators=(',', ':'))}"
+                       for k, v in data["runs"].items())
+    OUT.write_text("{\"runs\": {\n" + runs + "\n}}\n")
+
+
 def _noise(v) -> str:
     return "–" if v is None else f"{v:.1e}"
 
@@ -163,7 +181,7 @@ def main(argv) -> None:
             r = one(lab)
             data["runs"][lab] = r
             RESULTS.mkdir(exist_ok=True)
-            OUT.write_text(json.dumps(data, indent=0))
+            _write(data)
             f = r["figures"]
             print(f"{lab}: edges {r['edges']} dofs {r['dofs']} retri {f['retriangulations']} ratio "
                   f"{f['ratio']:.2f} max {f['ratio_max']:.2f} p90 {f['ratio_p90']:.2f} {r['wall_seconds']:.0f} s",
@@ -171,6 +189,7 @@ def main(argv) -> None:
     order = list(RUNS) + list(ABLATIONS)
     data["runs"] = {k: data["runs"][k] for k in order if k in data["runs"]} | \
         {k: v for k, v in data["runs"].items() if k not in order}
+    _write(data)
     report(data)
 
 
