@@ -7,23 +7,15 @@ import numpy as np
 
 from .effects import readable_bytes
 
-__all__ = ["DOFS_PER_VERTEX", "TRIANGLES_PER_AREA", "TRIANGLES_PER_AREA_UNIFORM", "BYTES_PER_DOF", "BYTES_BASE",
-           "MIN_EDGES_PER_BODY",
+__all__ = ["DOFS_PER_VERTEX", "TRIANGLES_PER_AREA", "BYTES_PER_DOF", "BYTES_BASE", "MIN_EDGES_PER_BODY",
            "MIN_THICKNESS_PER_H", "machine_memory", "mesh_estimate", "mesh_warnings"]
 
 #: DOFs per mesh vertex of each element pair on a triangle mesh (E ≈ 3V edges, T ≈ 2V triangles)
 DOFS_PER_VERTEX = {"th": 9.0, "p2b": 18.0, "p3": 22.0, "mini": 7.0}
-#: measured: triangles ≈ this × area / h² on graded meshes (from the graded size field; DFG cylinder, settling
-#: disk, DKT: within 10 %)
+#: measured: triangles ≈ this × area / h² (an equilateral mesh has 2.31; the boundary refinement adds the rest)
 TRIANGLES_PER_AREA = 3.6
-#: measured: triangles ≈ this × area / h² on a uniform mesh (the Friedrichs–Keller grid has 2, the outlines add
-#: a little): 2 416 and 17 065 triangles in the sheared-suspension and suspension examples, where 3.6 gave
-#: 1.68 and 1.77 times as many
-TRIANGLES_PER_AREA_UNIFORM = 2.1
-#: measured peak memory per DOF of a run besides the LU factors (matrices, assembly, the moving mesh), bytes,
-#: plus a base: 1 649 MiB for 159k DOFs of a settling suspension of 100 polygons with PARDISO, of which its
-#: LU ~480 MiB; the LU's own by :func:`fluidem.fluid.solvers.memory.predicted_lu_bytes`
-BYTES_PER_DOF, BYTES_BASE = 7e3, 150e6
+#: measured peak memory per DOF of a run (matrices, the LU factors, the moving mesh), bytes; plus a base
+BYTES_PER_DOF, BYTES_BASE = 11e3, 150e6
 #: smallest mesh edges along a body's outline, and smallest thickness / h, before a warning
 MIN_EDGES_PER_BODY, MIN_THICKNESS_PER_H = 8, 0.1
 
@@ -85,13 +77,10 @@ def _graded_cells(scene, fluid_area: float) -> float:
 def mesh_estimate(scene, memory: tuple[float, float] | None = None) -> dict:
     """Rough size of a fluid scene's mesh and solve, before anything is built.
 
-    Triangles ≈ :data:`TRIANGLES_PER_AREA_UNIFORM` × (fluid area) / h² (graded:
-    :data:`TRIANGLES_PER_AREA` × the mean of (h/h(x))² over the box for the graded size h(x)); nodes
-    ≈ triangles / 2; DOFs by :data:`DOFS_PER_VERTEX`; peak memory ≈ :data:`BYTES_BASE` +
-    :data:`BYTES_PER_DOF` × DOFs + the LU's (:func:`fluidem.fluid.solvers.memory.predicted_lu_bytes`
-    of the backend ``fluid.lu_backend`` picks at that size; none where the run solves by block GMRES:
-    ``fluid.solver = "iterative"``, or ``"auto"`` for Navier–Stokes when the LU would not fit).
-    Within a factor of ~2.
+    Triangles ≈ :data:`TRIANGLES_PER_AREA` × (fluid area) / h² (graded: × the mean of
+    (h/h(x))² over the box for the graded size h(x)); nodes ≈ triangles / 2; DOFs by
+    :data:`DOFS_PER_VERTEX`; peak memory ≈ :data:`BYTES_BASE` + :data:`BYTES_PER_DOF` × DOFs
+    (measured for a Taylor–Hood channel with the default solver).  Within a factor of ~2.
 
     Parameters
     ----------
@@ -104,7 +93,7 @@ def mesh_estimate(scene, memory: tuple[float, float] | None = None) -> dict:
     -------
     dict
         ``triangles``, ``nodes``, ``dofs``, ``peak_bytes``, ``machine_bytes``,
-        ``available_bytes``, ``lu_bytes`` (floats; ``lu_bytes`` 0 without an LU) and ``lu_backend``.
+        ``available_bytes`` (floats).
     """
     x0, x1, y0, y1 = scene.domain.box
     area_b, _ = _outline_stats(scene) if scene.bodies else (np.zeros(0), None)
@@ -113,8 +102,7 @@ def mesh_estimate(scene, memory: tuple[float, float] | None = None) -> dict:
     g = scene.mesh.grading
     if g is None:  # in ratios to h: inf, not an error, for an absurdly small h (the plan refuses it)
         with np.errstate(over="ignore"):
-            tri = TRIANGLES_PER_AREA_UNIFORM * max(((x1 - x0) / h) * ((y1 - y0) / h) - float(area_b.sum() / h / h),
-                                                   0.0)
+            tri = TRIANGLES_PER_AREA * max(((x1 - x0) / h) * ((y1 - y0) / h) - float(area_b.sum() / h / h), 0.0)
     else:
         tri = TRIANGLES_PER_AREA * _graded_cells(scene, A)
     n_boundary = 2.0 * ((x1 - x0) + (y1 - y0)) / h + sum(scene.default_segments(b) for b in scene.bodies)
@@ -122,24 +110,8 @@ def mesh_estimate(scene, memory: tuple[float, float] | None = None) -> dict:
     nodes = max(tri / 2.0, n_boundary)
     dofs = DOFS_PER_VERTEX.get(scene.fluid.element, 9.0) * nodes
     total, avail = machine_memory() if memory is None else memory
-    backend, lu = _lu_of(scene.fluid, dofs, avail)
-    return {"triangles": tri, "nodes": nodes, "dofs": dofs, "peak_bytes": BYTES_BASE + BYTES_PER_DOF * dofs + lu,
-            "machine_bytes": total, "available_bytes": avail, "lu_bytes": lu, "lu_backend": backend}
-
-
-def _lu_of(fluid, dofs: float, available: float) -> tuple[str, float]:
-    """The LU backend a run of ``fluid`` would factorise ``dofs`` with and its predicted bytes (0: no LU)."""
-    from ..fluid.solvers.direct import default_direct_backend
-    from ..fluid.solvers.memory import LU_MEMORY_FRACTION, predicted_lu_bytes
-
-    if not np.isfinite(dofs):
-        return "superlu", float("inf")
-    n = int(dofs)
-    backend = default_direct_backend(n) if fluid.lu_backend == "auto" else fluid.lu_backend
-    lu = predicted_lu_bytes(n, backend)
-    gmres = fluid.solver == "iterative" or (fluid.solver == "auto" and fluid.model == "navier-stokes"
-                                            and lu > LU_MEMORY_FRACTION * available)
-    return backend, 0.0 if gmres else lu
+    return {"triangles": tri, "nodes": nodes, "dofs": dofs, "peak_bytes": BYTES_BASE + BYTES_PER_DOF * dofs,
+            "machine_bytes": total, "available_bytes": avail}
 
 
 def mesh_warnings(scene, est) -> tuple[list, list]:
