@@ -15,6 +15,11 @@ Runs: the same scenes run a few steps with ``fluid.lu_backend = "superlu"`` and 
 (and ``fluid.solver = "iterative"``, memory linear in DOFs): seconds per step (median over the steps
 after the first), the solve's share, LU factorisations, peak MiB.
 
+The plan's estimate of a uniform mesh (3.6 triangles per h², measured on one-body channels) counts these
+many-body scenes 1.7–1.8 times too large: 1 000 bodies at h = 0.012 are estimated at 2.7M DOFs and ~30 GB
+and refused on a machine with less (1.57M DOFs and 12.3 GB peak were measured with PARDISO, with a
+temporary estimate of 2.1 triangles per h²).
+
 Run (tens of minutes; one BLAS thread)::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_solver_scale.py [--part systems,runs] [--bodies 100,300,1000]
