@@ -44,6 +44,8 @@ Examples
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -53,8 +55,10 @@ __all__ = ["PardisoLU", "pardiso_available", "PARDISO_IPARM"]
 PARDISO_IPARM = {1: 1, 2: 2, 8: 0, 10: 8, 11: 1, 13: 1, 18: -1}
 
 
+@functools.cache
 def pardiso_available() -> bool:
-    """Whether the optional ``pypardiso`` (and its MKL runtime) imports."""
+    """Whether the optional ``pypardiso`` (and its MKL runtime) imports; checked once a process (a failed
+    import is not cached by Python, and ``"auto"`` asks at every factorisation of a large system)."""
     try:
         import pypardiso  # noqa: F401
     except Exception:  # ImportError, or mkl_rt missing
