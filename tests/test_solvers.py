@@ -300,6 +300,25 @@ def test_lagged_lu_solves_perturbed_matrix_in_few_iterations():
     assert s.solves == 4 and s.total_iterations >= 2
 
 
+def test_lagged_lu_solves_to_a_looser_tolerance_when_asked():
+    """``solve(b, rtol=...)`` (the contact-load correction of free bodies): the residual asked for is
+    met with fewer iterations than the solver's own rtol needs (measured 1 against 6); through
+    ``AutoSolver`` too."""
+    P0 = problem(10, nu=1e-3, dt=1e-2, peclet=0.2)
+    P1 = problem(10, nu=1e-3, dt=1.05e-2, peclet=0.25)
+    s = LaggedLUSolver(rtol=1e-10, max_iterations_before_refactor=50)
+    s.factorize(P0.K)
+    s.factorize(P1.K).solve(P1.b)
+    tight = s.last_info.iterations
+    x = s.solve(P1.b, rtol=1e-4)
+    assert relres(P1.K, x, P1.b) <= 1e-4 and s.last_info.iterations < tight
+    a = AutoSolver(kind="unsteady", lagged_options={"rtol": 1e-10, "max_iterations_before_refactor": 50})
+    a.factorize(P0.K)
+    a.factorize(P1.K)
+    assert relres(P1.K, a.solve(P1.b, rtol=1e-4), P1.b) <= 1e-4
+    assert a.chosen == "lagged" and 1 <= a.last_info.iterations < tight
+
+
 def test_lagged_lu_falls_back_to_fresh_lu():
     P0 = problem(6)
     K1 = P0.K.copy()  # very different values, same pattern

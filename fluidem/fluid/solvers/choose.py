@@ -301,9 +301,13 @@ class AutoSolver:
             self.solver.factorize(K)
         return self
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        """Solve with the chosen solver; ``b`` shape (n,), returns ``x`` shape (n,)."""
+    def solve(self, b: np.ndarray, rtol: float | None = None) -> np.ndarray:
+        """Solve with the chosen solver; ``b`` shape (n,), returns ``x`` shape (n,).  ``rtol``: the
+        relative residual of this solve for a lagged LU (:meth:`LaggedLUSolver.solve`); other
+        solvers keep their own."""
         try:
+            if rtol is not None and isinstance(self.solver, LaggedLUSolver):
+                return self.solver.solve(b, rtol=rtol)
             return self.solver.solve(b)
         except SolverError as err:
             if not (self.fallback and self.chosen == "iterative"):

@@ -96,6 +96,10 @@ class LaggedLUSolver:
         self._refactor_next = False
         self._fresh = False
         self._setup_s = 0.0
+        #: seconds of the last factorisation, and of the GMRES iterations since it beyond the two
+        #: back-substitutions a fresh LU needs (its solve and one refinement step)
+        self._factor_s = 0.0
+        self._lag_s = 0.0
 
     def _factorize_current(self):
         t0 = time.perf_counter()
@@ -103,7 +107,19 @@ class LaggedLUSolver:
         self.factorizations += 1
         self._fresh = True
         self._refactor_next = False
-        self._setup_s = time.perf_counter() - t0
+        self._setup_s = self._factor_s = time.perf_counter() - t0
+        self._lag_s = 0.0
+
+    @property
+    def refactor_by_cost(self) -> bool:
+        """Whether a refactorisation is also due once the iterations the lagged LU cost beyond a
+        fresh one's have taken as long as the last factorisation (the rent-or-buy rule, which is
+        never more than twice the best choice made in hindsight: Karlin et al., *Competitive
+        snoopy caching*, Algorithmica 3, 1988).  On for PARDISO, whose numerical factorisation on
+        the analysis of the same pattern costs ~20 back-substitutions
+        (:meth:`~.pardiso.PardisoLU.refactor`); a SuperLU factorisation costs hundreds, and
+        ``max_iterations_before_refactor`` alone decides."""
+        return self.direct.backend == "pardiso"
 
     def factorize(self, K, force: bool = False) -> "LaggedLUSolver":
         """Make ``K`` the current matrix; compute an LU only when needed.
@@ -130,12 +146,15 @@ class LaggedLUSolver:
             self._setup_s = 0.0
         return self
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
+    def solve(self, b: np.ndarray, rtol: float | None = None) -> np.ndarray:
         """Solve ``K x = b`` for the current ``K``.
 
         Parameters
         ----------
         b : (n,) float ndarray
+        rtol : float, optional
+            Relative residual of this solve instead of :attr:`rtol` (e.g. looser for a small
+            correction whose absolute accuracy is what matters); a fresh LU solves directly.
 
         Returns
         -------
@@ -153,7 +172,8 @@ class LaggedLUSolver:
             it, hist = 0, self.direct.last_info.residuals
         else:
             x, it, hist, reason = run_fgmres(self.K, b, self.direct.as_preconditioner(), None,
-                                          self.rtol, self.maxiter, self.maxiter, 0.999)
+                                          self.rtol if rtol is None else float(rtol), self.maxiter,
+                                          self.maxiter, 0.999)
             self.total_iterations += it
             if reason:
                 note = f"GMRES with the lagged LU failed ({reason}); refactorized"
@@ -163,6 +183,11 @@ class LaggedLUSolver:
             elif it > self.max_iterations_before_refactor:
                 self._refactor_next = True
                 note = "refactorization due at the next factorize"
+            elif self.refactor_by_cost and it > 2:
+                self._lag_s += (time.perf_counter() - t0) * (it - 2) / it
+                if self._lag_s > self._factor_s:
+                    self._refactor_next = True
+                    note = "refactorization due at the next factorize (the lag cost a factorisation)"
         info = SolveInfo(method="gmres+lagged-lu" if it else self.direct.backend,
                          n=self.K.shape[0], iterations=it, residuals=np.asarray(hist),
                          relative_residual=float(hist[-1]), setup_s=self._setup_s,
@@ -171,7 +196,7 @@ class LaggedLUSolver:
         self.last_info = info
         if krylov:
             _notify_solve(info)
-        if not info.relative_residual <= max(self.rtol, self.direct.check_rtol):
+        if not info.relative_residual <= max(self.rtol if rtol is None else rtol, self.direct.check_rtol):
             raise SolverError(f"lagged-LU solve ended at residual {info.relative_residual:.2e}",
                               info)
         return x

@@ -24,6 +24,13 @@ leaves a relative residual of 4.9e-3 after MKL's two refinement steps (1.1 witho
 ε = 1e-8 the same pivot leaves 7.8e-6, and GMRES preconditioned by the factors reaches 5e-10 in
 2 iterations.  Without matching (11, 13 = 0) 51 234 pivots are perturbed.
 
+Between re-triangulations the coupled matrix keeps its sparsity pattern and only its values
+change: :meth:`PardisoLU.refactor` then repeats the numerical factorisation (phase 22) on the
+ordering, scaling and matching of the analysis (phase 11).  On the 149 285-DOF system: analysis
+and factorisation 5.9 s, the numerical factorisation alone 1.29 s (the analysis 4.1 s of it), a
+solve 0.063 s; after a change of 1e-3 of every value the refactorised solve leaves 3.3e-10 with no
+pivot perturbed (load 3.4 on 2 cores).
+
 ``pypardiso``'s own ``solve`` compares the matrix with the factorised one (a copy or a SHA-1
 of its arrays) at every call; :meth:`PardisoLU.solve` calls the factorisation's solve phase
 directly.  Right-hand sides are copied to float64 in Fortran order first: PARDISO reads the
@@ -82,6 +89,8 @@ class PardisoLU:
         Pivots replaced by ε ‖K‖ (``iparm(14)``).
     peak_bytes : int
         PARDISO's peak memory of the analysis and factorisation (``iparm(15..17)``), bytes.
+    numeric_refactorizations : int
+        Numerical factorisations on the same analysis after the first (:meth:`refactor`).
 
     Raises
     ------
@@ -110,6 +119,39 @@ class PardisoLU:
         self.fill = int(it[17])
         self.perturbed = int(it[13])
         self.peak_bytes = 1024 * int(max(it[14], it[15] + it[16]))
+        #: numerical factorisations on this analysis after the first (:meth:`refactor`)
+        self.numeric_refactorizations = 0
+
+    def refactor(self, K) -> bool:
+        """Factorise ``K`` numerically on the analysis of the matrix factorised first (PARDISO's
+        phase 22), when ``K`` has its sparsity pattern (``indptr`` and ``indices`` equal);
+        ``False``, and nothing done, otherwise.
+
+        Raises
+        ------
+        RuntimeError
+            PARDISO's error code (the previous factors are freed).
+        """
+        import pypardiso
+
+        if self._ps is None:
+            return False
+        K = sp.csr_matrix(K, dtype=np.float64)
+        K.sort_indices()
+        if K.shape != self.K.shape or not (np.array_equal(K.indptr, self.K.indptr)
+                                           and np.array_equal(K.indices, self.K.indices)):
+            return False
+        self._ps.set_iparm(12, 0)
+        self._ps.set_phase(22)
+        try:
+            self._ps._call_pardiso(K, np.zeros((K.shape[0], 1), order="F"))
+        except pypardiso.pardiso_wrapper.PyPardisoError as err:
+            self.free()
+            raise RuntimeError(str(err)) from err
+        self.K = K
+        self.perturbed = int(self._ps.iparm[13])
+        self.numeric_refactorizations += 1
+        return True
 
     def solve(self, b, trans: str = "N") -> np.ndarray:
         """``K⁻¹ b`` (``trans="T"``: ``K⁻ᵀ b``) with the stored factors, ``b (n,)`` or ``(n, k)``;
