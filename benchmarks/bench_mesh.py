@@ -16,15 +16,18 @@ Run (one BLAS thread; wall-clock, so noisy on a shared machine)::
 count.
 
 Collective motion (hard case 6, :func:`fluidem.cases.packings.collective_motion`, written to
-``benchmarks/results/mesh_collective.{md,json}``; about 3 minutes): 120 polygons at area
+``benchmarks/results/mesh_collective.{md,json}``; about 5 minutes): 120 polygons at area
 fraction 0.3 in a 10 × 10 box, h = 0.08, moved as a whole (rotation, breathing, shear; one
-period of 300 steps), ``drag`` over the period against ``regenerate`` over its first 30 steps,
+period of 300 steps; dense packings turned and scaled, ``COLLECTIVE_ROWS``), ``drag`` over
+the period against ``regenerate`` over its first 30 steps,
 and hard case 1 (60 drag steps, 30 regenerate steps) in the same run for the per-node cost.
 Per step: wall time split by stage, re-triangulations by reason, the worst angles in narrow
 gaps, near the bodies (centroid within 2 h of an outline) and in the open fluid.
 Targets: drag ≥ 5 × cheaper per step than regenerate (means, re-triangulations amortised),
 per-node cost ≤ 1.5 × hard case 1's, minimum angle outside narrow gaps ≥ 15°, ≤ 1 % of the
-angles above 135°.  Only this part::
+angles above 135°.  Dense cases (area fraction 0.32, gaps 0.01–0.03 < h/2, turned and scaled
+until the narrowest gap nearly closes or one pair touches): ≥ 5 ×, ≥ 10° outside narrow gaps,
+narrow gaps as a fresh triangulation makes them.  Only this part::
 
     OPENBLAS_NUM_THREADS=1 python -m pytest benchmarks/bench_mesh.py -k collective --benchmark-only -p no:cacheprovider
 """
@@ -39,6 +42,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+import shapely  # noqa: E402
 from results_io import RESULTS, machine_description, write_json  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
 
@@ -119,7 +123,21 @@ def test_triangle_alone_100k(benchmark, big):
 #: stages of a drag step timed by :class:`StageTimer` (functions called by fluidem.mesh.moving)
 STAGES = {"drag": "dragged_positions", "relax": "relax", "triggers": "retriangulation_reason",
           "history": None, "retriangulate": None, "harmonic_factor": None}
-COLLECTIVE_KINDS = ("rotation", "breathing", "shear", "turn-and-breathe")
+#: the rows: (label, motion kind, arguments of :func:`collective_motion` besides ``h``)
+COLLECTIVE_ROWS = (
+    ("rotation", "rotation", {}),
+    ("breathing", "breathing", {}),
+    ("shear", "shear", {}),
+    # the first dense case: gaps 0.01-0.03 scaled by 5 %, so that 40 pairs overlap by up to 0.013
+    # (1.3 times the narrowest start gap, h/6), more than bodies of a suspension do
+    ("turn-and-breathe", "turn-and-breathe", {"min_gap": 0.01}),
+    # dense packings moved as a suspension can move: area fraction 0.32, gaps 0.01-0.03 (h/8 to
+    # h/2.7), turned by 0.25 rad and scaled by 2 % (the narrowest gap closes to 0.0012, h/67, no
+    # overlap) or by 2.5 % (one pair comes into contact, overlapping by 0.0012 as a soft DEM
+    # contact does)
+    ("dense, near contact", "turn-and-breathe", {"phi": 0.32, "min_gap": 0.01, "amplitude": (0.25, 0.02)}),
+    ("dense, into contact", "turn-and-breathe", {"phi": 0.32, "min_gap": 0.01, "amplitude": (0.25, 0.025)}),
+)
 COLLECTIVE_H = 0.08
 REGENERATE_STEPS = 30
 
@@ -223,6 +241,34 @@ def run_motion(box, bodies, poses0, seq, h, strategy, census=True):
             "max_triangles_by_region": seen}
 
 
+def deepest_overlap(m) -> float:
+    """Deepest overlap of two bodies of ``m`` (:class:`CollectiveMotion`) over the period (every
+    step), length units: the narrower side of the smallest rectangle around each intersection."""
+    worst = 0.0
+    for k in range(m.n_steps + 1):
+        polys = shapely.polygons(shapely.linearrings(m._world(m.poses_at(k)), indices=m._vb))
+        a, b = shapely.STRtree(polys).query(polys, predicate="intersects")
+        sel = a < b
+        if sel.any():
+            rect = shapely.minimum_rotated_rectangle(shapely.intersection(polys[a[sel]], polys[b[sel]]))
+            c = shapely.get_coordinates(rect).reshape(-1, 5, 2)
+            side = np.minimum(np.linalg.norm(c[:, 1] - c[:, 0], axis=1), np.linalg.norm(c[:, 2] - c[:, 1], axis=1))
+            worst = max(worst, float(side.max()))
+    return worst
+
+
+def fresh_at_narrowest(m) -> dict:
+    """Angles of a fresh triangulation at the step of the narrowest gap of ``m``: what a new mesh
+    gives in the narrow gaps there (the limit set by the outline spacing h across a gap g ≪ h)."""
+    gaps = [m._min_gap(m.poses_at(k)) for k in range(m.n_steps + 1)]
+    k = int(np.argmin(gaps))
+    mm = MovingMesh(m.box, m.bodies, m.poses_at(k), h=COLLECTIVE_H, strategy="drag")
+    narrow = mm._narrow_gap()
+    amin = triangle_angles(mm.points, mm.triangles).min(axis=1)
+    return {"step": k, "gap": gaps[k], "narrow_min_angle": float(amin[narrow].min()) if narrow.any() else 90.0,
+            "outside_min_angle": float(amin[~narrow].min())}
+
+
 def measure_collective() -> list:
     rows = []
     bodies, poses, box = packing(n=200, phi=0.5, sizes=(0.5, 1.5), n_vertices=(3, 8), min_gap=0.01, seed=0)
@@ -232,11 +278,12 @@ def measure_collective() -> list:
                  "drag": run_motion(box, bodies, poses, seq, 0.2, "drag", census=False),
                  "regenerate": run_motion(box, bodies, poses, seq[:REGENERATE_STEPS], 0.2, "regenerate",
                                           census=False)})
-    for kind in COLLECTIVE_KINDS:
-        m = collective_motion(kind, h=COLLECTIVE_H, min_gap=0.01 if kind == "turn-and-breathe" else 0.06)
+    for label, kind, kwargs in COLLECTIVE_ROWS:
+        m = collective_motion(kind, h=COLLECTIVE_H, **kwargs)
         seq = m.sequence()
-        rows.append({"case": kind, "h": COLLECTIVE_H, "rim_step": m.rim_step, "min_gap_seen": m.min_gap_seen,
-                     "amplitude": m.amplitude,
+        rows.append({"case": label, "kind": kind, "h": COLLECTIVE_H, "rim_step": m.rim_step,
+                     "min_gap_seen": m.min_gap_seen, "amplitude": m.amplitude, "packing": kwargs,
+                     "deepest_overlap": deepest_overlap(m), "fresh_at_narrowest": fresh_at_narrowest(m),
                      "drag": run_motion(m.box, m.bodies, m.poses0, seq, COLLECTIVE_H, "drag"),
                      "regenerate": run_motion(m.box, m.bodies, m.poses0, seq[:REGENERATE_STEPS], COLLECTIVE_H,
                                               "regenerate", census=False)})
@@ -256,8 +303,12 @@ def write_collective(rows: list) -> None:
              "120 convex polygons (sizes 0.3–0.6, area fraction 0.3 in their own square, centred in a 10 × 10 box), "
              "h = 0.08, one period of 300 steps of a rigid rotation (rim step h/8), a ±5 % breathing of the centre "
              "positions and a simple shear of amplitude 0.1, packed with gaps 0.06–0.18 so that none closes; "
-             "`turn-and-breathe`: 0.25 rad and 5 % together on a packing with gaps 0.01–0.03, which come into "
-             "contact (not a target case). `drag` over the period, `regenerate` over its first "
+             "`turn-and-breathe`: 0.25 rad and 5 % together on a packing with gaps 0.01–0.03, which overlap "
+             "(40 pairs, up to 1.3 times the narrowest start gap: not a target case, kept for comparison); "
+             "the dense cases: area fraction 0.32, gaps 0.01–0.03 (all below h/2), 0.25 rad with 2 % (`near "
+             "contact`: the narrowest gap closes to h/67, no overlap) or 2.5 % (`into contact`: one pair "
+             "touches, overlapping by h/67 as a soft contact does). `drag` over the period, `regenerate` over "
+             "its first "
              f"{REGENERATE_STEPS} steps, hard case 1 (200 polygons, h = 0.2, 60 drag / {REGENERATE_STEPS} "
              "regenerate steps) in the same run (`benchmarks/bench_mesh.py`). Means include the "
              "re-triangulations (amortised); "
@@ -283,14 +334,21 @@ def write_collective(rows: list) -> None:
         lines.append(f"| {r['case']} | " + " | ".join(f"{st[k]:.1f}" for k in STAGES)
                      + f" | {r['drag']['relax_sweeps_per_step']} |")
     lines += ["", "Where the bad angles are (worst min angle over every step and the largest share of angles above "
-              "135° in one step, by region; near: centroid within 2 h of a body outline):", "",
-              "| case | narrow gaps | near the bodies | open fluid |", "|---" * 4 + "|"]
+              "135° in one step, by region; near: centroid within 2 h of a body outline; narrow gaps: gap "
+              "below h/2 at the centroid or anchored across one, `MovingMesh.quality`). A gap g ≪ h is "
+              "spanned by one layer of elements between outline nodes h apart, whose smallest angle is about "
+              "atan(2g/h) however the mesh is made: the last column is a fresh triangulation at the step of "
+              "the narrowest gap (or of the first contact):", "",
+              "| case | smallest gap (deepest overlap) | narrow gaps | near the bodies | open fluid | "
+              "fresh triangulation there: narrow gaps, elsewhere |", "|---" * 6 + "|"]
     for r in rows[1:]:
         w, a = r["drag"]["worst_min_angle_by_region"], r["drag"]["worst_frac_above_135_by_region"]
         n = r["drag"]["max_triangles_by_region"]
-        lines.append(f"| {r['case']} | " + " | ".join(f"{w[k]:.1f}°, {100 * a[k]:.2f} % (≤ {n[k]} triangles)"
-                                                       if n[k] else "none" for k in ("narrow", "near", "open"))
-                     + " |")
+        f = r["fresh_at_narrowest"]
+        lines.append(f"| {r['case']} | {r['min_gap_seen']:.4f} ({r['deepest_overlap']:.4f}) | "
+                     + " | ".join(f"{w[k]:.1f}°, {100 * a[k]:.2f} % (≤ {n[k]} triangles)"
+                                  if n[k] else "none" for k in ("narrow", "near", "open"))
+                     + f" | {f['narrow_min_angle']:.1f}°, {f['outside_min_angle']:.1f}° (step {f['step']}) |")
     (RESULTS / "mesh_collective.md").write_text("\n".join(lines) + "\n")
 
 

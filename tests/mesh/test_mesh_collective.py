@@ -1,7 +1,8 @@
 """Hard case 6 in small: a packing moved as a whole (rotation, breathing, shear), asserted every step.
 
 30 polygons (sizes 0.3-0.6, gaps 0.06-0.18) in a 5 x 5 box, h = 0.1 (about 2.7k nodes), one
-period of 60 steps; the full case (120 polygons, h = 0.08, 300 steps) is in
+period of 60 steps, and a dense cluster (area fraction 0.32, gaps 0.01-0.03) turned and squeezed
+until its narrowest gap nearly closes; the full case (120 polygons, h = 0.08, 300 steps) is in
 ``test_mesh_hard_cases.py`` and ``benchmarks/bench_mesh.py``.
 """
 
@@ -67,3 +68,33 @@ def test_bad_motion_kind_names_the_value_and_the_choices():
     with pytest.raises(InputError, match="'spin'"):
         CollectiveMotion(m.bodies, m.poses0, m.box, "spin", 0.1, 60)
     assert "turn-and-breathe" in COLLECTIVE_MOTIONS
+
+
+def test_a_dense_cluster_turned_and_squeezed_keeps_its_mesh():
+    """30 polygons at area fraction 0.32 with gaps 0.01-0.03 (below h/3), turned by 0.25 rad and
+    scaled by 2 % over one period of 150 steps (rim step h/5.7): the narrowest gap closes to
+    h/26 without overlap.  Dragging keeps the connectivity between the periodic
+    re-triangulations, the angles outside narrow gaps stay within the bounds, and inside the
+    narrow gaps they are those of a fresh triangulation at the narrowest step (a gap g ≪ h is
+    spanned by one layer of elements between outline nodes h apart)."""
+    m = collective_motion("turn-and-breathe", h=H, n=30, phi=0.32, min_gap=0.01, box_size=5.0, n_steps=150,
+                          amplitude=(0.25, 0.02))
+    assert 0.0 < m.min_gap_seen < H / 10  # measured 0.0039: the gaps nearly close, no body overlaps
+    mm = MovingMesh(m.box, m.bodies, m.poses0, h=H, strategy="drag")
+    worst_min, worst_all, worst_135, reasons = 90.0, 90.0, 0.0, {}
+    for k, p in enumerate(m.sequence()):
+        ev = mm.update(p)
+        reasons[ev.reason] = reasons.get(ev.reason, 0) + 1
+        q = mm.quality()
+        assert q.n_inverted == 0 and q.n_nodes_inside_bodies == 0 and q.min_area > 0, (k, q)
+        worst_min, worst_135 = min(worst_min, q.min_angle), max(worst_135, q.frac_above_135)
+        worst_all = min(worst_all, q.min_angle_all)
+    # measured: worst min angle outside narrow gaps 17.4°, share above 135° 0.007 %
+    assert worst_min >= 15.0 and worst_135 <= 0.01
+    # measured: the 5 periodic re-triangulations only (no contact, inversion, collapse or quality)
+    assert set(reasons) <= {"", "periodic", "quality"}, reasons
+    assert reasons[""] >= 143, reasons  # measured 145
+    narrowest = int(np.argmin([m._min_gap(m.poses_at(k)) for k in range(m.n_steps + 1)]))
+    fresh = MovingMesh(m.box, m.bodies, m.poses_at(narrowest), h=H, strategy="drag").quality()
+    # measured: 3.94° dragged and fresh (at step 112, gap 0.0039); about atan(2g/h) = 4.5°
+    assert worst_all >= 0.9 * fresh.min_angle_all

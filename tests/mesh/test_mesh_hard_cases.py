@@ -153,8 +153,9 @@ def test_case6_collective_motion_drag(kind):
 @pytest.mark.slow(seconds=30)
 def test_case6_turn_and_breathe_into_contact():
     """The same packing built with gaps 0.01-0.03, turned by 0.25 sin(2πk/300) rad and scaled by
-    1 + 0.05 sin(2πk/300): at the strongest contraction bodies come into contact (and overlap
-    slightly, as the DEM allows), every step stays valid: no outline node inside another body."""
+    1 + 0.05 sin(2πk/300): at the strongest contraction bodies come into contact and overlap
+    (40 pairs, by up to 0.013, h/6: deeper than bodies of a suspension do), every step stays
+    valid: no outline node inside another body."""
     h = 0.08
     m = collective_motion("turn-and-breathe", h=h, min_gap=0.01)
     assert m.min_gap_seen == 0.0  # bodies do touch
@@ -165,3 +166,24 @@ def test_case6_turn_and_breathe_into_contact():
     # contact changes the outline, and a sliver across a gap narrower than the tangential slide
     # per step inverts
     assert s["reasons"].get("contact", 0) >= 5
+
+
+@pytest.mark.slow(seconds=50)
+@pytest.mark.parametrize("scale,narrowest", [(0.02, 0.0012), (0.025, 0.0)], ids=["near-contact", "into-contact"])
+def test_case6_dense_cluster_turned_and_squeezed(scale, narrowest):
+    """120 polygons at area fraction 0.32 with gaps 0.01-0.03 (below h/2), turned by 0.25 rad and
+    scaled by 2 % (the narrowest gap closes to 0.0012, h/67, no overlap) or 2.5 % (one pair comes
+    into contact, overlapping by 0.0012 as a soft contact does), one period of 300 steps: the
+    dense case of the collective benchmark (``benchmarks/results/mesh_collective.md``).
+    Dragging keeps the connectivity between the periodic re-triangulations but for a few, and
+    the angles outside narrow gaps within the bounds."""
+    h = 0.08
+    m = collective_motion("turn-and-breathe", h=h, phi=0.32, min_gap=0.01, amplitude=(0.25, scale))
+    assert m.min_gap_seen == pytest.approx(narrowest, abs=1e-4)  # measured 0.00115, 0
+    mm = MovingMesh(m.box, m.bodies, m.poses0, h=h, strategy="drag")
+    s = run(mm, m.sequence())
+    # measured: 15.6°, 15.4°; worst share > 135° 0.004 %, 0.004 %
+    assert s["worst_min_angle"] >= 15.0 and s["worst_frac_above_135"] <= 0.01
+    # measured: periodic 7 and quality 3; periodic 7, quality 2, degenerate 2, inverted 1 (the
+    # pair coming into contact): 290 and 288 steps of 300 keep the connectivity
+    assert s["reasons"][""] >= 285, s["reasons"]
