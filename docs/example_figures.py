@@ -285,13 +285,13 @@ def column_collapse_fluid(out: Path) -> dict:
 
     # the mesh at the start and at the end of the immersed run
     first, last = read_fields(out, 0, full=False), read_fields(out, None, full=False)
-    fig, ax = plt.subplots(2, 1, figsize=(8, 5.6))
+    fig, ax = plt.subplots(2, 1, figsize=(9, 4.8))
     for a, mesh, step_t in ((ax[0], first, "t = 0"), (ax[1], last, f"t = {last.field_data['t'][0]:.2f} s")):
         tri = mesh.cells_dict["triangle"]
         a.triplot(mesh.points[:, 0], mesh.points[:, 1], tri, lw=0.15, color="0.3")
         hist_step = 0 if a is ax[0] else int(wet_h["step"].max())
         a.add_collection(PolyCollection(grain_outlines(scene, wet_h, hist_step), facecolor="C1", edgecolor="none"))
-        a.set_xlim(x0, 0.5 * x1)
+        a.set_xlim(x0, 0.8 * x1)
         a.set_ylim(y0, y1)
         a.set_aspect("equal")
         a.set_title(f"{step_t}: {len(tri)} triangles", fontsize=9)
