@@ -385,8 +385,10 @@ def _scene_main(args) -> int:
         if args.show:
             print(example_text(args.show), end="")
             return 0
-        for name, desc in example_descriptions().items():
-            print(f"{name:18s} {desc}")
+        descriptions = example_descriptions()
+        width = max(map(len, descriptions))
+        for name, desc in descriptions.items():
+            print(f"{name:{width}s} {desc}")
         return 0
     if args.command == "new":
         from .cases.scenes import copy_example

@@ -130,6 +130,9 @@ REGISTRY: dict[str, Kind] = {
                       "(a 'fluidem fill' body table)",
         "sheared-suspension": "20 free disks at area fraction 0.1 crossing the periodic sides of a Stokes shear cell; "
                               "the effective viscosity in run.json",
+        "column-collapse-fluid": "200 polygons of a granular step collapsing in a viscous liquid on a graded moving "
+                                 "mesh (its dry twin: column-collapse-fluid-dry)",
+        "column-collapse-fluid-dry": "the grains and box of column-collapse-fluid without the liquid, DEM only",
     }),
     "schur": Kind("Schur-complement approximation", {
         "auto": "cahouet-chabard when a time step is given, mass otherwise",

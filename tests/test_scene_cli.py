@@ -9,7 +9,8 @@ from fluidem.io import read_history, read_pvd
 def test_examples_and_plan(capsys):
     assert main(["examples"]) == 0
     out = capsys.readouterr().out
-    for name in ("dfg-cylinder", "wall-correction", "dry-heap", "column-collapse"):
+    for name in ("dfg-cylinder", "wall-correction", "dry-heap", "column-collapse", "column-collapse-fluid",
+                 "column-collapse-fluid-dry"):
         assert name in out
     assert main(["plan", "--example", "dry-heap"]) == 0
     out = capsys.readouterr().out

@@ -216,7 +216,8 @@ def test_every_example_scene_loads_and_plans():
     from fluidem.cases.scenes import example_names, example_scene
 
     names = example_names()
-    assert {"dfg-cylinder", "wall-correction", "dry-heap", "column-collapse"} <= set(names)
+    assert {"dfg-cylinder", "wall-correction", "dry-heap", "column-collapse", "column-collapse-fluid",
+            "column-collapse-fluid-dry"} <= set(names)
     for n in names:
         plan = example_scene(n).plan()
         assert not plan.unsupported, (n, plan.unsupported)
