@@ -4,9 +4,12 @@ to re-triangulate.
 :func:`drag_step` moves the nodes with the bodies (:func:`fluidem.mesh.drag.dragged_positions`),
 and then, in this order:
 
-1. on periodic sides: seam nodes slide with the crossings of their segments; a segment that
-   no longer crosses its side, or a body reaching into the box without its image, re-triangulates
-   (``"seam"``, :mod:`fluidem.mesh.moving_images`);
+1. on periodic sides that bend (``seams="bend"``, :mod:`fluidem.mesh.seam`): the side nodes
+   move in matched pairs (:func:`fluidem.mesh.periodic.move_in_pairs`), the seam nodes with their
+   bodies, and nodes are not held in the box across the periodic axis.  With ``seams="clip"``:
+   seam nodes slide with the crossings of their segments; a segment that no longer crosses its
+   side, or a body reaching into the box without its image, re-triangulates (``"seam"``,
+   :mod:`fluidem.mesh.moving_images`);
 2. nodes dragged out of the box (:func:`put_back_in_box`): movable ones are put back on it, and
    so are outline nodes of a body meshed with a wall pressed past it by at most
    :func:`contact_slack`; any other outline node past a side re-triangulates at once (``"seam"``
