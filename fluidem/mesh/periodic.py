@@ -218,10 +218,9 @@ def slide_in_pairs(points, pairs, box, lead=None) -> np.ndarray:
     if not len(pairs):
         return points
     p = np.array(points, dtype=float)
-    xmin, xmax, ymin, ymax = box
-    tol = _tolerance(box)
-    on_x = np.abs(p[pairs[:, 0], 0] - xmin) < tol  # a left/right pair slides in y
-    along = np.where(on_x, 1, 0)
+    # a left/right pair (partners a period apart in x) slides in y; so do the corner pairs of a
+    # box periodic in x alone (bent seams), and those of one periodic in y slide in x
+    along = 1 - np.argmax(np.abs(p[pairs[:, 1]] - p[pairs[:, 0]]), axis=1)
     k = np.arange(len(pairs))
     a, b = p[pairs[:, 0], :][k, along], p[pairs[:, 1], :][k, along]
     mean = 0.5 * (a + b)
