@@ -558,9 +558,9 @@ def test_a_disk_crossing_a_periodic_side_is_re_triangulated_once_or_twice():
     """The sides bend with the disk (``seams="bend"``, :mod:`fluidem.mesh.seam`): no outline node
     passing the side re-triangulates.  Measured: 1 re-triangulation in the 30 steps ("quality"),
     and 16 with straight sides (``seams="clip"``: 10 "seam", 4 "quality", 2 "degenerate"); the
-    node count after the crossing 648 against 652 before it."""
+    node count 646 before the crossing and 651 after it (+0.8 %)."""
     bend, inverted, n0, n1 = _crossing_disk("bend")
     assert sum(bend.values()) <= 3 and "seam" not in bend and inverted == 0
-    assert abs(n1 / n0 - 1) < 0.03  # the nodes beyond a bent side are wrapped, not duplicated
+    assert abs(n1 / n0 - 1) < 0.025  # the nodes beyond a bent side are wrapped, not duplicated
     clip, _, _, _ = _crossing_disk("clip")
     assert sum(clip.values()) >= 3 * max(sum(bend.values()), 1)
