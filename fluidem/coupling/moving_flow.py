@@ -31,6 +31,8 @@ from ..fluid.solvers.lagged import MOVING_MESH_STEPPING
 from ..fluid.solvers.ordering import OrderingChoice
 from ..geometry import barycentric, transform
 from .bodies import LinearPath
+from ..mesh.moving_images import periodic_copies
+from ..mesh.periodic import bends_seams
 from ..mesh.seam import period_of
 from .boundary import periodic_axes_of, velocity_bcs, viscous_form_of
 from .loads import FlowLoads
@@ -382,7 +384,21 @@ class MovingMeshFlow(FlowLoads):
         old = MeshTri(np.asarray(src, float).T.copy(), np.asarray(ev.old_triangles).T.copy())
         ob = Basis(old, ElementVector(old_space.pair.velocity()))
         fields = u_n if u_p is None else np.column_stack([u_n, u_p])
-        u_new = transfer.interpolate(ob, fields, self.space.ub)  # one point search for both
+        if bends_seams(self.mm):
+            # the old mesh reached across the bent seams: its copies a period away hold the new
+            # DOFs by a seam (element by element the same local DOFs)
+            pts, tri = periodic_copies(self.mm, np.asarray(src, float), np.asarray(ev.old_triangles))
+            tiled = MeshTri(pts.T.copy(), tri.T.copy())
+            tb = Basis(tiled, ElementVector(old_space.pair.velocity()))
+            m = old.t.shape[1]
+            tf = np.zeros((tb.N,) + fields.shape[1:])
+            for k in range(tiled.t.shape[1] // m):  # a few copies
+                tf[tb.element_dofs[:, k * m:(k + 1) * m]] = fields[ob.element_dofs]
+            u_new = transfer.interpolate(tb, tf, self.space.ub)
+        else:
+            u_new = None
+        if u_new is None:
+            u_new = transfer.interpolate(ob, fields, self.space.ub)  # one point search for both
         new_n, new_p = (u_new, None) if u_p is None else (u_new[:, 0].copy(), u_new[:, 1].copy())
         ev.transfer_change = transfer_change(ob, u_n, self.space.ub, new_n)
         self.sim.counters["transfers"] = self.sim.counters.get("transfers", 0) + 1

@@ -4,9 +4,12 @@ to re-triangulate.
 :func:`drag_step` moves the nodes with the bodies (:func:`fluidem.mesh.drag.dragged_positions`),
 and then, in this order:
 
-1. on periodic sides: seam nodes slide with the crossings of their segments; a segment that
-   no longer crosses its side, or a body reaching into the box without its image, re-triangulates
-   (``"seam"``, :mod:`fluidem.mesh.moving_images`);
+1. on periodic sides that bend (``seams="bend"``, :mod:`fluidem.mesh.seam`): the side nodes
+   move in matched pairs (:func:`fluidem.mesh.periodic.move_in_pairs`), the seam nodes with their
+   bodies, and nodes are not held in the box across the periodic axis.  With ``seams="clip"``:
+   seam nodes slide with the crossings of their segments; a segment that no longer crosses its
+   side, or a body reaching into the box without its image, re-triangulates (``"seam"``,
+   :mod:`fluidem.mesh.moving_images`);
 2. nodes dragged out of the box (:func:`put_back_in_box`): movable ones are put back on it, and
    so are outline nodes of a body meshed with a wall pressed past it by at most
    :func:`contact_slack`; any other outline node past a side re-triangulates at once (``"seam"``
@@ -54,7 +57,7 @@ from .contact_outline import wall_depths
 from .drag import HarmonicDrag, dragged_positions, harmonic_drag
 from .moving_images import needs_new_images, place_seam_nodes
 from .nodes import CONTACT, world
-from .periodic import slide_in_pairs
+from .periodic import bends_seams, move_in_pairs, slide_in_pairs
 from .relax import relax
 from .seam import SEAM_CODE
 from .triggers import contacts_changed as body_contacts_changed
@@ -79,7 +82,11 @@ def drag_step(mesh: MovingMesh, new, ev: MeshEvent) -> None:
                            mesh.junction_bary, mesh.poses, new, p.drag_halvings, harmonic_drag_of(mesh),
                            wall_side=mesh.__dict__.get("_contact_wall"), box=mesh.box)
     mesh.poses = new
-    if mesh.periodic:
+    if bends_seams(mesh):
+        # the periodic sides bend with the bodies: side nodes in matched pairs, seam nodes
+        # fixed on their bodies (:mod:`fluidem.mesh.seam`)
+        xd = move_in_pairs(mesh.points, xd, mesh._side_pairs)
+    elif mesh.periodic:
         seam_broken = place_seam_nodes(mesh, xd, new)
         if seam_broken or needs_new_images(mesh):
             # an outline left its seam or a body reached a side without its image: the
@@ -122,7 +129,7 @@ def put_back_in_box(mesh: MovingMesh, xd) -> tuple[bool, bool]:
     outline node is past a side by more (it cannot be put back: re-triangulate now, the outline
     is rebuilt with the wall, :mod:`fluidem.mesh.contact_outline`), and one of them passed a
     periodic side."""
-    xmin, xmax, ymin, ymax = mesh.box
+    xmin, xmax, ymin, ymax = _bounds(mesh)
     lo, hi = np.array([xmin, ymin]), np.array([xmax, ymax])
     outside = ((xd < lo) | (xd > hi)).any(axis=1)
     pressed = seam = False
@@ -154,19 +161,38 @@ def relax_dragged(mesh: MovingMesh, xd, ev: MeshEvent) -> np.ndarray:
     returns the relaxed positions before the pairs slid."""
     p = mesh.params
     damp = mesh.drag.relax_damping if mesh._damping is None else mesh.drag.relax_damping * mesh._damping
-    xd = slide_in_pairs(xd, mesh.__dict__.get("_side_pairs", _NO_PAIRS), mesh.box, lead=mesh.kind == CONTACT)
-    xr, nb = relax(xd, mesh.topo, mesh.h_node, mesh._mobility, mesh.relax_iterations, p.relax_params,
-                   bounds=mesh.box, damping=damp)
+    bend = bends_seams(mesh)
+    mob = mesh._mobility
+    # bent: periodic side nodes relax along their side, in pairs (the mean of the two moves)
+    if not bend:
+        xd = slide_in_pairs(xd, mesh.__dict__.get("_side_pairs", _NO_PAIRS), mesh.box, lead=mesh.kind == CONTACT)
+    xr, nb = relax(xd, mesh.topo, mesh.h_node, mob, mesh.relax_iterations, p.relax_params,
+                   bounds=_bounds(mesh), damping=damp)
     ev.n_blocked = nb
+    if bend:
+        xr = move_in_pairs(xd, xr, mesh._side_pairs)
     osc = mesh._osc.update(xr - xd, mesh.h_node)
     if len(osc):
         if mesh._damping is None:
             mesh._damping = np.ones(len(xd))
         mesh._damping[osc] *= 0.5
     ev.oscillating = osc
-    mesh.points = slide_in_pairs(xr, mesh.__dict__.get("_side_pairs", _NO_PAIRS), mesh.box,
-                                 lead=mesh.kind == CONTACT)
+    mesh.points = xr if bend else slide_in_pairs(xr, mesh.__dict__.get("_side_pairs", _NO_PAIRS), mesh.box,
+                                                 lead=mesh.kind == CONTACT)
     return xr
+
+
+def _bounds(mesh: MovingMesh) -> tuple:
+    """The box that holds the nodes between re-triangulations: unbounded across periodic sides
+    that bend (:mod:`fluidem.mesh.seam`)."""
+    if not bends_seams(mesh):
+        return mesh.box
+    xmin, xmax, ymin, ymax = mesh.box
+    if "x" in mesh.periodic:
+        xmin, xmax = -np.inf, np.inf
+    if "y" in mesh.periodic:
+        ymin, ymax = -np.inf, np.inf
+    return (xmin, xmax, ymin, ymax)
 
 
 def retriangulate_step(mesh: MovingMesh, ev: MeshEvent, reason: str) -> None:
@@ -185,7 +211,7 @@ def harmonic_drag_of(mesh: MovingMesh) -> HarmonicDrag | None:
     if mesh.params.drag_field != "harmonic":
         return None
     if mesh.__dict__.get("_harmonic") is None:
-        mesh._harmonic = harmonic_drag(mesh.topo, mesh.kind, mesh._mobility, mesh.drag)
+        mesh._harmonic = harmonic_drag(mesh.topo, mesh.kind, mesh._drag_mobility, mesh.drag)
     return mesh._harmonic
 
 

@@ -99,14 +99,14 @@ from .background import size_from_grading
 from .drag_step import drag_step
 from .gaps import anchored_across_gap, boundary_owner, gap_width, narrow_gap, narrow_gap_owners
 from .moving_history import carry_history, velocity_from_history, velocity_from_last_step
-from .moving_images import image_poses, image_set, set_images
+from .moving_images import image_poses, image_set, set_images, unbend_seams
 from .moving_input import allowed_wall_overlap, check_poses, check_widths
 from .moving_state import restored_state
 from .moving_triangulation import movable_count, size_integral, triangulate_from
 from .nodes import (FIRST_BODY_MARKER, BodyOutlines, UidSource, background_nodes,
                     body_vertices, outline_nodes, world)
 from .params import PARAM_NAMES, STRATEGIES, MeshParams, mesh_params
-from .periodic import periodic_axes
+from .periodic import bends_seams, periodic_axes
 from .proximity import PolygonTable
 from .quality import MeshQuality, OscillationDetector, mesh_quality
 from .triangulate import SIDE_NAMES, BoxDomain, _facet_lookup
@@ -482,7 +482,8 @@ class MovingMesh:
         Returns a dict with ``n_purged``, ``n_removed``, ``n_inserted``, ``n_junctions``.
         """
         n_relax = self.params.retriangulate_iterations if n_relax is None else n_relax
-        return triangulate_from(self, self.points, self.kind, self.uid, purge=self.params.purge_clearance,
+        cand = unbend_seams(self) if bends_seams(self) else self.points
+        return triangulate_from(self, cand, self.kind, self.uid, purge=self.params.purge_clearance,
                                 adapt=True, n_relax=n_relax, h_cand=self.h_node)
 
     # ------------------------------------------------------------------ gaps on the current mesh

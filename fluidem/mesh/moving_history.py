@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .moving_images import rigid_history
+from .moving_images import periodic_copies, rigid_history
+from .periodic import bends_seams
 
 if TYPE_CHECKING:
     from .moving import MeshEvent, MovingMesh
@@ -54,7 +55,11 @@ def carry_history(mesh: MovingMesh, ev: MeshEvent, x_n: np.ndarray, x_nm1: np.nd
 
     from .transfer import locate_near
 
-    old = MeshTri(np.asarray(ev.old_points, float).T.copy(), np.asarray(ev.old_triangles).T.copy())
+    old_p, old_t = np.asarray(ev.old_points, float), np.asarray(ev.old_triangles)
+    if bends_seams(mesh):
+        # the old mesh reached across the bent seams: new nodes by a seam are found in its copies
+        old_p, old_t, x_n, x_nm1 = periodic_copies(mesh, old_p, old_t, x_n, x_nm1)
+    old = MeshTri(old_p.T.copy(), old_t.T.copy())
     # a node that survived the re-triangulation moved little (relaxation): it is searched
     # first in the old elements around its old position
     hint = np.full(len(mesh.points), -1, dtype=np.int64)

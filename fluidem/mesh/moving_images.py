@@ -31,14 +31,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .nodes import OUTLINE, UID_OUTLINE, BodyOutlines, world
-from .seam import SEAM_BAND, SEAM_CODE, PeriodicImages, periodic_images, seam_nudge, seam_positions
+from .nodes import CORNER, FREE, JUNCTION, OUTLINE, SIDE, UID_OUTLINE, BodyOutlines, world
+from .periodic import bends_seams
+from .seam import SEAM_BAND, SEAM_CODE, PeriodicImages, period_of, periodic_images, seam_nudge, seam_positions
 
 if TYPE_CHECKING:
     from .moving import MovingMesh
 
 __all__ = ["body_extent", "image_set", "set_images", "image_outlines", "image_poses", "place_seam_nodes",
-           "needs_new_images", "rigid_history"]
+           "needs_new_images", "unbend_seams", "wrap_into_box", "periodic_copies", "rigid_history"]
 
 
 def body_extent(mesh: MovingMesh, body_poses) -> np.ndarray:
@@ -137,6 +138,58 @@ def place_seam_nodes(mesh: MovingMesh, xd, poses) -> bool:
     return bool(not (inner_in & outer_out).all())
 
 
+def unbend_seams(mesh: MovingMesh) -> np.ndarray:
+    """The candidate nodes ``(n, 2)`` of a re-triangulation with bent seams
+    (:mod:`fluidem.mesh.seam`): the current nodes with the matched side nodes put back on their
+    side lines (each pair keeps its place along the side) and the others beyond a periodic
+    side put back in the box by the period (:func:`wrap_into_box`: they fill the place where
+    the partner side bent in)."""
+    p = np.array(mesh.points, dtype=float)
+    pairs = mesh.__dict__.get("_side_pairs")
+    if pairs is not None and len(pairs):
+        xmin, xmax, ymin, ymax = mesh.box
+        a, b = pairs[:, 0], pairs[:, 1]
+        c = np.argmax(np.abs(p[b] - p[a]), axis=1)  # the pair's axis: its partners lie a period apart
+        side = (mesh.kind[a] == SIDE) | (mesh.kind[a] == CORNER)
+        p[a[side], c[side]] = np.where(c[side] == 0, xmin, ymin)
+        p[b[side], c[side]] = np.where(c[side] == 0, xmax, ymax)
+    return wrap_into_box(mesh, p, mesh.kind)
+
+
+def wrap_into_box(mesh: MovingMesh, points, kind) -> np.ndarray:
+    """``points (n, 2)`` of kinds ``kind (n,)`` with the free, junction and box nodes beyond a
+    periodic side of ``mesh`` shifted back into the box by the period (a copy)."""
+    L = period_of(mesh.box, mesh.periodic)
+    xmin, xmax, ymin, ymax = mesh.box
+    lo, hi = (xmin, ymin), (xmax, ymax)
+    p = np.array(points, dtype=float)
+    loose = (kind == FREE) | (kind == JUNCTION) | (kind == SIDE) | (kind == CORNER)
+    for c in range(2):
+        if L[c]:
+            p[loose & (p[:, c] < lo[c]), c] += L[c]
+            p[loose & (p[:, c] > hi[c]), c] -= L[c]
+    return p
+
+
+def periodic_copies(mesh: MovingMesh, points, triangles, *values):
+    """A mesh ``points (n, 2)``, ``triangles (m, 3)`` of bent seams tiled with its copies shifted
+    by one period across each periodic axis, and the nodal ``values`` (each ``(n, 2)`` positions
+    or ``None``) shifted with them: a point the old mesh holds across a seam is found in a copy.
+    The first ``n`` nodes and ``m`` triangles are the mesh itself."""
+    L = period_of(mesh.box, mesh.periodic)
+    shifts = [np.zeros(2)]
+    for c in range(2):
+        if L[c]:
+            e = np.zeros(2)
+            e[c] = L[c]
+            shifts = shifts + [s + e for s in shifts] + [s - e for s in shifts]
+    n = len(points)
+    pts = np.vstack([points + s for s in shifts])
+    tri = np.vstack([triangles + k * n for k in range(len(shifts))])
+    out = [None if v is None else np.vstack([v + s for s in shifts]) for v in values]
+    return (pts, tri, *out)
+
+
 def needs_new_images(mesh: MovingMesh) -> bool:
     """A body reaches into the box through a periodic side where ``mesh`` holds no image of it."""
     ext = body_extent(mesh, mesh.body_poses)  # once per step: the image set and the test below
@@ -175,7 +228,7 @@ def rigid_history(mesh: MovingMesh) -> None:
             idx = ci[sel]
             x[idx] = world(mesh._contact_local[sel], mesh.body_of[idx], poses)
             seam = wall >= SEAM_CODE
-            if seam.any():
+            if seam.any() and not bends_seams(mesh):  # bent: the seam nodes are fixed on their bodies
                 p_out = world(mesh._seam_outer_local[sel][seam], mesh._seam_outer_body[sel][seam], poses)
                 x[idx[seam]] = seam_positions(x[idx[seam]], p_out, wall[seam] - SEAM_CODE, mesh.box,
                                               mesh.points[idx[seam]])

@@ -63,11 +63,11 @@ from .contact_outline import contact_outline, contact_pairs
 from .cutout import Triangulation, cut_out, triangulate
 from .drag import DragAssociation, drag_association
 from .gaps import structural_narrow
-from .moving_images import image_set, set_images
-from .nodes import CONTACT, CORNER, FREE, JUNCTION, SIDE, mobility
-from .periodic import match_side_nodes, side_partners, slide_in_pairs
+from .moving_images import image_set, set_images, wrap_into_box
+from .nodes import CONTACT, CORNER, FREE, JUNCTION, SIDE, mobility, to_body
+from .periodic import bends_seams, match_side_nodes, side_partners, slide_in_pairs
 from .relax import relax, signed_areas
-from .seam import SEAM_MERGE
+from .seam import SEAM_CODE, SEAM_MERGE
 from .triggers import QualityBaseline, element_shape, quality_baseline
 
 if TYPE_CHECKING:
@@ -135,6 +135,8 @@ def triangulate_from(mesh: MovingMesh, cand, cand_kind, cand_uid, purge, adapt, 
                          budget=node_budget(mesh),
                          budget_tolerance=p.node_count_tolerance)
         kept_points, kept_kind, kept_uid = ad.points, ad.kind, ad.uid
+        if bends_seams(mesh):  # nodes added in the old elements beyond a bent seam
+            kept_points = wrap_into_box(mesh, kept_points, kept_kind)
         info["n_removed"], info["n_inserted"] = ad.n_removed, ad.n_inserted
 
     final_shape = None
@@ -199,6 +201,26 @@ def install(mesh: MovingMesh, tri: Triangulation, outline_world):
     # junction nodes are dragged (they are not relaxed)
     mesh._drag_mobility = mesh._mobility.copy()
     mesh._drag_mobility[tri.kind == JUNCTION] = 1.0
+    if bends_seams(mesh):
+        # bent seams (:mod:`fluidem.mesh.seam`): seam nodes stay where they are on their body,
+        # periodic side nodes are dragged like free nodes (in pairs)
+        seam = mesh._contact_wall >= SEAM_CODE
+        if seam.any():
+            idx = mesh._contact_idx[seam]
+            mesh._contact_local = np.array(mesh._contact_local, dtype=float)
+            mesh._contact_local[seam] = to_body(tri.points[idx], mesh.poses[tri.body_of[idx]])
+        on = np.unique(mesh._side_pairs)
+        mesh._drag_mobility[on[tri.kind[on] == SIDE]] = 1.0
+        if len(mesh.periodic) == 1:
+            # the corners where a periodic side meets a wall slide along the wall in pairs
+            c = 0 if mesh.periodic[0] == "x" else 1
+            corner = np.flatnonzero(tri.kind == CORNER)
+            lo = corner[tri.points[corner, c] == mesh.box[2 * c]]
+            hi = corner[tri.points[corner, c] == mesh.box[2 * c + 1]]
+            lo, hi = lo[np.argsort(tri.points[lo, 1 - c])], hi[np.argsort(tri.points[hi, 1 - c])]
+            if len(lo) == len(hi):
+                mesh._side_pairs = np.vstack([mesh._side_pairs, np.column_stack([lo, hi])]).astype(np.int64)
+                mesh._drag_mobility[np.concatenate([lo, hi]), c] = 1.0
     mesh._osc.reset()
     mesh._damping = None
 
@@ -214,3 +236,14 @@ def set_quality_baseline(mesh: MovingMesh, shape=None):
     shape = element_shape(mesh.points, mesh.topo) if shape is None else shape
     mesh.baseline: QualityBaseline = quality_baseline(shape, narrow, p.min_angle_trigger, p.max_angle_trigger,
                                                       p.angle_margin, p.min_angle_margin)
+    if bends_seams(mesh):
+        # an element at a seam node moves with its body (seam and outline nodes fixed on it, the
+        # free node dragged with it): one born with a small angle (a body vertex by the side
+        # line) is watched with ``angle_margin`` past that angle, not fired by its first change
+        seam = np.zeros(len(mesh.points), dtype=bool)
+        seam[mesh._contact_idx[mesh._contact_wall >= SEAM_CODE]] = True
+        at = seam[mesh.triangles].any(axis=1) & ~mesh.baseline.narrow
+        small = at & (shape.cos_max > np.cos(np.radians(p.min_angle_trigger)))
+        if small.any():
+            theta = np.degrees(np.arccos(np.clip(shape.cos_max[small], -1.0, 1.0))) - p.angle_margin
+            mesh.baseline.cos_lo[small] = np.cos(np.radians(np.clip(theta, 0.0, 180.0)))

@@ -153,6 +153,13 @@ class MeshParams:
         extension of the displacements of the outline and fully dragged nodes over the
         whole mesh (box sides slide), or the linear ramp of the drag weight between
         ``drag_full`` and ``drag_reach``.
+    seams : {"bend", "clip"}
+        Between re-triangulations of a box with periodic sides (:mod:`fluidem.mesh.seam`):
+        ``"bend"`` drags the periodic side nodes in matched pairs like free nodes and holds
+        the seam nodes fixed on their bodies, so the sides bend around the bodies crossing
+        them and an outline node passing a side changes nothing; ``"clip"`` keeps the sides
+        straight, the seam nodes sliding along them, and re-triangulates whenever an
+        outline node passes a side (``"seam"``).
     drag_stiffness : float
         Dragged nodes relax with the step reduced by ``1 − drag_stiffness · weight``; in [0, 1].
     drag_halvings : int
@@ -209,6 +216,7 @@ class MeshParams:
     drag_reach: float = 3.0
     drag_full: float = 1.0
     drag_field: str = "harmonic"
+    seams: str = "bend"
     drag_stiffness: float = 0.8
     drag_halvings: int = 6
     tow_width: float = 2.0
@@ -251,6 +259,7 @@ class MeshParams:
         if self.background is not None:
             v.choice(_key("background"), self.background, ("fk", "delaunay"))
         v.choice(_key("drag_field"), self.drag_field, ("harmonic", "ramp"))
+        v.choice(_key("seams"), self.seams, ("bend", "clip"))
         if not isinstance(self.relax_params, RelaxParams):
             raise v.fail(_key("relax_params"), self.relax_params, "a RelaxParams")
         s(self, "drag_full", v.number(_key("drag_full"), self.drag_full,

@@ -36,7 +36,8 @@ from ..errors import InputError, MeshError
 from .kinds import CONTACT, SIDE
 
 __all__ = ["AXES", "SIDE_PAIRS", "periodic_axes", "axes_of_sides", "match_side_nodes", "side_partners",
-           "slide_in_pairs", "partner_places", "check_matched"]
+           "slide_in_pairs", "bends_seams", "move_in_pairs", "partner_places", "check_matched",
+           "check_side_pairs"]
 
 #: the periodic directions: ``"x"`` pairs left/right, ``"y"`` bottom/top
 AXES = ("x", "y")
@@ -188,6 +189,27 @@ def side_partners(points, kind, box, axes) -> np.ndarray:
     return np.vstack(out) if out else np.zeros((0, 2), dtype=np.int64)
 
 
+def bends_seams(mesh) -> bool:
+    """``mesh`` has periodic sides that bend between re-triangulations (``seams="bend"``,
+    :class:`~fluidem.mesh.params.MeshParams`; :mod:`fluidem.mesh.seam`): one periodic axis
+    (a doubly periodic box keeps straight sides)."""
+    return len(mesh.periodic) == 1 and mesh.params.seams == "bend"
+
+
+def move_in_pairs(old, new, pairs) -> np.ndarray:
+    """``new (n, 2)`` with every pair of matched periodic side nodes ``pairs (k, 2)`` moved from
+    ``old (n, 2)`` by the mean of the two displacements (bent seams, :mod:`fluidem.mesh.seam`):
+    partners ``L`` apart stay so, their coordinate along the side equal exactly."""
+    if not len(pairs):
+        return new
+    p = np.array(new, dtype=float)
+    a, b = pairs[:, 0], pairs[:, 1]
+    d = 0.5 * ((p[a] - old[a]) + (p[b] - old[b]))
+    p[a] = old[a] + d
+    p[b] = old[b] + d
+    return p
+
+
 def slide_in_pairs(points, pairs, box, lead=None) -> np.ndarray:
     """``points (n, 2)`` with every pair of matched side nodes ``pairs (k, 2)`` put at the mean
     of their places along the side (each slid with its own neighbourhood; the pair stays
@@ -196,10 +218,9 @@ def slide_in_pairs(points, pairs, box, lead=None) -> np.ndarray:
     if not len(pairs):
         return points
     p = np.array(points, dtype=float)
-    xmin, xmax, ymin, ymax = box
-    tol = _tolerance(box)
-    on_x = np.abs(p[pairs[:, 0], 0] - xmin) < tol  # a left/right pair slides in y
-    along = np.where(on_x, 1, 0)
+    # a left/right pair (partners a period apart in x) slides in y; so do the corner pairs of a
+    # box periodic in x alone (bent seams), and those of one periodic in y slide in x
+    along = 1 - np.argmax(np.abs(p[pairs[:, 1]] - p[pairs[:, 0]]), axis=1)
     k = np.arange(len(pairs))
     a, b = p[pairs[:, 0], :][k, along], p[pairs[:, 1], :][k, along]
     mean = 0.5 * (a + b)
@@ -249,3 +270,29 @@ def check_matched(points, box, axes, boundary_nodes=None) -> None:
             lo_name, hi_name = SIDE_PAIRS[a]
             raise MeshError(f"periodic sides {lo_name!r} and {hi_name!r} do not have matching nodes "
                             f"({len(s_lo)} and {len(s_hi)} nodes)")
+
+
+def check_side_pairs(points, segments, markers, box, axes) -> None:
+    """Raise :class:`~fluidem.errors.MeshError` unless, for each periodic side pair, the nodes of
+    the facets of the high side are those of the low side shifted by the period, to round-off
+    (nodes ``points (n, 2)``; boundary facets ``segments (k, 2)`` with ``markers (k,)``, 1 bottom,
+    2 right, 3 top, 4 left).  Unlike :func:`check_matched` it holds for sides that bend between
+    re-triangulations (:mod:`fluidem.mesh.seam`), whose nodes leave the side lines."""
+    if not axes:
+        return
+    p = np.asarray(points, dtype=float)
+    xmin, xmax, ymin, ymax = box
+    tol = _tolerance(box)
+    for a in axes:
+        c = 0 if a == "x" else 1
+        lo_mark, hi_mark = (4, 2) if a == "x" else (1, 3)
+        shift = np.zeros(2)
+        shift[c] = (xmax - xmin) if a == "x" else (ymax - ymin)
+        q_lo = p[np.unique(segments[markers == lo_mark])]
+        q_hi = p[np.unique(segments[markers == hi_mark])] - shift
+        q_lo = q_lo[np.lexsort((q_lo[:, c], q_lo[:, 1 - c]))]
+        q_hi = q_hi[np.lexsort((q_hi[:, c], q_hi[:, 1 - c]))]
+        if len(q_lo) != len(q_hi) or np.any(np.abs(q_lo - q_hi) > tol):
+            lo_name, hi_name = SIDE_PAIRS[a]
+            raise MeshError(f"periodic sides {lo_name!r} and {hi_name!r} do not have matching nodes "
+                            f"({len(q_lo)} and {len(q_hi)} nodes)")

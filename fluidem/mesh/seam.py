@@ -13,9 +13,21 @@ the box:
   a side pair match to round-off, as the periodic degrees of freedom need;
 * box nodes inside an image (the seam under a body) are no boundary and are dropped, and so
   are box nodes closer than ``SEAM_MERGE · h`` to a seam node or its partner (no sliver);
-* between re-triangulations a seam node slides along its side at the crossing of its
-  segment, whose ends move rigidly with their bodies (:func:`seam_positions`); a segment
-  that no longer crosses its side (an outline node passed the seam) re-triangulates;
+* between re-triangulations, with one periodic axis (``seams="bend"``, the default of
+  :class:`~fluidem.mesh.params.MeshParams`), the sides *bend* with the bodies: a seam node stays
+  where it is on its body (it moves rigidly, like an outline node), and the other nodes of the
+  periodic sides, with the corners where they meet a wall, are dragged like free nodes and
+  relaxed along the side, in matched pairs (each pair moves by the mean of its two moves, so
+  the partners stay one period apart and equal along the side to round-off: the mesh is one
+  mesh of the periodic strip, cut along a line of its edges that need not be straight).  Nodes
+  may so lie beyond a periodic side, and an outline node passing the side line changes
+  nothing; the usual triggers (quality, contacts, every K steps) re-triangulate.  Then the
+  nodes beyond a side are put back in the box by the period and the side nodes back on their
+  lines (:func:`fluidem.mesh.moving_images.unbend_seams`); node trajectories and fields are
+  found in the old mesh or its copies a period away.  With ``seams="clip"`` (and on a doubly
+  periodic box) the sides stay straight: a seam node slides along its side at the crossing of
+  its segment, whose ends move rigidly with their bodies (:func:`seam_positions`), and a
+  segment that no longer crosses its side (an outline node passed the seam) re-triangulates;
 * a body with an outline node within ``SEAM_BAND · h`` of a seam line is held nudged off it
   (:func:`seam_nudge`): an edge or a vertex exactly on the seam would be meshed on one side.
 
