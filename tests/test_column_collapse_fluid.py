@@ -1,7 +1,8 @@
 """The built-in granular step collapsing in a viscous liquid (``column-collapse-fluid``) and its dry twin
-(``column-collapse-fluid-dry``): the body table is the documented ``fluidem fill`` command, the twins share
-grains, box and contact law, and the first steps of the coupled run keep the fluid domain the box less
-the grains, the grains in the box and apart, while the front of the step moves out."""
+(``column-collapse-fluid-dry``): the twins share grains, box and contact law (its body table is the
+documented ``fluidem fill`` command: ``tests/test_fill.py``), and the first steps of the coupled run
+keep the fluid domain the box less the grains, the grains in the box and apart, while the front of the
+step moves out."""
 
 from __future__ import annotations
 
@@ -11,20 +12,7 @@ import numpy as np
 import pytest
 import shapely
 
-from fluidem.cases.scenes import SCENE_DIR, example_scene
-from fluidem.cli import main
-
-
-def test_body_table_is_the_documented_command(tmp_path, capsys):
-    toml = (SCENE_DIR / "column-collapse-fluid.toml").read_text()
-    lines = [ln.lstrip("# ").rstrip("\\").strip() for ln in toml.splitlines()]
-    start = next(i for i, ln in enumerate(lines) if ln.startswith("fluidem fill"))
-    command = (lines[start] + " " + lines[start + 1]).split()
-    assert command[:3] == ["fluidem", "fill", "column-collapse-fluid.csv"]
-    assert main(["fill", str(tmp_path / "t.csv")] + command[3:]) == 0
-    assert (tmp_path / "t.csv").read_text() == (SCENE_DIR / "column-collapse-fluid.csv").read_text()
-    page = (SCENE_DIR.parent.parent.parent / "docs" / "collapse-in-fluid.md").read_text()
-    assert " ".join(command[3:]) in " ".join(page.replace("\\\n", " ").split())
+from fluidem.cases.scenes import example_scene
 
 
 def test_dry_twin_has_the_same_grains_box_and_contacts():

@@ -278,17 +278,24 @@ def test_packing_bodies_build_a_scene_directly():
     assert len(scene.bodies) == 20 and str(p).startswith("20 bodies (")
 
 
-def test_example_body_table_is_the_documented_command(tmp_path, capsys):
-    """suspension.csv is what the command in the comment of suspension.toml writes (and the docs page shows)."""
-    toml = (SCENE_DIR / "suspension.toml").read_text()
+@pytest.mark.parametrize("example, page", [("suspension", "suspensions.md"),
+                                           ("column-collapse-fluid", "collapse-in-fluid.md")])
+def test_example_body_table_is_the_documented_command(tmp_path, capsys, example, page):
+    """The body table of an example is what the command in the comment of its scene writes (and its
+    docs page shows)."""
+    toml = (SCENE_DIR / f"{example}.toml").read_text()
     lines = [ln.lstrip("# ").rstrip("\\").strip() for ln in toml.splitlines()]
     start = next(i for i, ln in enumerate(lines) if ln.startswith("fluidem fill"))
     command = (lines[start] + " " + lines[start + 1]).split()
-    assert command[:3] == ["fluidem", "fill", "suspension.csv"]
-    assert main(["fill", str(tmp_path / "suspension.csv")] + command[3:]) == 0
-    assert (tmp_path / "suspension.csv").read_text() == (SCENE_DIR / "suspension.csv").read_text()
-    page = (Path(__file__).resolve().parent.parent / "docs" / "suspensions.md").read_text()
-    assert " ".join(command[3:]) in " ".join(page.replace("\\\n", " ").split())
+    assert command[:3] == ["fluidem", "fill", f"{example}.csv"]
+    assert main(["fill", str(tmp_path / "t.csv")] + command[3:]) == 0
+    assert (tmp_path / "t.csv").read_text() == (SCENE_DIR / f"{example}.csv").read_text()
+    text = (Path(__file__).resolve().parent.parent / "docs" / page).read_text()
+    assert " ".join(command[3:]) in " ".join(text.replace("\\\n", " ").split())
+
+
+def test_suspension_example_is_a_settling_suspension():
+    """suspension.toml: over 100 mixed polygons twice as dense as water in a closed box."""
     scene = Scene.from_toml(SCENE_DIR / "suspension.toml")
     kinds = {b.shape for b in scene.bodies}
     assert len(scene.bodies) >= 100 and kinds == {"disk", "rectangle", "polygon"}
