@@ -396,8 +396,6 @@ class MovingMeshFlow(FlowLoads):
                 tf[tb.element_dofs[:, k * m:(k + 1) * m]] = fields[ob.element_dofs]
             u_new = transfer.interpolate(tb, tf, self.space.ub)
         else:
-            u_new = None
-        if u_new is None:
             u_new = transfer.interpolate(ob, fields, self.space.ub)  # one point search for both
         new_n, new_p = (u_new, None) if u_p is None else (u_new[:, 0].copy(), u_new[:, 1].copy())
         ev.transfer_change = transfer_change(ob, u_n, self.space.ub, new_n)
