@@ -59,6 +59,47 @@ def csr_pattern(row_dofs: np.ndarray, col_dofs: np.ndarray, n_rows: int, n_cols:
     return indptr, indices, scatter
 
 
+def affine_reference(basis, n: int | None = None):
+    """Reference values of a scalar H1 element when ``basis`` maps every element affinely, else None.
+
+    For an element whose global basis is the identity transformation of the reference one
+    (scikit-fem's ``ElementH1.gbasis``: values φ̂(X̂), gradients DF⁻ᵀ ∇̂φ̂) on an affine map
+    (``MappingAffine``, straight triangles) the values at the quadrature points are the same in
+    every element and the gradients are the constant inverse Jacobian times the reference ones
+    (:func:`affine_gradients`): no per-element basis evaluation is needed.
+
+    Parameters
+    ----------
+    basis : skfem.CellBasis
+        Of a scalar element or of ``ElementVector`` of one (then the scalar element's functions).
+    n : int, optional
+        Number of scalar functions (default: ``basis.Nbfun``, for a scalar basis).
+
+    Returns
+    -------
+    (phi (n, n_qp), dphi (n, 2, n_qp)) or None
+    """
+    from skfem import ElementVector
+    from skfem.element import ElementH1
+    from skfem.mapping import MappingAffine
+
+    elem = basis.elem.elem if isinstance(basis.elem, ElementVector) else basis.elem
+    if not (isinstance(basis.mapping, MappingAffine) and basis.tind is None and isinstance(elem, ElementH1)
+            and type(elem).gbasis is ElementH1.gbasis and basis.X.ndim == 2):
+        return None
+    n = basis.Nbfun if n is None else n
+    vals = [elem.lbasis(basis.X, i) for i in range(n)]
+    return np.array([v[0] for v in vals]), np.array([v[1] for v in vals])
+
+
+def affine_gradients(invA: np.ndarray, dphi: np.ndarray) -> np.ndarray:
+    """Global gradients (2, n_elements, n, n_qp) of reference gradients ``dphi`` (n, 2, n_qp) under
+    affine maps with inverse Jacobians ``invA`` (2, 2, n_elements): ∂φ/∂x_d = Σ_i (DF⁻¹)_{id} ∂φ̂/∂X̂_i,
+    the sum scikit-fem's ``ElementH1.gbasis`` forms, in the same order."""
+    return np.stack([invA[0, d][:, None, None] * dphi[None, :, 0, :] + invA[1, d][:, None, None] * dphi[None, :, 1, :]
+                     for d in range(2)])
+
+
 class VectorAssembler:
     """Element data of a vector basis and the CSR pattern of its velocity–velocity block.
 
@@ -127,8 +168,16 @@ class VectorAssembler:
 
     def _set_geometry(self, ub) -> None:
         # scalar values/gradients in element-major layout: psi (nel, ns, nq), dpsi (2, nel, ns, nq)
-        self.psi = np.stack([np.asarray(ub.basis[2 * s][0])[0] for s in range(self.ns)], axis=1)
-        self.dpsi = np.stack([ub.basis[2 * s][0].grad[0] for s in range(self.ns)], axis=2)
+        ref = affine_reference(ub, self.ns)
+        if ref is None:
+            self.psi = np.stack([np.asarray(ub.basis[2 * s][0])[0] for s in range(self.ns)], axis=1)
+            self.dpsi = np.stack([ub.basis[2 * s][0].grad[0] for s in range(self.ns)], axis=2)
+        else:
+            phi, dphi = ref
+            nel = ub.nelems
+            if getattr(self, "psi", None) is None or self.psi.shape[0] != nel:
+                self.psi = np.ascontiguousarray(np.broadcast_to(phi, (nel,) + phi.shape))
+            self.dpsi = affine_gradients(ub.mapping.invA, dphi)
         self.dx = np.asarray(ub.dx)  # (nel, nq)
         self.psi_dx = self.psi * self.dx[:, None, :]
 
@@ -371,7 +420,11 @@ class DivergencePattern:
     def matrix(self, pb) -> sp.csr_matrix:
         """B on the current geometry: B[i, 2s+c] = −∫ q_i ∂ψ_s/∂x_c, (n_p, n_u) CSR."""
         va = self.va
-        q = np.stack([np.asarray(pb.basis[i][0]) for i in range(self._npl)], axis=1)  # (nel, npl, nq)
+        ref = affine_reference(pb, self._npl)
+        if ref is None:
+            q = np.stack([np.asarray(pb.basis[i][0]) for i in range(self._npl)], axis=1)  # (nel, npl, nq)
+        else:  # the same values in every element
+            q = np.broadcast_to(ref[0], (pb.nelems,) + ref[0].shape)
         q_dx = q * va.dx[:, None, :]
         nel = q.shape[0]
         local = np.empty((nel, self._npl, 2 * va.ns))
