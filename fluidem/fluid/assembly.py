@@ -124,6 +124,7 @@ class VectorAssembler:
         dofs = ub.element_dofs  # (nb, nel)
         self._element_dofs = dofs
         self.dofs_c = [dofs[c::2].T.copy() for c in range(2)]  # (nel, ns) per component
+        self._gather = None  # scalar-entry sums (interleaved numbering only), see _interleaved_pattern
         if self.n % 2 == 0 and np.all(dofs[0::2] % 2 == 0) and np.array_equal(dofs[1::2], dofs[0::2] + 1):
             self._interleaved_pattern(dofs)
         else:
@@ -165,6 +166,13 @@ class VectorAssembler:
         c = np.arange(2).reshape(1, 1, 2, 1, 1)
         d = np.arange(2).reshape(1, 1, 1, 1, 2)
         self._scatter = (b + c * lj + d).ravel()  # local entry (e, 2s + c, 2s' + d)
+        # scalar element entries (e, s, s') summed per scalar entry by one sparse product whose rows
+        # list their entries in element order (the order np.bincount sums them in: same numbers),
+        # and the vector entry of each scalar entry's block (row component r, column component c)
+        order = np.argsort(sinv, kind="stable")
+        gptr = np.searchsorted(sinv[order], np.arange(len(uniq) + 1))
+        self._gather = sp.csr_matrix((np.ones(len(sinv)), order, gptr), shape=(len(uniq), len(sinv)))
+        self._block_pos = {(r, c): base + 2 * r * L + c for r in range(2) for c in range(2)}
 
     def _set_geometry(self, ub) -> None:
         # scalar values/gradients in element-major layout: psi (nel, ns, nq), dpsi (2, nel, ns, nq)
@@ -196,11 +204,37 @@ class VectorAssembler:
 
     def _block_diagonal(self, S: np.ndarray) -> np.ndarray:
         """Pattern data of the vector operator with scalar element matrices ``S`` (nel, ns, ns) per component."""
-        nb = 2 * self.ns
-        local = np.zeros((S.shape[0], nb, nb))
-        for c in range(2):  # same-component blocks
-            local[:, c::2, c::2] = S
-        return self._scatter_local(local)
+        return self._from_blocks({(0, 0): S, (1, 1): S})
+
+    def _from_blocks(self, blocks: dict) -> np.ndarray:
+        """Pattern data (nnz,) of element matrices given by their component blocks.
+
+        ``blocks[(r, c)]`` (nel, ns, ns) is the block of row component r and column component c
+        (entry (e, s, s') couples test ψ_s e_r and trial ψ_s' e_c); absent blocks are zero.  With
+        the interleaved numbering the blocks are summed on the scalar pattern (a quarter of the
+        entries of the vector one, one sparse product for all blocks, the same block summed once)
+        and placed in the vector data; the sums are those of :meth:`_scatter_local` on the full
+        element matrices, bit for bit (same terms, same order).
+        """
+        if self._gather is None:
+            nb = 2 * self.ns
+            first = next(iter(blocks.values()))
+            local = np.zeros((first.shape[0], nb, nb))
+            for (r, c), X in blocks.items():
+                local[:, r::2, c::2] = X
+            return self._scatter_local(local)
+        arrays, column = [], {}
+        for key, X in blocks.items():
+            j = next((k for k, A in enumerate(arrays) if A is X), None)
+            if j is None:
+                j = len(arrays)
+                arrays.append(X)
+            column[key] = j
+        sums = self._gather @ np.stack([X.reshape(-1) for X in arrays], axis=1)  # (n_scalar_entries, k)
+        data = np.zeros(self.nnz)
+        for key, j in column.items():
+            data[self._block_pos[key]] = sums[:, j]
+        return data
 
     def mass_data(self) -> np.ndarray:
         """Pattern data of the velocity mass u · v (:func:`fluidem.fluid.forms.mass`), (nnz,)."""
@@ -215,14 +249,12 @@ class VectorAssembler:
         """Pattern data of 2 ε(u) : ε(v) = ∇u : ∇v + ∇uᵀ : ∇v (:func:`fluidem.fluid.forms.viscous_stress`,
         multiply by ν), (nnz,): the Laplacian blocks plus, for test φ_t e_d and trial φ_s e_c,
         ∫ ∂_c φ_t ∂_d φ_s."""
-        nb = 2 * self.ns
-        S = sum(np.matmul(self.dpsi[d] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1)) for d in range(2))
-        local = np.zeros((S.shape[0], nb, nb))
-        for c in range(2):
-            local[:, c::2, c::2] = S
-            for d in range(2):
-                local[:, d::2, c::2] += np.matmul(self.dpsi[c] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1))
-        return self._scatter_local(local)
+        # P[c][d] (e, t, s) = ∫ ∂_c φ_t ∂_d φ_s; the Laplacian part S = P[0][0] + P[1][1]
+        P = [[np.matmul(self.dpsi[c] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1)) for d in range(2)]
+             for c in range(2)]
+        S = P[0][0] + P[1][1]
+        # block (row d, column c): δ_cd S + P[c][d]
+        return self._from_blocks({(0, 0): S + P[0][0], (1, 1): S + P[1][1], (1, 0): P[0][1], (0, 1): P[1][0]})
 
     # -- data arrays on the fixed pattern ----------------------------------------------
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
@@ -267,19 +299,16 @@ class VectorAssembler:
         bq = self.values(b)
         bgrad = np.einsum("cesq,ceq->esq", self.dpsi, bq)  # (b·∇)ψ_s
         S = np.matmul(self.psi_dx, bgrad.transpose(0, 2, 1))  # (nel, ns, ns): ∫ ψ_i (b·∇ψ_j)
-        nb = 2 * self.ns
-        nel = S.shape[0]
-        local = np.zeros((nel, nb, nb))
-        for c in range(2):  # same-component blocks
-            local[:, c::2, c::2] = S
-        if a is not None:
-            G = self.gradients(a)  # (2, 2, nel, nq)
-            for ca in range(2):
-                for cb in range(2):
-                    # ∫ ψ_i ψ_j ∂a_ca/∂x_cb, row component ca, column component cb
-                    Mab = np.matmul(self.psi_dx * G[ca, cb][:, None, :], self.psi.transpose(0, 2, 1))
-                    local[:, ca::2, cb::2] += Mab
-        return self._scatter_local(local)
+        if a is None:
+            return self._block_diagonal(S)
+        G = self.gradients(a)  # (2, 2, nel, nq)
+        blocks = {}
+        for ca in range(2):
+            for cb in range(2):
+                # ∫ ψ_i ψ_j ∂a_ca/∂x_cb, row component ca, column component cb
+                Mab = np.matmul(self.psi_dx * G[ca, cb][:, None, :], self.psi.transpose(0, 2, 1))
+                blocks[(ca, cb)] = S + Mab if ca == cb else Mab
+        return self._from_blocks(blocks)
 
     def divergence_mass(self, c: np.ndarray) -> np.ndarray:
         """Pattern data of (div c) u · v for velocity coefficients ``c`` (n_u,), (nnz,).
