@@ -186,6 +186,18 @@ class VectorAssembler:
             if getattr(self, "psi", None) is None or self.psi.shape[0] != nel:
                 self.psi = np.ascontiguousarray(np.broadcast_to(phi, (nel,) + phi.shape))
             self.dpsi = affine_gradients(ub.mapping.invA, dphi)
+            if getattr(self, "_reference", None) is None:
+                W = np.asarray(ub.W)
+                self._reference = {
+                    "phi": phi, "dphi": dphi, "W": W,
+                    # ∫ φ̂_t φ̂_s and ∫ ∂_i φ̂_t ∂_j φ̂_s over the reference triangle (ns, ns), (2, 2, ns, ns)
+                    "mass": np.einsum("q,tq,sq->ts", W, phi, phi),
+                    "grad": np.einsum("q,tiq,sjq->ijts", W, dphi, dphi),
+                }
+            self._invA = np.asarray(ub.mapping.invA)  # (2, 2, nel)
+            self._det = np.abs(np.asarray(ub.mapping.detA))  # (nel,)
+        if ref is None:
+            self._reference = None
         self.dx = np.asarray(ub.dx)  # (nel, nq)
         self.psi_dx = self.psi * self.dx[:, None, :]
 
@@ -236,25 +248,48 @@ class VectorAssembler:
             data[self._block_pos[key]] = sums[:, j]
         return data
 
+    def _gradient_products(self, pairs) -> dict:
+        """Element matrices P[(c, d)] (nel, ns, ns), entry (e, t, s) = ∫ ∂_c ψ_t ∂_d ψ_s, for ``pairs`` of (c, d).
+
+        Straight triangles (affine map, constant inverse Jacobian J = DF⁻¹ and |det DF| per
+        element): P_cd = |det DF| Σ_ij J_ic J_jd R_ij with the reference matrices
+        R_ij = ∫ ∂_i φ̂_t ∂_j φ̂_s over the reference triangle (the same quadrature; the chain rule
+        of :func:`affine_gradients` taken out of the sum over quadrature points), one small matrix
+        product per pair.  Otherwise the quadrature sum on the element.
+        """
+        ref = self._reference
+        out = {}
+        for c, d in pairs:
+            if ref is None:
+                out[(c, d)] = np.matmul(self.dpsi[c] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1))
+            else:
+                J = self._invA
+                coef = (self._det * J[:, c][:, None, :] * J[:, d][None, :, :]).reshape(4, -1).T  # (nel, (i, j))
+                out[(c, d)] = (coef @ ref["grad"].reshape(4, -1)).reshape(-1, self.ns, self.ns)
+        return out
+
     def mass_data(self) -> np.ndarray:
-        """Pattern data of the velocity mass u · v (:func:`fluidem.fluid.forms.mass`), (nnz,)."""
+        """Pattern data of the velocity mass u · v (:func:`fluidem.fluid.forms.mass`), (nnz,).
+
+        Straight triangles: |det DF| times the reference mass matrix (same quadrature)."""
+        if self._reference is not None:
+            return self._block_diagonal(self._det[:, None, None] * self._reference["mass"])
         return self._block_diagonal(np.matmul(self.psi_dx, self.psi.transpose(0, 2, 1)))
 
     def viscous_data(self) -> np.ndarray:
         """Pattern data of ∇u : ∇v (:func:`fluidem.fluid.forms.viscous`, multiply by ν), (nnz,)."""
-        S = sum(np.matmul(self.dpsi[d] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1)) for d in range(2))
-        return self._block_diagonal(S)
+        P = self._gradient_products([(0, 0), (1, 1)])
+        return self._block_diagonal(P[(0, 0)] + P[(1, 1)])
 
     def stress_data(self) -> np.ndarray:
         """Pattern data of 2 ε(u) : ε(v) = ∇u : ∇v + ∇uᵀ : ∇v (:func:`fluidem.fluid.forms.viscous_stress`,
         multiply by ν), (nnz,): the Laplacian blocks plus, for test φ_t e_d and trial φ_s e_c,
         ∫ ∂_c φ_t ∂_d φ_s."""
-        # P[c][d] (e, t, s) = ∫ ∂_c φ_t ∂_d φ_s; the Laplacian part S = P[0][0] + P[1][1]
-        P = [[np.matmul(self.dpsi[c] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1)) for d in range(2)]
-             for c in range(2)]
-        S = P[0][0] + P[1][1]
-        # block (row d, column c): δ_cd S + P[c][d]
-        return self._from_blocks({(0, 0): S + P[0][0], (1, 1): S + P[1][1], (1, 0): P[0][1], (0, 1): P[1][0]})
+        # P[(c, d)] (e, t, s) = ∫ ∂_c φ_t ∂_d φ_s; the Laplacian part S = P[(0, 0)] + P[(1, 1)]
+        P = self._gradient_products([(c, d) for c in range(2) for d in range(2)])
+        S = P[(0, 0)] + P[(1, 1)]
+        # block (row d, column c): δ_cd S + P[(c, d)]
+        return self._from_blocks({(0, 0): S + P[(0, 0)], (1, 1): S + P[(1, 1)], (1, 0): P[(0, 1)], (0, 1): P[(1, 0)]})
 
     # -- data arrays on the fixed pattern ----------------------------------------------
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
@@ -445,19 +480,28 @@ class DivergencePattern:
         self.indptr, self.indices, self._scatter = csr_pattern(pd, ud, self.n_p, assembler.n)
         self.nnz = len(self.indices)
         self._npl = pd.shape[0]
+        self._reference = None  # reference divergence matrices on straight triangles (first matrix)
 
     def matrix(self, pb) -> sp.csr_matrix:
         """B on the current geometry: B[i, 2s+c] = −∫ q_i ∂ψ_s/∂x_c, (n_p, n_u) CSR."""
         va = self.va
-        ref = affine_reference(pb, self._npl)
+        ref = affine_reference(pb, self._npl) if va._reference is not None else None
+        nel = va.dx.shape[0]
+        local = np.empty((nel, self._npl, 2 * va.ns))
         if ref is None:
             q = np.stack([np.asarray(pb.basis[i][0]) for i in range(self._npl)], axis=1)  # (nel, npl, nq)
-        else:  # the same values in every element
-            q = np.broadcast_to(ref[0], (pb.nelems,) + ref[0].shape)
-        q_dx = q * va.dx[:, None, :]
-        nel = q.shape[0]
-        local = np.empty((nel, self._npl, 2 * va.ns))
-        for c in range(2):
-            local[:, :, c::2] = -np.matmul(q_dx, va.dpsi[c].transpose(0, 2, 1))
+            q_dx = q * va.dx[:, None, :]
+            for c in range(2):
+                local[:, :, c::2] = -np.matmul(q_dx, va.dpsi[c].transpose(0, 2, 1))
+        else:
+            # straight triangles: −|det DF| Σ_i J_ic D_i with D_i = ∫ q̂_p ∂_i φ̂_s on the reference
+            # triangle (same quadrature), J = DF⁻¹ (see VectorAssembler._gradient_products)
+            r = va._reference
+            if self._reference is None:
+                self._reference = np.einsum("q,pq,siq->ips", r["W"], ref[0], r["dphi"])  # (2, npl, ns)
+            J = va._invA
+            for c in range(2):
+                coef = -(va._det * J[:, c]).T  # (nel, 2)
+                local[:, :, c::2] = (coef @ self._reference.reshape(2, -1)).reshape(nel, self._npl, va.ns)
         data = np.bincount(self._scatter, weights=local.ravel(), minlength=self.nnz)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n_p, va.n))
