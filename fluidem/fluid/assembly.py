@@ -96,8 +96,13 @@ def affine_gradients(invA: np.ndarray, dphi: np.ndarray) -> np.ndarray:
     """Global gradients (2, n_elements, n, n_qp) of reference gradients ``dphi`` (n, 2, n_qp) under
     affine maps with inverse Jacobians ``invA`` (2, 2, n_elements): ∂φ/∂x_d = Σ_i (DF⁻¹)_{id} ∂φ̂/∂X̂_i,
     the sum scikit-fem's ``ElementH1.gbasis`` forms, in the same order."""
-    return np.stack([invA[0, d][:, None, None] * dphi[None, :, 0, :] + invA[1, d][:, None, None] * dphi[None, :, 1, :]
-                     for d in range(2)])
+    out = np.empty((2, invA.shape[2]) + dphi[:, 0].shape)
+    tmp = np.empty(out.shape[1:])
+    for d in range(2):  # in place: no temporaries of the full size beyond one
+        np.multiply(invA[0, d][:, None, None], dphi[None, :, 0, :], out=out[d])
+        np.multiply(invA[1, d][:, None, None], dphi[None, :, 1, :], out=tmp)
+        out[d] += tmp
+    return out
 
 
 class VectorAssembler:
