@@ -108,10 +108,20 @@ class RigidBodySystem:
         self._scatter = scatter[:m]
         self._diag_pos = scatter[m:]
         c = code[e]
-        self._uu = c > 0
-        self._src_uu = c[self._uu] - 1
-        self._src_B = -c[~self._uu] - 1
-        self._wr, self._wc = wr, wc
+        uu = c > 0
+        src = np.where(uu, c - 1, -c - 1)  # position in the uu pattern data or in B.data
+        # entries alone on their target with weight 1 (fluid rows and columns, no body mode: most of
+        # them) are copied; the others are weighted and summed in their order (the same sums)
+        hits = np.bincount(self._scatter, minlength=self._nnz)
+        direct = (wr == 0) & (wc == 0) & (hits[self._scatter] == 1)
+        self._direct_uu = (self._scatter[direct & uu], src[direct & uu])
+        self._direct_B = (self._scatter[direct & ~uu], src[direct & ~uu])
+        rest = np.flatnonzero(~direct)
+        self._rest_scatter = self._scatter[rest]
+        self._rest_uu = np.flatnonzero(uu[rest])
+        self._rest_B = np.flatnonzero(~uu[rest])
+        self._rest_src_uu, self._rest_src_B = src[rest[self._rest_uu]], src[rest[self._rest_B]]
+        self._wr, self._wc = wr[rest], wc[rest]
         # the free bodies' rows of R as positions into its data (the structure is fixed per
         # connectivity, the data refilled as the mesh moves), and their outline DOFs
         self._r_pos = rpos
@@ -131,11 +141,13 @@ class RigidBodySystem:
         if not (np.array_equal(B.indptr, self._B_indptr) and np.array_equal(B.indices, self._B_indices)):
             raise ValueError("RigidBodySystem.matrix: B's structure changed; build a new system")
         w = self._weights()
-        vals = np.empty(len(self._scatter))
-        vals[self._uu] = uu_data[self._src_uu]
-        vals[~self._uu] = B.data[self._src_B]
+        vals = np.empty(len(self._rest_scatter))
+        vals[self._rest_uu] = uu_data[self._rest_src_uu]
+        vals[self._rest_B] = B.data[self._rest_src_B]
         vals *= w[self._wr] * w[self._wc]
-        data = np.bincount(self._scatter, weights=vals, minlength=self._nnz)
+        data = np.bincount(self._rest_scatter, weights=vals, minlength=self._nnz)
+        for (dst, src), values in ((self._direct_uu, uu_data), (self._direct_B, B.data)):
+            data[dst] = values[src]
         data[self._diag_pos] += body_diagonal
         return sp.csr_matrix((data, self._indices, self._indptr), shape=self.shape)
 

@@ -59,6 +59,52 @@ def csr_pattern(row_dofs: np.ndarray, col_dofs: np.ndarray, n_rows: int, n_cols:
     return indptr, indices, scatter
 
 
+def affine_reference(basis, n: int | None = None):
+    """Reference values of a scalar H1 element when ``basis`` maps every element affinely, else None.
+
+    For an element whose global basis is the identity transformation of the reference one
+    (scikit-fem's ``ElementH1.gbasis``: values φ̂(X̂), gradients DF⁻ᵀ ∇̂φ̂) on an affine map
+    (``MappingAffine``, straight triangles) the values at the quadrature points are the same in
+    every element and the gradients are the constant inverse Jacobian times the reference ones
+    (:func:`affine_gradients`): no per-element basis evaluation is needed.
+
+    Parameters
+    ----------
+    basis : skfem.CellBasis
+        Of a scalar element or of ``ElementVector`` of one (then the scalar element's functions).
+    n : int, optional
+        Number of scalar functions (default: ``basis.Nbfun``, for a scalar basis).
+
+    Returns
+    -------
+    (phi (n, n_qp), dphi (n, 2, n_qp)) or None
+    """
+    from skfem import ElementVector
+    from skfem.element import ElementH1
+    from skfem.mapping import MappingAffine
+
+    elem = basis.elem.elem if isinstance(basis.elem, ElementVector) else basis.elem
+    if not (isinstance(basis.mapping, MappingAffine) and basis.tind is None and isinstance(elem, ElementH1)
+            and type(elem).gbasis is ElementH1.gbasis and basis.X.ndim == 2):
+        return None
+    n = basis.Nbfun if n is None else n
+    vals = [elem.lbasis(basis.X, i) for i in range(n)]
+    return np.array([v[0] for v in vals]), np.array([v[1] for v in vals])
+
+
+def affine_gradients(invA: np.ndarray, dphi: np.ndarray) -> np.ndarray:
+    """Global gradients (2, n_elements, n, n_qp) of reference gradients ``dphi`` (n, 2, n_qp) under
+    affine maps with inverse Jacobians ``invA`` (2, 2, n_elements): ∂φ/∂x_d = Σ_i (DF⁻¹)_{id} ∂φ̂/∂X̂_i,
+    the sum scikit-fem's ``ElementH1.gbasis`` forms, in the same order."""
+    out = np.empty((2, invA.shape[2]) + dphi[:, 0].shape)
+    tmp = np.empty(out.shape[1:])
+    for d in range(2):  # in place: no temporaries of the full size beyond one
+        np.multiply(invA[0, d][:, None, None], dphi[None, :, 0, :], out=out[d])
+        np.multiply(invA[1, d][:, None, None], dphi[None, :, 1, :], out=tmp)
+        out[d] += tmp
+    return out
+
+
 class VectorAssembler:
     """Element data of a vector basis and the CSR pattern of its velocity–velocity block.
 
@@ -83,6 +129,7 @@ class VectorAssembler:
         dofs = ub.element_dofs  # (nb, nel)
         self._element_dofs = dofs
         self.dofs_c = [dofs[c::2].T.copy() for c in range(2)]  # (nel, ns) per component
+        self._gather = None  # scalar-entry sums (interleaved numbering only), see _interleaved_pattern
         if self.n % 2 == 0 and np.all(dofs[0::2] % 2 == 0) and np.array_equal(dofs[1::2], dofs[0::2] + 1):
             self._interleaved_pattern(dofs)
         else:
@@ -124,11 +171,38 @@ class VectorAssembler:
         c = np.arange(2).reshape(1, 1, 2, 1, 1)
         d = np.arange(2).reshape(1, 1, 1, 1, 2)
         self._scatter = (b + c * lj + d).ravel()  # local entry (e, 2s + c, 2s' + d)
+        # scalar element entries (e, s, s') summed per scalar entry by one sparse product whose rows
+        # list their entries in element order (the order np.bincount sums them in: same numbers),
+        # and the vector entry of each scalar entry's block (row component r, column component c)
+        order = np.argsort(sinv, kind="stable")
+        gptr = np.searchsorted(sinv[order], np.arange(len(uniq) + 1))
+        self._gather = sp.csr_matrix((np.ones(len(sinv)), order, gptr), shape=(len(uniq), len(sinv)))
+        self._block_pos = {(r, c): base + 2 * r * L + c for r in range(2) for c in range(2)}
 
     def _set_geometry(self, ub) -> None:
         # scalar values/gradients in element-major layout: psi (nel, ns, nq), dpsi (2, nel, ns, nq)
-        self.psi = np.stack([np.asarray(ub.basis[2 * s][0])[0] for s in range(self.ns)], axis=1)
-        self.dpsi = np.stack([ub.basis[2 * s][0].grad[0] for s in range(self.ns)], axis=2)
+        ref = affine_reference(ub, self.ns)
+        if ref is None:
+            self.psi = np.stack([np.asarray(ub.basis[2 * s][0])[0] for s in range(self.ns)], axis=1)
+            self.dpsi = np.stack([ub.basis[2 * s][0].grad[0] for s in range(self.ns)], axis=2)
+        else:
+            phi, dphi = ref
+            nel = ub.nelems
+            if getattr(self, "psi", None) is None or self.psi.shape[0] != nel:
+                self.psi = np.ascontiguousarray(np.broadcast_to(phi, (nel,) + phi.shape))
+            self.dpsi = affine_gradients(ub.mapping.invA, dphi)
+            if getattr(self, "_reference", None) is None:
+                W = np.asarray(ub.W)
+                self._reference = {
+                    "phi": phi, "dphi": dphi, "W": W,
+                    # ∫ φ̂_t φ̂_s and ∫ ∂_i φ̂_t ∂_j φ̂_s over the reference triangle (ns, ns), (2, 2, ns, ns)
+                    "mass": np.einsum("q,tq,sq->ts", W, phi, phi),
+                    "grad": np.einsum("q,tiq,sjq->ijts", W, dphi, dphi),
+                }
+            self._invA = np.asarray(ub.mapping.invA)  # (2, 2, nel)
+            self._det = np.abs(np.asarray(ub.mapping.detA))  # (nel,)
+        if ref is None:
+            self._reference = None
         self.dx = np.asarray(ub.dx)  # (nel, nq)
         self.psi_dx = self.psi * self.dx[:, None, :]
 
@@ -147,33 +221,80 @@ class VectorAssembler:
 
     def _block_diagonal(self, S: np.ndarray) -> np.ndarray:
         """Pattern data of the vector operator with scalar element matrices ``S`` (nel, ns, ns) per component."""
-        nb = 2 * self.ns
-        local = np.zeros((S.shape[0], nb, nb))
-        for c in range(2):  # same-component blocks
-            local[:, c::2, c::2] = S
-        return self._scatter_local(local)
+        return self._from_blocks({(0, 0): S, (1, 1): S})
+
+    def _from_blocks(self, blocks: dict) -> np.ndarray:
+        """Pattern data (nnz,) of element matrices given by their component blocks.
+
+        ``blocks[(r, c)]`` (nel, ns, ns) is the block of row component r and column component c
+        (entry (e, s, s') couples test ψ_s e_r and trial ψ_s' e_c); absent blocks are zero.  With
+        the interleaved numbering the blocks are summed on the scalar pattern (a quarter of the
+        entries of the vector one, one sparse product for all blocks, the same block summed once)
+        and placed in the vector data; the sums are those of :meth:`_scatter_local` on the full
+        element matrices, bit for bit (same terms, same order).
+        """
+        if self._gather is None:
+            nb = 2 * self.ns
+            first = next(iter(blocks.values()))
+            local = np.zeros((first.shape[0], nb, nb))
+            for (r, c), X in blocks.items():
+                local[:, r::2, c::2] = X
+            return self._scatter_local(local)
+        arrays, column = [], {}
+        for key, X in blocks.items():
+            j = next((k for k, A in enumerate(arrays) if A is X), None)
+            if j is None:
+                j = len(arrays)
+                arrays.append(X)
+            column[key] = j
+        sums = self._gather @ np.stack([X.reshape(-1) for X in arrays], axis=1)  # (n_scalar_entries, k)
+        data = np.zeros(self.nnz)
+        for key, j in column.items():
+            data[self._block_pos[key]] = sums[:, j]
+        return data
+
+    def _gradient_products(self, pairs) -> dict:
+        """Element matrices P[(c, d)] (nel, ns, ns), entry (e, t, s) = ∫ ∂_c ψ_t ∂_d ψ_s, for ``pairs`` of (c, d).
+
+        Straight triangles (affine map, constant inverse Jacobian J = DF⁻¹ and |det DF| per
+        element): P_cd = |det DF| Σ_ij J_ic J_jd R_ij with the reference matrices
+        R_ij = ∫ ∂_i φ̂_t ∂_j φ̂_s over the reference triangle (the same quadrature; the chain rule
+        of :func:`affine_gradients` taken out of the sum over quadrature points), one small matrix
+        product per pair.  Otherwise the quadrature sum on the element.
+        """
+        ref = self._reference
+        out = {}
+        for c, d in pairs:
+            if ref is None:
+                out[(c, d)] = np.matmul(self.dpsi[c] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1))
+            else:
+                J = self._invA
+                coef = (self._det * J[:, c][:, None, :] * J[:, d][None, :, :]).reshape(4, -1).T  # (nel, (i, j))
+                out[(c, d)] = (coef @ ref["grad"].reshape(4, -1)).reshape(-1, self.ns, self.ns)
+        return out
 
     def mass_data(self) -> np.ndarray:
-        """Pattern data of the velocity mass u · v (:func:`fluidem.fluid.forms.mass`), (nnz,)."""
+        """Pattern data of the velocity mass u · v (:func:`fluidem.fluid.forms.mass`), (nnz,).
+
+        Straight triangles: |det DF| times the reference mass matrix (same quadrature)."""
+        if self._reference is not None:
+            return self._block_diagonal(self._det[:, None, None] * self._reference["mass"])
         return self._block_diagonal(np.matmul(self.psi_dx, self.psi.transpose(0, 2, 1)))
 
     def viscous_data(self) -> np.ndarray:
         """Pattern data of ∇u : ∇v (:func:`fluidem.fluid.forms.viscous`, multiply by ν), (nnz,)."""
-        S = sum(np.matmul(self.dpsi[d] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1)) for d in range(2))
-        return self._block_diagonal(S)
+        P = self._gradient_products([(0, 0), (1, 1)])
+        return self._block_diagonal(P[(0, 0)] + P[(1, 1)])
 
     def stress_data(self) -> np.ndarray:
         """Pattern data of 2 ε(u) : ε(v) = ∇u : ∇v + ∇uᵀ : ∇v (:func:`fluidem.fluid.forms.viscous_stress`,
         multiply by ν), (nnz,): the Laplacian blocks plus, for test φ_t e_d and trial φ_s e_c,
         ∫ ∂_c φ_t ∂_d φ_s."""
-        nb = 2 * self.ns
-        S = sum(np.matmul(self.dpsi[d] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1)) for d in range(2))
-        local = np.zeros((S.shape[0], nb, nb))
-        for c in range(2):
-            local[:, c::2, c::2] = S
-            for d in range(2):
-                local[:, d::2, c::2] += np.matmul(self.dpsi[c] * self.dx[:, None, :], self.dpsi[d].transpose(0, 2, 1))
-        return self._scatter_local(local)
+        # P[(c, d)] (e, t, s) = ∫ ∂_c φ_t ∂_d φ_s; the Laplacian part S = P[(0, 0)] + P[(1, 1)]
+        P = self._gradient_products([(c, d) for c in range(2) for d in range(2)])
+        S = P[(0, 0)] + P[(1, 1)]
+        # block (row d, column c): δ_cd S + P[(c, d)]
+        return self._from_blocks({(0, 0): S + P[(0, 0)], (1, 1): S + P[(1, 1)], (1, 0): P[(0, 1)], (0, 1): P[(1, 0)]})
 
     # -- data arrays on the fixed pattern ----------------------------------------------
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
@@ -218,19 +339,16 @@ class VectorAssembler:
         bq = self.values(b)
         bgrad = np.einsum("cesq,ceq->esq", self.dpsi, bq)  # (b·∇)ψ_s
         S = np.matmul(self.psi_dx, bgrad.transpose(0, 2, 1))  # (nel, ns, ns): ∫ ψ_i (b·∇ψ_j)
-        nb = 2 * self.ns
-        nel = S.shape[0]
-        local = np.zeros((nel, nb, nb))
-        for c in range(2):  # same-component blocks
-            local[:, c::2, c::2] = S
-        if a is not None:
-            G = self.gradients(a)  # (2, 2, nel, nq)
-            for ca in range(2):
-                for cb in range(2):
-                    # ∫ ψ_i ψ_j ∂a_ca/∂x_cb, row component ca, column component cb
-                    Mab = np.matmul(self.psi_dx * G[ca, cb][:, None, :], self.psi.transpose(0, 2, 1))
-                    local[:, ca::2, cb::2] += Mab
-        return self._scatter_local(local)
+        if a is None:
+            return self._block_diagonal(S)
+        G = self.gradients(a)  # (2, 2, nel, nq)
+        blocks = {}
+        for ca in range(2):
+            for cb in range(2):
+                # ∫ ψ_i ψ_j ∂a_ca/∂x_cb, row component ca, column component cb
+                Mab = np.matmul(self.psi_dx * G[ca, cb][:, None, :], self.psi.transpose(0, 2, 1))
+                blocks[(ca, cb)] = S + Mab if ca == cb else Mab
+        return self._from_blocks(blocks)
 
     def divergence_mass(self, c: np.ndarray) -> np.ndarray:
         """Pattern data of (div c) u · v for velocity coefficients ``c`` (n_u,), (nnz,).
@@ -367,15 +485,28 @@ class DivergencePattern:
         self.indptr, self.indices, self._scatter = csr_pattern(pd, ud, self.n_p, assembler.n)
         self.nnz = len(self.indices)
         self._npl = pd.shape[0]
+        self._reference = None  # reference divergence matrices on straight triangles (first matrix)
 
     def matrix(self, pb) -> sp.csr_matrix:
         """B on the current geometry: B[i, 2s+c] = −∫ q_i ∂ψ_s/∂x_c, (n_p, n_u) CSR."""
         va = self.va
-        q = np.stack([np.asarray(pb.basis[i][0]) for i in range(self._npl)], axis=1)  # (nel, npl, nq)
-        q_dx = q * va.dx[:, None, :]
-        nel = q.shape[0]
+        ref = affine_reference(pb, self._npl) if va._reference is not None else None
+        nel = va.dx.shape[0]
         local = np.empty((nel, self._npl, 2 * va.ns))
-        for c in range(2):
-            local[:, :, c::2] = -np.matmul(q_dx, va.dpsi[c].transpose(0, 2, 1))
+        if ref is None:
+            q = np.stack([np.asarray(pb.basis[i][0]) for i in range(self._npl)], axis=1)  # (nel, npl, nq)
+            q_dx = q * va.dx[:, None, :]
+            for c in range(2):
+                local[:, :, c::2] = -np.matmul(q_dx, va.dpsi[c].transpose(0, 2, 1))
+        else:
+            # straight triangles: −|det DF| Σ_i J_ic D_i with D_i = ∫ q̂_p ∂_i φ̂_s on the reference
+            # triangle (same quadrature), J = DF⁻¹ (see VectorAssembler._gradient_products)
+            r = va._reference
+            if self._reference is None:
+                self._reference = np.einsum("q,pq,siq->ips", r["W"], ref[0], r["dphi"])  # (2, npl, ns)
+            J = va._invA
+            for c in range(2):
+                coef = -(va._det * J[:, c]).T  # (nel, 2)
+                local[:, :, c::2] = (coef @ self._reference.reshape(2, -1)).reshape(nel, self._npl, va.ns)
         data = np.bincount(self._scatter, weights=local.ravel(), minlength=self.nnz)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n_p, va.n))

@@ -22,7 +22,7 @@ from skfem import asm
 
 from ..cost import CostSplit
 from . import forms
-from .assembly import CondensedSystem, DivergencePattern, VectorAssembler
+from .assembly import CondensedSystem, DivergencePattern, VectorAssembler, affine_reference
 from .solvers import DirectSolver
 from .space import FlowSpace, RigidMotion, VelocityBC
 
@@ -421,8 +421,24 @@ class FlowProblem:
             one = np.ones(self.space.n_p)
             pm = self.space.pb
             area = pm.dx.sum()
-            mean = (np.asarray(pm.interpolate(x[self.space.n_u:])) * pm.dx).sum() / area
+            mean = (self._pressure_values(x[self.space.n_u:]) * pm.dx).sum() / area
             x[self.space.n_u:] -= mean * one
+
+    def _pressure_values(self, p: np.ndarray) -> np.ndarray:
+        """The pressure with coefficients ``p`` (n_p,) at the quadrature points, (n_elements, n_qp).
+
+        ``pb.interpolate(p)`` without the gradients: on straight triangles from the reference
+        values (the same in every element), the same sum in the same order, so the same numbers.
+        """
+        pm = self.space.pb
+        ref = affine_reference(pm)
+        if ref is None:
+            return np.asarray(pm.interpolate(p))
+        ed = pm.element_dofs
+        out = 0.0 * (p[ed[0]][:, None] * ref[0][0])  # as scikit-fem's interpolate
+        for i in range(pm.Nbfun):
+            out += p[ed[i]][:, None] * ref[0][i]
+        return out
 
     def _normalise_closed_regions(self, x: np.ndarray) -> None:
         """Shift the pressure of every closed region to zero mean over that region (open ones stay)."""
@@ -430,7 +446,7 @@ class FlowProblem:
         pm = self.space.pb
         p = x[self.space.n_u:]
         area = pm.dx.sum(axis=1)
-        integral = (np.asarray(pm.interpolate(p)) * pm.dx).sum(axis=1)
+        integral = (self._pressure_values(p) * pm.dx).sum(axis=1)
         n = fc.n_components
         mean = np.bincount(fc.element_label, weights=integral, minlength=n) / \
             np.bincount(fc.element_label, weights=area, minlength=n)

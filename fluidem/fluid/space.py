@@ -7,15 +7,48 @@ The unknown vector is ``x = [u, p]``: ``n_u`` velocity coefficients first (sciki
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Callable, Sequence
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import Basis, ElementVector, MeshTri2
+from skfem import Basis, CellBasis, ElementVector, MeshTri2
+from skfem.assembly.basis.abstract_basis import AbstractBasis
 
 from .elements import ElementPair, element_pair
 
 __all__ = ["FlowSpace", "VelocityBC", "RigidMotion"]
+
+
+class MovedBasis(CellBasis):
+    """A scikit-fem ``CellBasis`` on moved nodes whose basis values are computed on first use.
+
+    The geometry map, the DOF locations and ``dx`` (``|det DF| w``, (n_elements, n_qp)) are
+    computed at construction as ``CellBasis`` does; ``basis`` (the global basis values and
+    gradients at the quadrature points, a list of ``Nbfun`` tuples) only when read.  The
+    assembly of a moving mesh (:class:`fluidem.fluid.assembly.VectorAssembler`) takes the
+    gradients from the affine map and reference values, so on most steps the list is never built.
+
+    Parameters
+    ----------
+    mesh : skfem.MeshTri
+    elem : skfem.Element
+    quadrature : (X (2, n_qp), W (n_qp,))
+        Reference points and weights.
+    dofs : skfem.Dofs
+        The DOF numbering (shared with the basis on the unmoved mesh).
+    """
+
+    def __init__(self, mesh, elem, quadrature, dofs):
+        AbstractBasis.__init__(self, mesh, elem, None, None, quadrature, mesh.refdom, dofs, False)
+        self.tind = None
+        self.nelems = mesh.nelements
+        # as CellBasis.__init__
+        self.dx = np.abs(self.mapping.detDF(self.X)) * np.broadcast_to(self.W, (self.nelems, self.W.shape[-1]))
+
+    @cached_property
+    def basis(self):
+        return [self.elem.gbasis(self.mapping, self.X, j) for j in range(self.Nbfun)]
 
 
 @dataclass(frozen=True)
@@ -104,8 +137,8 @@ class FlowSpace:
         """The same space on ``mesh``: the same triangles with moved nodes (ALE).
 
         Shares the DOF numbering (scikit-fem ``Dofs``), the quadrature and the boundary DOF
-        lists of this space; only the geometry map, the basis values and the DOF locations
-        are recomputed (no facet or DOF search).
+        lists of this space; only the geometry map, ``dx`` and the DOF locations are recomputed
+        (no facet or DOF search), the basis values when first read (:class:`MovedBasis`).
 
         Parameters
         ----------
@@ -124,8 +157,8 @@ class FlowSpace:
                              "re-triangulation")
         new = object.__new__(FlowSpace)
         new.pair, new.mesh, new.curved = self.pair, mesh, False
-        new.ub = Basis(mesh, self.ub.elem, quadrature=self.ub.quadrature, dofs=self.ub.dofs)
-        new.pb = Basis(mesh, self.pb.elem, quadrature=self.ub.quadrature, dofs=self.pb.dofs)
+        new.ub = MovedBasis(mesh, self.ub.elem, self.ub.quadrature, self.ub.dofs)
+        new.pb = MovedBasis(mesh, self.pb.elem, self.ub.quadrature, self.pb.dofs)
         new.n_u, new.n_p = self.n_u, self.n_p
         new._boundary_cache = self._boundary_cache  # DOF lists depend on the connectivity only
         return new
