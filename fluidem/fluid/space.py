@@ -157,8 +157,12 @@ class FlowSpace:
                              "re-triangulation")
         new = object.__new__(FlowSpace)
         new.pair, new.mesh, new.curved = self.pair, mesh, False
-        new.ub = MovedBasis(mesh, self.ub.elem, self.ub.quadrature, self.ub.dofs)
-        new.pb = MovedBasis(mesh, self.pb.elem, self.ub.quadrature, self.pb.dofs)
+        try:
+            new.ub = MovedBasis(mesh, self.ub.elem, self.ub.quadrature, self.ub.dofs)
+            new.pb = MovedBasis(mesh, self.pb.elem, self.ub.quadrature, self.pb.dofs)
+        except TypeError:  # a scikit-fem whose AbstractBasis takes other arguments: the full bases
+            new.ub = Basis(mesh, self.ub.elem, quadrature=self.ub.quadrature, dofs=self.ub.dofs)
+            new.pb = Basis(mesh, self.pb.elem, quadrature=self.ub.quadrature, dofs=self.pb.dofs)
         new.n_u, new.n_p = self.n_u, self.n_p
         new._boundary_cache = self._boundary_cache  # DOF lists depend on the connectivity only
         return new
