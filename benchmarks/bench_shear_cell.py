@@ -278,7 +278,7 @@ def main() -> None:
              f"Machine: {machine}.  `benchmarks/bench_shear_cell.py`: 20 free disks, box 2 × 1 periodic in x, "
              f"walls at ∓1 (γ̇ = {SHEAR_RATE:g}), Stokes, Taylor–Hood, dt = 0.02, t_end = {args.t_end:g}; "
              "μ_eff/μ over t ∈ [1, t_end] with its blocking standard error.  The runs shared the machine with "
-             "other jobs (load 2–6 for the first table, 4–8 for the cost section): their times say little; "
+             "other jobs (load 2–6 for the first table, 2.5–8 for the cost section): their times say little; "
              "the rows of the cost section ran one after the other.", ""]
     spread = sorted((r for r in runs if r["kind"] == "spread" and r.get("mu") is not None),
                     key=lambda r: (r["phi"], r["seed"]))
