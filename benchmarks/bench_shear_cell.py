@@ -17,10 +17,13 @@ Two parts (``--part``):
   Einstein's 2D dilute law 1 + 2φ and a Krieger–Dougherty curve (1 − φ/φ_m)^(−[η] φ_m) with
   [η] = 2 and φ_m = 0.8 (≈ 1.58 and 2.12 at φ = 0.2 and 0.3).  Reported, not tuned: the cell
   has walls (a layer of bodies next to each wall) and only 20 bodies.
-* ``cost``: the cost of seams.  The same 20 disks at φ = 0.1 (i) spread over the whole cell,
-  across the seams (the ``viscosity`` part's run), and (ii) filled into the band x ∈ [0.4, 1.6]
-  (local fraction 0.17) and run for 10 steps, in which no body comes within the moving mesh's
-  image margin of a side (checked: the run records the images it meshed).
+* ``cost``: the cost of seams.  Re-triangulations: the same 20 disks at φ = 0.1 (same seed) (i)
+  spread over the whole cell, across the seams (the ``viscosity`` part's run), and (ii) in the
+  middle of a box 8 long, periodic, with the same walls (same γ̇), for the same 125 steps, in
+  which no body comes within the moving mesh's image margin of a side (checked: the run records
+  the images it meshed); seeds 1…``--cost-seeds``.  Time per step in the same 2 × 1 box: (i)
+  against (iii) the disks filled into the band x ∈ [0.4, 1.6] (local fraction 0.17) and run for
+  10 steps, too few for a rate of re-triangulations.
 * ``resolution``: φ = 0.1 and 0.3 (seed 1) again at h = 0.025.  Per step: wall time
   (median over steps 2…), re-triangulations per 100 steps and their reasons; run one after the
   other in one session (the load is in the machine line).
@@ -49,6 +52,9 @@ HERE = pathlib.Path(__file__).resolve().parent
 N_BODIES = 20
 #: the cost part's cell without seams: the bodies start in this band of x
 BAND = (0.4, 1.6)
+#: the cost part's cell without seams for the re-triangulation rate: the same disks in the middle
+#: of a box this long (no disk reaches a side in 5 strain units: the fastest moves about 2)
+LONG = 8.0
 BOX = (0.0, 2.0, -0.5, 0.5)
 SHEAR_RATE = 2.0
 #: Bystricky et al. (2D boundary integrals, Taylor–Couette), the issue's reference values
@@ -68,23 +74,28 @@ def radius_of(phi: float) -> float:
     return math.sqrt(phi * (x1 - x0) * (y1 - y0) / (N_BODIES * math.pi))
 
 
-def scene_dict(phi: float, seed: int, t_end: float, band=None, h=None) -> dict:
+def scene_dict(phi: float, seed: int, t_end: float, band=None, h=None, length=None) -> dict:
     """The shear cell with 20 free disks at area fraction ``phi`` (of the box), placed by
     :func:`fluidem.scene.fill.fill` over the whole periodic cell or inside ``band`` (x0, x1);
-    mesh size ``h`` (default min(0.04, r/1.4))."""
+    mesh size ``h`` (default min(0.04, r/1.4)).  ``length``: the same disks as over the whole
+    cell (same seed), in the middle of a box ``length`` long (periodic, same walls, same γ̇)."""
     from fluidem.scene.fill import fill
 
     r = radius_of(phi)
     h = min(0.04, r / 1.4) if h is None else h
-    x0, x1, y0, y1 = BOX
+    x0, x1, y0, y1 = box = BOX
     if band is None:
         p = fill(BOX, n=N_BODIES, radius=r, periodic="x", min_gap=h, side_gap=h, seed=seed)
     else:
         p = fill((band[0], band[1], y0, y1), n=N_BODIES, radius=r, min_gap=h, side_gap=h, seed=seed)
     bodies = [dict(b, motion="free") for b in p.bodies]
+    if length is not None:
+        shift = 0.5 * (length - (x1 - x0)) - x0
+        bodies = [dict(b, position=[b["position"][0] + shift, b["position"][1]]) for b in bodies]
+        box = (0.0, float(length), y0, y1)
     return {"name": f"shear-{phi:g}-{seed}", "gravity": [0.0, 0.0],
             "fluid": {"model": "stokes", "viscosity": 1.0, "element": "th"},
-            "domain": {"box": list(BOX), "left": "periodic", "right": "periodic",
+            "domain": {"box": list(box), "left": "periodic", "right": "periodic",
                        "bottom": {"type": "moving-wall", "velocity": [-1.0, 0.0]},
                        "top": {"type": "moving-wall", "velocity": [1.0, 0.0]}},
             "bodies": bodies, "contact": {}, "mesh": {"h": h},
@@ -100,7 +111,8 @@ def worker(spec: dict) -> dict:
     sys.path.insert(0, str(HERE))
     from results_io import step_recorder
 
-    sc = scene_dict(spec["phi"], spec["seed"], spec["t_end"], spec.get("band"), spec.get("h"))
+    sc = scene_dict(spec["phi"], spec["seed"], spec["t_end"], spec.get("band"), spec.get("h"),
+                    spec.get("length"))
     sim = fluidem.Simulation(Scene.from_dict(sc))
     rows, progress = step_recorder(sim, lambda sim, cost: {"images": int(sim.flow.mm.n_bodies - sim.flow.mm.n_real)})
 
@@ -144,6 +156,52 @@ def step_summary(res: dict) -> dict:
             "reasons": reasons, "max_images": max((r["images"] for r in rows), default=0)}
 
 
+def cost_lines(runs: list) -> list:
+    """The "What seams cost" section: re-triangulations of the same disks with and without seams
+    per seed and summed, and the cost per step in the same box (band row)."""
+    from results_io import markdown_table
+
+    ok = [r for r in runs if r["phi"] == 0.1 and not r.get("error")]
+    long = {r["seed"]: r for r in ok if r["kind"] == "long"}
+    spread = {r["seed"]: r for r in ok if r["kind"] == "spread"}
+    seeds = sorted(set(long) & set(spread))
+    if not seeds:
+        return []
+    rows, n_events, n_steps = [], {"long": 0, "spread": 0}, {"long": 0, "spread": 0}
+    for seed in seeds:
+        for kind, label in (("long", f"{LONG:g} × 1, disks in its middle, none near a seam"),
+                            ("spread", "2 × 1, crossing the seams")):
+            r = (long if kind == "long" else spread)[seed]
+            n_events[kind] += sum(r["reasons"].values())
+            n_steps[kind] += r["steps"]
+            rows.append([str(seed), label, str(r["steps"]), str(r["max_images"]), f"{r['per_100']:.1f}",
+                         json.dumps(r["reasons"])])
+    rate = {k: 100.0 * n_events[k] / max(n_steps[k], 1) for k in n_events}
+    per_seed = ", ".join(f"{spread[s]['per_100'] / max(long[s]['per_100'], 1e-9):.2f}" for s in seeds)
+    out = ["", "## What seams cost (φ = 0.1)", "",
+           "The same 20 disks (same seed, same γ̇ = 2, h, dt and 125 steps) in the 2 × 1 cell, where they "
+           f"cross the periodic sides, and in the middle of a box {LONG:g} long with the same walls, where "
+           "no disk comes within the moving mesh's image margin of a side in the whole run (images meshed: "
+           "0).  Their trajectories differ: in the long box the disks by the sides have no neighbours across "
+           "them, and the layers of disks sheared apart pass each other once, in the 2 × 1 cell every "
+           "period.", "",
+           *markdown_table(["seed", "cell", "steps", "images meshed (most)", "re-tri. / 100 steps", "reasons"], rows),
+           "", f"Re-triangulations per 100 steps over {len(seeds)} seed(s): {rate['spread']:.1f} with seams "
+           f"({n_events['spread']} in {n_steps['spread']} steps) against {rate['long']:.1f} without "
+           f"({n_events['long']} in {n_steps['long']}): {rate['spread'] / max(rate['long'], 1e-9):.2f}× "
+           f"(target ≤ 2; per seed {per_seed})."]
+    band = next((r for r in ok if r["kind"] == "band"), None)
+    if band is not None and 1 in spread:
+        s = spread[1]
+        out += ["", "Cost per step (seed 1, same 2 × 1 box): bodies over the whole cell crossing the seams "
+                f"{s['median_step_s']:.3f} s (median of {s['steps']} steps, {s['max_images']} images at most) "
+                f"against {band['median_step_s']:.3f} s with the same disks filled into x ∈ [{BAND[0]:g}, "
+                f"{BAND[1]:g}] and run {band['steps']} steps ({band['max_images']} images; "
+                f"{json.dumps(band['reasons'])}): {s['median_step_s'] / band['median_step_s']:.2f} "
+                "(target ≤ 1.3).  The 10-step band run is too short for a re-triangulation rate."]
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--part", default="viscosity,cost,resolution")
@@ -151,9 +209,10 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3, help="seeds at phi <= 0.15 (default 3)")
     ap.add_argument("--dense-seeds", type=int, default=1, help="seeds at phi > 0.15 (default 1)")
     ap.add_argument("--t-end", type=float, default=2.5, help="end time (default 2.5: 5 strain units)")
+    ap.add_argument("--cost-seeds", type=int, default=3, help="seeds of the cost part (default 3)")
     ap.add_argument("--out", default="shear_cell")
     ap.add_argument("--add", action="store_true", help="keep the rows of the last results file that this run "
-                    "does not redo (same kind, phi and seed)")
+                    "does not redo (same kind, phi and seed); with --part none: the tables again from that file")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
@@ -177,6 +236,7 @@ def main() -> None:
                 row = dict(kind="spread", phi=phi, seed=seed, wall_s=res.get("wall_s"), h=res.get("h"),
                            mu=rh.get("mu_eff_over_mu"), se=rh.get("standard_error"), error=res.get("error"), **s)
                 replace_row(runs, row)
+                write_json(args.out, machine_description(), runs)  # kept if the run stops
                 print(json.dumps(row), flush=True)
     if "resolution" in parts:
         for phi in (0.1, 0.3):
@@ -186,30 +246,40 @@ def main() -> None:
                        mu=rh.get("mu_eff_over_mu"), se=rh.get("standard_error"), error=res.get("error"),
                        **step_summary(res))
             replace_row(runs, row)
+            write_json(args.out, machine_description(), runs)  # kept if the run stops
             print(json.dumps(row), flush=True)
     if "cost" in parts:
         res = run_worker({"phi": 0.1, "seed": 1, "t_end": 0.2, "band": list(BAND)})
         row = dict(kind="band", phi=0.1, seed=1, wall_s=res.get("wall_s"), h=res.get("h"), error=res.get("error"),
                    **step_summary(res))
         replace_row(runs, row)
+        write_json(args.out, machine_description(), runs)  # kept if the run stops
         print(json.dumps(row), flush=True)
-        if "viscosity" not in parts:  # the cell with seams in the same session, for the ratio
-            res = run_worker({"phi": 0.1, "seed": 1, "t_end": args.t_end})
-            rh = res.get("rheology") or {}
-            row = dict(kind="spread", phi=0.1, seed=1, wall_s=res.get("wall_s"), h=res.get("h"),
-                       mu=rh.get("mu_eff_over_mu"), se=rh.get("standard_error"), error=res.get("error"),
-                       **step_summary(res))
+        for seed in range(1, 1 + args.cost_seeds):  # the same disks without and with seams, one after the other
+            res = run_worker({"phi": 0.1, "seed": seed, "t_end": args.t_end, "length": LONG})
+            row = dict(kind="long", phi=0.1, seed=seed, wall_s=res.get("wall_s"), h=res.get("h"),
+                       error=res.get("error"), **step_summary(res))
             replace_row(runs, row)
+            write_json(args.out, machine_description(), runs)  # kept if the run stops
             print(json.dumps(row), flush=True)
+            if "viscosity" not in parts:
+                res = run_worker({"phi": 0.1, "seed": seed, "t_end": args.t_end})
+                rh = res.get("rheology") or {}
+                row = dict(kind="spread", phi=0.1, seed=seed, wall_s=res.get("wall_s"), h=res.get("h"),
+                           mu=rh.get("mu_eff_over_mu"), se=rh.get("standard_error"), error=res.get("error"),
+                           **step_summary(res))
+                replace_row(runs, row)
+                write_json(args.out, machine_description(), runs)  # kept if the run stops
+                print(json.dumps(row), flush=True)
 
     machine = machine_description()
     write_json(args.out, machine, runs)
     lines = ["# Sheared suspensions in a periodic Stokes shear cell", "",
              f"Machine: {machine}.  `benchmarks/bench_shear_cell.py`: 20 free disks, box 2 × 1 periodic in x, "
              f"walls at ∓1 (γ̇ = {SHEAR_RATE:g}), Stokes, Taylor–Hood, dt = 0.02, t_end = {args.t_end:g}; "
-             "μ_eff/μ over t ∈ [1, t_end] with its blocking standard error.  The runs of the first table "
-             "shared the machine with other jobs (load 2–6): their times say little; the two rows of the cost "
-             "table ran one after the other.", ""]
+             "μ_eff/μ over t ∈ [1, t_end] with its blocking standard error.  The runs shared the machine with "
+             "other jobs (load 2–6 for the first table, 2.5–8 for the cost section): their times say little; "
+             "the rows of the cost section ran one after the other.", ""]
     spread = sorted((r for r in runs if r["kind"] == "spread" and r.get("mu") is not None),
                     key=lambda r: (r["phi"], r["seed"]))
     if spread:
@@ -237,17 +307,7 @@ def main() -> None:
     failed = [r for r in runs if r.get("error")]
     for r in failed:
         lines.append(f"* {r['kind']} φ = {r['phi']:g}, seed {r['seed']}: stopped: {r['error']}")
-    cost = {r["kind"]: r for r in runs if r["phi"] == 0.1 and r["seed"] == 1 and not r.get("error")}
-    if "band" in cost and "spread" in cost:
-        b, s = cost["band"], cost["spread"]
-        lines += ["", "## What seams cost (φ = 0.1, seed 1)", "", *markdown_table(
-            ["cell", "steps", "images meshed (most)", "s/step (median)", "re-tri. / 100 steps", "reasons"],
-            [[f"bodies in x ∈ [{BAND[0]:g}, {BAND[1]:g}], none near a seam", str(b["steps"]), str(b["max_images"]),
-              f"{b['median_step_s']:.3f}", f"{b['per_100']:.0f}", json.dumps(b["reasons"])],
-             ["bodies over the whole cell, crossing the seams", str(s["steps"]), str(s["max_images"]),
-              f"{s['median_step_s']:.3f}", f"{s['per_100']:.0f}", json.dumps(s["reasons"])]]), "",
-            f"Cost per step with seams / without: {s['median_step_s'] / b['median_step_s']:.2f} (target ≤ 1.3); "
-            f"re-triangulations per 100 steps: {s['per_100'] / max(b['per_100'], 1e-9):.2f}× (target ≤ 2)."]
+    lines += cost_lines(runs)
     (RESULTS / f"{args.out}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
