@@ -62,7 +62,7 @@ def _scene(lab: bool, x0: float, dt: float, n: int):
 def run_case(seams: str, frac: float, x0: float, n: int) -> dict:
     """Drag and lift of both frames per step, and the re-triangulations of the lab frame."""
     import fluidem.mesh
-    from fluidem.build import fixed_mesh_flow, moving_mesh_flow
+    from fluidem.build import body_frame_flow, moving_mesh_flow
 
     class SeamsMesh(fluidem.mesh.MovingMesh):  # the scene has no key for seams: the flow's mesh gets it here
         def __init__(self, *args, **kw):
@@ -72,13 +72,7 @@ def run_case(seams: str, frac: float, x0: float, n: int) -> dict:
     with mock.patch.object(fluidem.mesh, "MovingMesh", SeamsMesh):
         lab = moving_mesh_flow(_scene(True, x0, dt, n), types.SimpleNamespace(counters=collections.Counter()))
     assert lab.mm.params.seams == seams
-    body = fixed_mesh_flow(_scene(False, x0, dt, n), types.SimpleNamespace(counters=collections.Counter()))
-    sp = body.space
-    u0 = np.zeros(sp.n_u)
-    u0[sp.ub.dofs.element_dofs[0::2].ravel()] = -U
-    d, v = body.problem.dirichlet_values(0.0)
-    u0[d] = v
-    body.stepper.take_over(body.problem, u0)
+    body = body_frame_flow(_scene(False, x0, dt, n), (-U, 0.0), types.SimpleNamespace(counters=collections.Counter()))
     fl, fb, reasons = [], [], []
     t0 = time.perf_counter()
     for _ in range(n):

@@ -23,8 +23,8 @@ from __future__ import annotations
 
 from .coupling.bodies import DEMBodies, FlowBodies, KinematicBodies
 
-__all__ = ["body_outlines", "bodies_of", "dem_from_kinematic", "fixed_mesh_flow", "free_body_flow",
-           "moving_mesh_flow"]
+__all__ = ["body_frame_flow", "body_outlines", "bodies_of", "dem_from_kinematic", "fixed_mesh_flow",
+           "free_body_flow", "moving_mesh_flow"]
 
 
 def body_outlines(scene) -> list:
@@ -71,6 +71,23 @@ def fixed_mesh_flow(scene, sim):
 
     return FixedMeshFlow(scene.bodies, body_outlines(scene), domain=scene.domain, fluid=scene.fluid, mesh=scene.mesh,
                          time=scene.time, sim=sim)
+
+
+def body_frame_flow(scene, velocity, sim):
+    """:func:`fixed_mesh_flow` started from the uniform flow ``velocity`` (length/time, (2,)) with the
+    scene's boundary values: the body frame of a body translating at −``velocity`` (with walls moving
+    at ``velocity``), the reference of a Galilean check against the lab frame on a moving mesh."""
+    import numpy as np
+
+    flow = fixed_mesh_flow(scene, sim)
+    sp = flow.space
+    u0 = np.zeros(sp.n_u)
+    for c in range(2):  # interleaved velocity components
+        u0[sp.ub.dofs.element_dofs[c::2].ravel()] = velocity[c]
+    d, v = flow.problem.dirichlet_values(0.0)
+    u0[d] = v
+    flow.stepper.take_over(flow.problem, u0)
+    return flow
 
 
 def moving_mesh_flow(scene, sim):
