@@ -35,7 +35,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from results_io import RESULTS, machine_description, markdown_table  # noqa: E402
 
-from fluidem.cases.migration import FENG_HU_JOSEPH, PERIOD, RADIUS, migration_scene, wall_distance  # noqa: E402
+from fluidem.cases.migration import (FENG_HU_JOSEPH, PERIOD, crossing_kinks, migration_scene,  # noqa: E402
+                                     wall_distance)
 from fluidem.simulation import Simulation  # noqa: E402
 
 NAME = "migration"
@@ -98,19 +99,8 @@ def summary(r: dict) -> dict:
     ts = np.r_[0.0, t]
     ys = np.r_[0.25, y]
     dist = wall_distance(ts, ys, t_ref) if t_ref else np.array([])
-    straddle = np.minimum(x, PERIOD - x) < RADIUS    # the outline crosses a periodic side
-    crossings = int(np.count_nonzero(np.diff(straddle.astype(int)) == 1))
-    # the kink of the velocities at step k: |(V_k - V_{k-1}) - (V_{k-1} - V_{k-2})|, at k >= 2 with t > 5
-    # (past the start from rest)
-    kink = np.abs(np.diff(vel, n=2, axis=0))
-    k = np.arange(2, len(t))
-    late = t[k] > 5.0
-    recent = np.zeros(len(t), dtype=bool)           # a re-triangulation at this step or the 3 before
-    for lag in range(4):
-        recent[lag:] |= retri[:len(t) - lag]
-    groups = {"crossing": straddle[k] & ~recent[k], "away": ~straddle[k] & ~recent[k],
-              "re-triangulated crossing": straddle[k] & recent[k], "re-triangulated away": ~straddle[k] & recent[k]}
-    kinks = {g: (kink[m & late].max(axis=0).tolist() if (m & late).any() else None) for g, m in groups.items()}
+    kinks = crossing_kinks(t, x, vel, retri)
+    crossings = kinks.pop("crossings")
     return {"h": r["h"], "dt": r["dt"], "dofs": r["dofs"], "n": len(s), "t_end": float(t[-1]),
             "distance": {f"{tr:g}": float(d) for tr, d in zip(t_ref, dist)},
             "retriangulations_per_100": 100.0 * retri.sum() / len(s), "reasons": reasons,

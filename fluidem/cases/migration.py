@@ -21,7 +21,7 @@ import numpy as np
 
 from ..scene import Scene
 
-__all__ = ["FENG_HU_JOSEPH", "PERIOD", "RADIUS", "START", "migration_scene", "wall_distance"]
+__all__ = ["FENG_HU_JOSEPH", "PERIOD", "RADIUS", "START", "crossing_kinks", "migration_scene", "wall_distance"]
 
 #: Feng, Hu & Joseph (1994): distance of the disk's centre from the wall it started near (in W) at
 #: t (in W/ΔU), read from their figure (REFERENCES.md).
@@ -104,3 +104,53 @@ def wall_distance(t: np.ndarray, y: np.ndarray, at) -> np.ndarray:
     if at.min() < t[0] - slack or at.max() > t[-1] + slack:
         raise ValueError(f"times {at.min():g}..{at.max():g} outside the run's {t[0]:g}..{t[-1]:g}")
     return np.interp(at, t, y)
+
+
+def crossing_kinks(t: np.ndarray, x: np.ndarray, velocities: np.ndarray, retriangulated: np.ndarray,
+                   after: float = 5.0, quiet_steps: int = 4, period: float = PERIOD, radius: float = RADIUS) -> dict:
+    """How smooth the disk's motion is through the periodic sides: the largest kink of its velocities.
+
+    The kink at step k is |(V_k − V_k−1) − (V_k−1 − V_k−2)| per component (the second difference of
+    the series); steps are grouped by whether the outline straddles a periodic side (its centre within
+    ``radius`` of x = 0 or ``period``) and whether the mesh was re-triangulated in the step or the
+    ``quiet_steps − 1`` before.
+
+    Parameters
+    ----------
+    t : (n,) float
+        Times of the steps (W/ΔU).
+    x : (n,) float
+        The centre's x in the box [0, period) (W).
+    velocities : (n, m) float
+        The disk's velocities per step (e.g. u, v, ω).
+    retriangulated : (n,) bool
+        Whether the step re-triangulated the mesh.
+    after : float
+        Only steps after this time (past the start from rest).
+
+    Returns
+    -------
+    dict
+        ``"crossing"``, ``"away"``, ``"re-triangulated crossing"``, ``"re-triangulated away"``: the
+        largest kink per component, (m,) float, or None for a group without steps; ``"crossings"``: how
+        many times the outline came onto a side.
+
+    Examples
+    --------
+    >>> t = np.arange(10.0)
+    >>> x = np.array([0.5, 0.4, 0.3, 0.2, 0.1, 0.0, 3.9, 3.8, 3.7, 3.6])
+    >>> v = np.c_[np.r_[0.0, 0, 0, 0, 0, 1, 0, 0, 0, 0]]
+    >>> k = crossing_kinks(t, x, v, np.zeros(10, bool), after=1.0)
+    >>> k["crossings"], k["crossing"], k["away"]
+    (1, [2.0], [1.0])
+    """
+    straddle = np.minimum(x, period - x) < radius
+    recent = np.convolve(np.asarray(retriangulated, dtype=float), np.ones(quiet_steps))[:len(t)] > 0
+    kink = np.abs(np.diff(velocities, n=2, axis=0))
+    k = np.arange(2, len(t))
+    late = t[k] > after
+    groups = {"crossing": straddle[k] & ~recent[k], "away": ~straddle[k] & ~recent[k],
+              "re-triangulated crossing": straddle[k] & recent[k], "re-triangulated away": ~straddle[k] & recent[k]}
+    out = {g: (kink[m & late].max(axis=0).tolist() if (m & late).any() else None) for g, m in groups.items()}
+    out["crossings"] = int(np.count_nonzero(np.diff(straddle.astype(int)) == 1))
+    return out
