@@ -153,6 +153,7 @@ def summary(r: dict) -> dict:
     out["worst"] = {"step": int(k[worst]), "x": float(x[worst]), "drag": float(e_drag[worst]),
                     "retriangulated": bool(r["reasons"][worst])}
     out["steps_run"] = len(k)
+    out["machine"] = r.get("machine")  # a row run alone with --case
     if "step_s" in r:  # the rows stored before the step times and the load were recorded have neither
         out["step_s"] = float(np.median(r["step_s"]))
         out["load"] = [float(np.min(r["load"])), float(np.median(r["load"])), float(np.max(r["load"]))]
@@ -173,14 +174,22 @@ def _crossings(k, x, fl, fb, reasons, start) -> list:
     d_body = np.r_[np.nan, np.abs(np.diff(fb[:, 0]))] / drag
     side = np.round(x / L)
     dseam = np.abs(x - side * L)
+    retri = np.array([bool(s) for s in reasons], dtype=float)
+    recent = np.convolve(retri, np.ones(4))[:len(k)] > 0  # re-triangulated in the step or the 3 before
     out = []
     for m in np.unique(side[(dseam < R) & start]):
         c, near = (dseam < R) & (side == m) & start, (dseam < R + 2 * H) & (side == m) & start
         j = np.flatnonzero(c)[np.nanargmax(d_lab[c])]
+        jn = np.flatnonzero(near)[np.nanargmax(d_lab[near])]
+        q = c & ~recent
         out.append({"side": float(m * L), "steps": int(c.sum()), "near_steps": int(near.sum()),
                     "first": int(k[c][0]), "last": int(k[c][-1]),
                     "drag": float(e_drag[c].max()), "near": float(e_drag[near].max()), "lift": float(e_lift[c].max()),
-                    "jump": float(d_lab[j]), "jump_step": int(k[j]), "jump_retriangulated": bool(reasons[j]),
+                    "jump": float(d_lab[j]), "jump_step": int(k[j]),
+                    "jump_retriangulated": bool(reasons[j] or reasons[j - 1]),
+                    "near_jump": float(d_lab[jn]), "near_jump_step": int(k[jn]),
+                    "near_jump_retriangulated": bool(reasons[jn] or reasons[jn - 1]),
+                    "quiet_jump": _max(d_lab[q]), "quiet_jump_over_body": _max(d_lab[q] / d_body[q]),
                     "body_change": float(np.nanmax(d_body[c])), "body_change_median": float(np.nanmedian(d_body[c])),
                     "jump_of_difference": float(np.nanmax(np.abs(np.r_[np.nan, np.diff(fl[:, 0] - fb[:, 0])])[c]
                                                           / drag[c])),
@@ -229,6 +238,8 @@ def report(rows: list, machine: str) -> None:
                    f"{s['step_change']:.2e}",
                    _reasons(s["retriangulations"]),
                    f"{s['wall_s']:.0f}"] for s in ss])]
+    lines += [f"{_name(s)} run alone (`--case`), machine: {s['machine']}." for s in ss
+              if s["machine"] and len(s["crossings"]) <= 1]
     for s in ss:
         if len(s["crossings"]) > 1:
             lines += _periods(s)
@@ -238,6 +249,10 @@ def report(rows: list, machine: str) -> None:
 
 def _steps(s: dict) -> str:
     return str(s["steps"]) if s["steps_run"] == s["steps"] else f"{s['steps_run']} of {s['steps']} (stopped)"
+
+
+def _name(s: dict) -> str:
+    return f"{s['seams']} sides, U Δt = h/{1 / s['frac']:.0f}, {_steps(s)} steps"
 
 
 def _reasons(c: collections.Counter) -> str:
@@ -252,24 +267,30 @@ def _periods(s: dict) -> list:
     stopped = ("" if s["steps_run"] == s["steps"] else
                f"  **Stopped after {s['steps_run']} of the {s['steps']} steps planned: the figures are those of "
                "the steps run.**")
-    return ["", f"## Several periods: {s['seams']} sides, U Δt = h/{1 / s['frac']:.0f}, {_steps(s)} steps", "",
+    machine = f"  Machine: {s['machine']}." if s["machine"] else ""
+    return ["", f"## Several periods: {_name(s)}", "",
             f"The disk crosses a side {len(s['crossings'])} times ({sum(c['complete'] for c in s['crossings'])} "
             f"completed).  Re-triangulations: {_reasons(s['retriangulations'])}, {s['per_100_steps']:.2f} per "
-            f"100 steps.  {load}.{stopped}  The disk's velocity is prescribed (U = {U:g}), continuous by "
+            f"100 steps.  {load}.{stopped}{machine}  The disk's velocity is prescribed (U = {U:g}), continuous by "
             "construction; the loads are compared.  Per crossing: errors as above over its crossing and near "
-            "steps; largest relative change |ΔF_lab| / |F_body| of the lab drag from the step before, over its "
-            "crossing steps (the step, r: re-triangulated), against the largest and the median change of the "
-            "body-frame drag over the same steps, and the largest change of the difference F_lab − F_body; "
+            "steps; the largest relative change |ΔF_lab| / |F_body| of the lab drag from the step before over "
+            "its crossing steps (the step; r: re-triangulated in the step or the one before), against the "
+            "largest and the median change of the body-frame drag over the same steps, and the largest change "
+            "of the difference F_lab − F_body; the largest change of the lab drag over its near steps; over its "
+            "crossing steps with no re-triangulation in the step or the 3 before, the largest change of the lab "
+            "drag and the largest ratio of it to the change of the body-frame drag in the same step; the "
             "re-triangulations over its near steps.", "",
             *markdown_table(
                 ["crossing", "side x", "steps (crossing / near)", "drag error crossing", "near", "lift / drag crossing",
                  "lab drag jump (step)", "body-frame change max / median", "jump of the difference",
-                 "re-triangulations near"],
+                 "lab drag jump near (step)", "without re-tri. (/ body-frame change)", "re-triangulations near"],
                 [[names[i] + ("" if c["complete"] else " (not completed)"), f"{c['side']:g}",
                   f"{c['first']}–{c['last']} ({c['steps']} / {c['near_steps']})",
                   f"{c['drag']:.2e}", f"{c['near']:.2e}", f"{c['lift']:.2e}",
                   f"{c['jump']:.2e} ({c['jump_step']}{', r' if c['jump_retriangulated'] else ''})",
                   f"{c['body_change']:.2e} / {c['body_change_median']:.2e}", f"{c['jump_of_difference']:.2e}",
+                  f"{c['near_jump']:.2e} ({c['near_jump_step']}{', r' if c['near_jump_retriangulated'] else ''})",
+                  f"{c['quiet_jump']:.2e} ({c['quiet_jump_over_body']:.2f})",
                   _reasons(c["retriangulations"])] for i, c in enumerate(s["crossings"])]),
             "", "Per stretch between sides (x from jL to (j + 1)L; the first and the last partial): the drag "
             "error over its away steps, median and largest, the median lift error, and its re-triangulations.",
@@ -289,11 +310,12 @@ def main() -> None:
     if sys.argv[1:2] == ["--case"]:
         case = CASES[int(sys.argv[2])]
         row = run_case(*case)
-        rows = json.loads(path.read_text())["rows"] if path.exists() else []
-        rows = [r for r in rows if _key(r) != _key(row)] + [row]
+        row["machine"] = machine_description()  # its own: the file's machine line stays that of the other rows
+        stored = json.loads(path.read_text()) if path.exists() else {"machine": row["machine"], "rows": []}
+        rows = [r for r in stored["rows"] if _key(r) != _key(row)] + [row]
         rows.sort(key=lambda r: [_key(c) for c in CASES].index(_key(r)))
-        write_json("periodic_crossing", machine_description(), rows)
-        report(rows, machine_description())
+        write_json("periodic_crossing", stored["machine"], rows)
+        report(rows, stored["machine"])
         return
     run_or_report("periodic_crossing", lambda: [run_case(*c) for c in CASES], report)
 
