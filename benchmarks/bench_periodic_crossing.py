@@ -158,18 +158,17 @@ def summary(r: dict) -> dict:
         out["step_s"] = float(np.median(r["step_s"]))
         out["load"] = [float(np.min(r["load"])), float(np.median(r["load"])), float(np.max(r["load"]))]
     out["per_100_steps"] = 100 * len(out["retriangulated_at"]) / len(k)
-    out["crossings"] = _crossings(k, x, fl, fb, r["reasons"], start)
+    out["crossings"] = _crossings(k, x, fl, fb, e_drag, e_lift, r["reasons"], start)
     out["laps"] = _laps(k, x, e_drag, e_lift, r["reasons"], start)
     return out
 
 
-def _crossings(k, x, fl, fb, reasons, start) -> list:
-    """Per crossing of a side (at x = L, 2L, …): the errors over its crossing and near steps, the largest
-    step-to-step change of the lab drag over its crossing steps against the change of the body-frame drag
-    over the same steps, and the re-triangulations of its near steps."""
+def _crossings(k, x, fl, fb, e_drag, e_lift, reasons, start) -> list:
+    """Per crossing of a side (at x = L, 2L, …): the errors ``e_drag``, ``e_lift`` (of :func:`summary`)
+    over its crossing and near steps, the largest step-to-step change of the lab drag over its crossing
+    steps against the change of the body-frame drag over the same steps, and the re-triangulations of its
+    near steps."""
     drag = np.abs(fb[:, 0])
-    e_drag = np.abs(fl[:, 0] - fb[:, 0]) / drag
-    e_lift = np.abs(fl[:, 1] - fb[:, 1]) / drag
     d_lab = np.r_[np.nan, np.abs(np.diff(fl[:, 0]))] / drag  # change into step k from step k − 1
     d_body = np.r_[np.nan, np.abs(np.diff(fb[:, 0]))] / drag
     side = np.round(x / L)
