@@ -50,6 +50,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from results_io import RESULTS, machine_description, markdown_table, run_or_report, write_json  # noqa: E402
 
+from fluidem.diagnostics import recently_retriangulated  # noqa: E402
+
 H, U, R, NU, L = 0.05, 1.0, 0.15, 0.01, 4.0
 #: (seams, U Δt / h, start x, steps)
 CASES = [("bend", 1 / 5, 3.3, 120), ("clip", 1 / 5, 3.3, 120), ("bend", 1 / 20, 3.55, 320),
@@ -173,8 +175,7 @@ def _crossings(k, x, fl, fb, e_drag, e_lift, reasons, start) -> list:
     d_body = np.r_[np.nan, np.abs(np.diff(fb[:, 0]))] / drag
     side = np.round(x / L)
     dseam = np.abs(x - side * L)
-    retri = np.array([bool(s) for s in reasons], dtype=float)
-    recent = np.convolve(retri, np.ones(4))[:len(k)] > 0  # re-triangulated in the step or the 3 before
+    recent = recently_retriangulated([bool(s) for s in reasons], 4)  # in the step or the 3 before
     out = []
     for m in np.unique(side[(dseam < R) & start]):
         c, near = (dseam < R) & (side == m) & start, (dseam < R + 2 * H) & (side == m) & start

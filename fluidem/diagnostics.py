@@ -63,7 +63,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 __all__ = ["condition_estimate", "lu_condition", "inf_sup_constant", "flow_inf_sup", "oscillation_text",
-           "gap_elements", "GAP_LOCKING_ELEMENTS",
+           "recently_retriangulated", "gap_elements", "GAP_LOCKING_ELEMENTS",
            "StepHealth", "RunDiagnostics", "CONDITION_GROWTH", "KRYLOV_RISE", "KRYLOV_MIN_ITERATIONS",
            "KRYLOV_WINDOW", "NOISE_WINDOW", "NOISE_BOUND", "NOISE_MIN_TRANSFERS", "SERIES_POINTS", "MECHANISMS"]
 
@@ -250,6 +250,18 @@ def flow_inf_sup(problem) -> float:
     B = problem.B.tocsr()[fp][:, fu]
     Mp = asm(forms.pressure_mass, problem.space.pb).tocsr()[fp][:, fp]
     return inf_sup_constant(A, B, Mp)
+
+
+def recently_retriangulated(retriangulated, steps: int) -> np.ndarray:
+    """Per step, whether the mesh was re-triangulated in it or in the ``steps − 1`` before
+    (``retriangulated (n,)`` bool): the steps that still carry a transfer's noise, to be left out when
+    the smoothness of a series of velocities or loads is judged.
+
+    >>> recently_retriangulated([False, True, False, False, False], 3).tolist()
+    [False, True, True, True, False]
+    """
+    flags = np.asarray(retriangulated, dtype=float)
+    return np.convolve(flags, np.ones(steps))[:len(flags)] > 0
 
 
 def oscillation_text(n: int, n_nodes: int, swing: float | None) -> str:

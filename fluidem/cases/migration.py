@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..diagnostics import recently_retriangulated
 from ..scene import Scene
 
 __all__ = ["FENG_HU_JOSEPH", "PERIOD", "RADIUS", "START", "crossing_kinks", "migration_scene", "wall_distance"]
@@ -145,7 +146,7 @@ def crossing_kinks(t: np.ndarray, x: np.ndarray, velocities: np.ndarray, retrian
     (1, [2.0], [1.0])
     """
     straddle = np.minimum(x, period - x) < radius
-    recent = np.convolve(np.asarray(retriangulated, dtype=float), np.ones(quiet_steps))[:len(t)] > 0
+    recent = recently_retriangulated(retriangulated, quiet_steps)
     kink = np.abs(np.diff(velocities, n=2, axis=0))
     k = np.arange(2, len(t))
     late = t[k] > after
