@@ -112,6 +112,13 @@ class HarmonicDrag:
     constrained : (n_nodes, 2) bool
         Nodes whose displacement component is given (outline, contact and junction nodes,
         fully dragged nodes, the normal component of box-side nodes, box corners).
+    pairs : (k, 2) int, optional
+        Matched nodes of periodic sides that bend (:mod:`fluidem.mesh.seam`): each pair is one
+        node of the periodic strip, so the Laplacian is that of the strip (``P^T L P`` with
+        ``P`` the map of the nodes onto the strip's) and both partners get the same
+        displacement; a pair with one partner constrained takes its value (the mean if both
+        are).  Without pairs a side node sees the neighbours on its side only: the two
+        partners get different one-sided extensions.
 
     Examples
     --------
@@ -124,15 +131,33 @@ class HarmonicDrag:
     [[0.0, 0.0], [0.5, 1.0], [0.5, 1.0], [1.0, 2.0]]
     """
 
-    def __init__(self, topo: MeshTopology, constrained):
+    def __init__(self, topo: MeshTopology, constrained, pairs=None):
         e0, e1 = topo.e0, topo.e1
         n = len(constrained)
         w = sp.coo_matrix((np.ones(len(e0)), (e0, e1)), shape=(n, n)).tocsr()
         w = w + w.T
-        self._factor((sp.diags(np.asarray(w.sum(axis=1)).ravel()) - w).tocsr(), np.asarray(constrained, dtype=bool))
+        self._factor((sp.diags(np.asarray(w.sum(axis=1)).ravel()) - w).tocsr(), np.asarray(constrained, dtype=bool),
+                     pairs)
 
-    def _factor(self, lap, constrained):
-        self.lap, self.constrained = lap, constrained
+    def _factor(self, lap, constrained, pairs=None):
+        self.lap, self.constrained, self.pairs = lap, constrained, pairs
+        self.strip = None
+        if pairs is not None and len(pairs):
+            # the nodes of the periodic strip: the second partner of each pair is the first
+            n = len(constrained)
+            rep = np.arange(n)
+            rep[np.asarray(pairs)[:, 1]] = np.asarray(pairs)[:, 0]
+            keep, node_of = np.unique(rep, return_inverse=True)
+            strip = sp.csr_matrix((np.ones(n), (np.arange(n), node_of)), shape=(n, len(keep)))
+            lap = (strip.T @ lap @ strip).tocoo()
+            # an edge along the side is there twice (once on each side): one edge of the strip
+            off = lap.row != lap.col
+            w = sp.coo_matrix((np.minimum(-lap.data[off], 1.0), (lap.row[off], lap.col[off])), shape=lap.shape)
+            lap = (sp.diags(np.asarray(w.sum(axis=1)).ravel()) - w).tocsr()
+            count = np.asarray(strip.sum(axis=0)).ravel()
+            given = np.column_stack([strip.T @ constrained[:, c].astype(float) for c in range(2)])
+            self.strip = (strip, node_of, count, given)
+            constrained = given > 0
         self.parts = []
         for c in range(2):
             free = np.flatnonzero(~constrained[:, c])
@@ -149,26 +174,36 @@ class HarmonicDrag:
 
     def __getstate__(self):
         # SuperLU objects do not pickle: the Laplacian and the constraints do, and are factorised again
-        return {"lap": self.lap, "constrained": self.constrained}
+        return {"lap": self.lap, "constrained": self.constrained, "pairs": self.pairs}
 
     def __setstate__(self, state):
-        self._factor(state["lap"], state["constrained"])
+        self._factor(state["lap"], state["constrained"], state.get("pairs"))
 
     def extend(self, disp) -> np.ndarray:
         """``disp (n_nodes, 2)`` with the free components replaced by the harmonic extension."""
         d = np.array(disp, dtype=float)
+        if self.strip is None:
+            for c, free, fixed, lu, coupling in self.parts:
+                d[free, c] = lu.solve(-(coupling @ d[fixed, c]))
+            return d
+        strip, node_of, _, given = self.strip
         for c, free, fixed, lu, coupling in self.parts:
-            d[free, c] = lu.solve(-(coupling @ d[fixed, c]))
+            # the strip's given values: the mean over the constrained partners of a node
+            con = self.constrained[:, c]
+            ds = (strip.T @ np.where(con, d[:, c], 0.0)) / np.maximum(given[:, c], 1.0)
+            ds[free] = lu.solve(-(coupling @ ds[fixed]))
+            d[~con, c] = ds[node_of[~con]]
         return d
 
 
-def harmonic_drag(topo: MeshTopology, kind, mobility, assoc: DragAssociation) -> HarmonicDrag:
+def harmonic_drag(topo: MeshTopology, kind, mobility, assoc: DragAssociation, pairs=None) -> HarmonicDrag:
     """The :class:`HarmonicDrag` of a mesh: constrained are the components with zero
     ``mobility (n, 2)`` (outline, contact and corner nodes, the normal one of box-side
     nodes), junction nodes, free nodes fully dragged (``Σ w >= 1`` in ``assoc``, they get
     their dragged displacement) and the wall-normal component of free nodes next to a
     box-side node (it keeps its dragged value, zero away from the bodies: they slide along
-    the wall)."""
+    the wall).  ``pairs (k, 2)``: the matched nodes of periodic sides that bend, extended
+    over the periodic strip (:class:`HarmonicDrag`)."""
     n = len(kind)
     full = np.bincount(assoc.node, assoc.weight, n) >= 1.0 - 1e-12
     mob = np.asarray(mobility)
@@ -179,7 +214,7 @@ def harmonic_drag(topo: MeshTopology, kind, mobility, assoc: DragAssociation) ->
         on_side = (kind[a] == SIDE) & (kind[b] == FREE)
         for c in range(2):
             con[b[on_side & (mob[a, c] == 0.0)], c] = True
-    return HarmonicDrag(topo, con)
+    return HarmonicDrag(topo, con, pairs)
 
 
 def rigid_displacement(points, pose_old, pose_new) -> np.ndarray:

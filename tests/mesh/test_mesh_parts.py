@@ -148,3 +148,34 @@ def test_junction_point_splits_triangle_between_three_bodies():
     pts2 = np.array([c * (1 - 0.5 / 0.54) for c in c2])
     jt, q = junction_points(pts2, tri, owner, c2, polys2, h=0.2, clearance=0.3)
     assert len(jt) == 0
+
+
+def test_harmonic_drag_over_a_periodic_strip_is_the_strip_s_extension():
+    """A strip two cells wide and periodic in x (nodes at x = 0 and 2 matched), its top row moved
+    by 1 along x and its bottom row held: the harmonic extension over the strip is the uniform
+    shear, 0.5 on the middle row at every x (analytic: the strip has no x-dependence).  Without
+    the pairs the side nodes see one side only and the middle row gets 0.625, 0.5, 0.375."""
+    import pickle
+
+    from fluidem.mesh.drag import HarmonicDrag
+
+    idx = np.arange(9).reshape(3, 3)
+    tris = []
+    for j in range(2):
+        for i in range(2):
+            a, b, c, d = idx[j, i], idx[j, i + 1], idx[j + 1, i], idx[j + 1, i + 1]
+            tris += [[a, b, d], [a, d, c]]
+    topo = mesh_topology(np.array(tris))
+    given = np.zeros((9, 2), dtype=bool)
+    given[idx[0]] = given[idx[2]] = True
+    disp = np.zeros((9, 2))
+    disp[idx[2], 0] = 1.0
+    pairs = np.column_stack([idx[:, 0], idx[:, 2]])
+    strip = HarmonicDrag(topo, given, pairs)
+    for drag in (strip, pickle.loads(pickle.dumps(strip))):
+        np.testing.assert_allclose(drag.extend(disp)[idx[1]], [[0.5, 0.0]] * 3, atol=1e-14)
+    np.testing.assert_allclose(HarmonicDrag(topo, given).extend(disp)[idx[1], 0], [0.625, 0.5, 0.375], atol=1e-14)
+    # a pair with one partner given takes its value: both partners move alike
+    given[idx[1, 0]] = True
+    disp[idx[1, 0]] = [0.3, 0.1]
+    np.testing.assert_allclose(HarmonicDrag(topo, given, pairs).extend(disp)[idx[1, 2]], [0.3, 0.1])
