@@ -55,7 +55,6 @@ import numpy as np
 
 from .contact_outline import wall_depths
 from .drag import HarmonicDrag, dragged_positions, harmonic_drag
-from .kinds import SIDE
 from .moving_images import needs_new_images, place_seam_nodes
 from .nodes import CONTACT, world
 from .periodic import bends_seams, move_in_pairs, slide_in_pairs
@@ -158,26 +157,21 @@ def put_back_in_box(mesh: MovingMesh, xd) -> tuple[bool, bool]:
 def relax_dragged(mesh: MovingMesh, xd, ev: MeshEvent) -> np.ndarray:
     """Relax the dragged nodes ``xd (n, 2)`` with the per-step iteration limit (Sec. 3.3): dragged
     nodes with the drag's reduced step, oscillating ones (recorded in ``ev``) halved once more
-    each time they are flagged; periodic side nodes move in pairs (along straight sides, or as
-    one node of the periodic strip where the sides bend).  Sets ``mesh.points`` and returns the
-    relaxed positions before the pairs slid."""
+    each time they are flagged; periodic side nodes slide in pairs.  Sets ``mesh.points`` and
+    returns the relaxed positions before the pairs slid."""
     p = mesh.params
     damp = mesh.drag.relax_damping if mesh._damping is None else mesh.drag.relax_damping * mesh._damping
     bend = bends_seams(mesh)
     mob = mesh._mobility
+    # bent: periodic side nodes relax along their side, in pairs (the mean of the two moves).  Relaxed
+    # in both directions as one node of the periodic strip, they cut a sheared suspension's
+    # re-triangulations by a sixth (28.0 against 33.1 per 100 steps) but doubled the drag error of a
+    # disk crossing the side at a re-triangulation (0.37-0.90 % against 0.28-0.36 % over three
+    # crossings, benchmarks/bench_periodic_crossing.py)
     if not bend:
-        # straight sides: periodic side nodes slide along them in pairs (the mean of the two places)
         xd = slide_in_pairs(xd, mesh.__dict__.get("_side_pairs", _NO_PAIRS), mesh.box, lead=mesh.kind == CONTACT)
-    elif len(mesh._side_pairs):
-        # bent: the side nodes of a periodic pair relax in both directions, as one node of the
-        # periodic strip (the force of its whole star, :func:`fluidem.mesh.relax.relax`); held
-        # on their side line, they sheared against their neighbours (half of the quality
-        # re-triangulations of a sheared suspension fired at elements on the sides)
-        mob = mob.copy()
-        on = np.unique(mesh._side_pairs)
-        mob[on[mesh.kind[on] == SIDE]] = 1.0
     xr, nb = relax(xd, mesh.topo, mesh.h_node, mob, mesh.relax_iterations, p.relax_params,
-                   bounds=_bounds(mesh), damping=damp, pairs=mesh._side_pairs if bend else None)
+                   bounds=_bounds(mesh), damping=damp)
     ev.n_blocked = nb
     if bend:
         xr = move_in_pairs(xd, xr, mesh._side_pairs)

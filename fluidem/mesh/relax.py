@@ -332,7 +332,7 @@ def _clip(x, lo, hi):
 
 
 def relax(points, topo: MeshTopology, h_node, mobility, n_iter: int = 1, params: RelaxParams = RelaxParams(),
-          bounds=None, damping=None, pairs=None) -> tuple[np.ndarray, int]:
+          bounds=None, damping=None) -> tuple[np.ndarray, int]:
     """Run ``n_iter`` relaxation sweeps (eq. 2 without ``v_n``, plus eq. 3).
 
     Parameters
@@ -353,12 +353,6 @@ def relax(points, topo: MeshTopology, h_node, mobility, n_iter: int = 1, params:
         Sliding nodes are clamped into this box.
     damping : (n_nodes,) float or None
         Extra per-node factor on the step in [0, 1] (used to damp oscillating nodes).
-    pairs : (k, 2) int or None
-        Matched nodes of periodic sides that bend (:mod:`fluidem.mesh.seam`), each pair one
-        node of the periodic strip whose star is split between the two sides: both move by the
-        mean of their two moves (each the move of one half of the star; the parts across the
-        side cancel), in the directions both may move in, and a move shortened for one is
-        shortened for both, so partners that start a period apart stay so.
 
     Returns
     -------
@@ -387,21 +381,11 @@ def relax(points, topo: MeshTopology, h_node, mobility, n_iter: int = 1, params:
         (area, qual), (area_n, qual_n) = ws.shape, ws.shape_n
         _shape(x, y, t0, t1, t2, area, qual, ws.shape_tmp)
         minq = params.min_quality
-        pa = pb = None
-        if pairs is not None and len(pairs):
-            pa, pb = np.asarray(pairs)[:, 0], np.asarray(pairs)[:, 1]
-            # a pair moves in a direction only if both partners may (a seam node held by its body
-            # holds its partner)
-            pair_mobile = (mob[pa] != 0.0) & (mob[pb] != 0.0)
         for _ in range(int(n_iter)):
             # eq. 2 without v_n: r_{n+1} = r_n + τ² a_n (τ², mobility and damping in mx, my)
             _forces(x, y, area, topo, h_beta, params, ws, dx, dy)
             dx *= mx
             dy *= my
-            if pa is not None:
-                # a periodic pair is one node of the strip: both halves of its star
-                for c, d in enumerate((dx, dy)):
-                    d[pa] = d[pb] = 0.5 * (d[pa] + d[pb]) * pair_mobile[:, c]
             # no move may bring an element below the shape floor (or worsen one already below)
             # (elements already below the floor may lose at most 0.1 % of their quality per sweep:
             # round-off must not block every move next to them)
@@ -421,8 +405,6 @@ def relax(points, topo: MeshTopology, h_node, mobility, n_iter: int = 1, params:
                 hit = np.zeros(len(x), dtype=bool)
                 b = np.flatnonzero(bad)
                 hit[t0[b]] = hit[t1[b]] = hit[t2[b]] = True
-                if pa is not None:
-                    hit[pa] = hit[pb] = hit[pa] | hit[pb]
                 if k < params.max_halvings:
                     dx[hit] *= 0.5
                     dy[hit] *= 0.5

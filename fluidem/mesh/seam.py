@@ -17,8 +17,8 @@ the box:
   :class:`~fluidem.mesh.params.MeshParams`), the sides *bend* with the bodies: a seam node stays
   where it is on its body (it moves rigidly, like an outline node), and the other nodes of the
   periodic sides, with the corners where they meet a wall, are dragged like free nodes (the
-  harmonic extension over the periodic strip, each pair one node of it) and relaxed in both
-  directions, in matched pairs (each pair moves by the mean of its two moves, so the partners
+  harmonic extension over the periodic strip, each pair one node of it) and relaxed along the
+  side, in matched pairs (each pair moves by the mean of its two moves, so the partners
   stay one period apart and equal along the side to round-off: the mesh is one mesh of the
   periodic strip, cut along a line of its edges that need not be straight).  Nodes
   may so lie beyond a periodic side, and an outline node passing the side line changes

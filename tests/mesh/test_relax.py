@@ -176,32 +176,3 @@ def test_concurrent_calls_on_one_topology():
         th.join()
     for x in out:
         np.testing.assert_array_equal(x, ref)
-
-
-def test_periodic_pairs_move_as_one_node_of_the_strip():
-    """Side nodes of a box periodic in x (x = 0 and 1 matched) relaxed in pairs: one sweep moves
-    both partners by the mean of their unpaired moves, and many sweeps with the halving loop
-    running (a high shape floor) keep the partners a period apart to round-off (invariant)."""
-    p, t = friedrichs_keller_grid((0.0, 1.0, 0.0, 1.0), 0.125)
-    rng = np.random.default_rng(3)
-    left = np.flatnonzero((p[:, 0] == 0.0) & (p[:, 1] > 0.0) & (p[:, 1] < 1.0))
-    right = np.array([np.flatnonzero((p[:, 0] == 1.0) & (p[:, 1] == p[i, 1]))[0] for i in left])
-    inner = (p[:, 0] > 0) & (p[:, 0] < 1) & (p[:, 1] > 0) & (p[:, 1] < 1)
-    p[inner] += rng.uniform(-0.03, 0.03, (inner.sum(), 2))
-    p[left, 1] += rng.uniform(-0.02, 0.02, len(left))
-    p[right, 1] = p[left, 1]
-    topo = mesh_topology(t)
-    h = np.full(len(p), 0.125)
-    mob = np.zeros((len(p), 2))
-    mob[inner] = 1.0
-    mob[left] = mob[right] = 1.0
-    pairs = np.column_stack([left, right])
-    free_moves = relax(p, topo, h, mob, 1)[0] - p
-    paired = relax(p, topo, h, mob, 1, pairs=pairs)[0] - p
-    mean = 0.5 * (free_moves[left] + free_moves[right])
-    np.testing.assert_allclose(paired[left], mean, atol=1e-15)
-    np.testing.assert_allclose(paired[right], mean, atol=1e-15)
-    assert np.abs(mean).max() > 1e-3  # the pairs did move
-    x, nb = relax(p, topo, h, mob, 20, RelaxParams(step=0.3, min_quality=0.8, max_halvings=1), pairs=pairs)
-    assert nb > 0  # the halving loop gave up on some nodes
-    np.testing.assert_allclose(x[right] - x[left], [[1.0, 0.0]] * len(left), atol=1e-15)
