@@ -154,9 +154,8 @@ class HarmonicDrag:
             off = lap.row != lap.col
             w = sp.coo_matrix((np.minimum(-lap.data[off], 1.0), (lap.row[off], lap.col[off])), shape=lap.shape)
             lap = (sp.diags(np.asarray(w.sum(axis=1)).ravel()) - w).tocsr()
-            count = np.asarray(strip.sum(axis=0)).ravel()
             given = np.column_stack([strip.T @ constrained[:, c].astype(float) for c in range(2)])
-            self.strip = (strip, node_of, count, given)
+            self.strip = (strip, node_of, given)
             constrained = given > 0
         self.parts = []
         for c in range(2):
@@ -186,7 +185,7 @@ class HarmonicDrag:
             for c, free, fixed, lu, coupling in self.parts:
                 d[free, c] = lu.solve(-(coupling @ d[fixed, c]))
             return d
-        strip, node_of, _, given = self.strip
+        strip, node_of, given = self.strip
         for c, free, fixed, lu, coupling in self.parts:
             # the strip's given values: the mean over the constrained partners of a node
             con = self.constrained[:, c]
