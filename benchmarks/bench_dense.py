@@ -37,7 +37,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from results_io import RESULTS, machine_description, write_json  # noqa: E402
 
-CASES = {10: 60, 40: 40, 100: 20}  # bodies: steps
+CASES = {10: 60, 40: 40, 100: 20, 300: 20}  # bodies: steps
 #: scene keys of this version an earlier one may not know (left out of the scene ``--before`` runs)
 NEW_KEYS = ("zero_net_flux", "rheology_window")
 H, DT = 0.012, 0.01
