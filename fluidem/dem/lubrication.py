@@ -271,35 +271,44 @@ def implicit_damping(pairs, pos: np.ndarray, velocity: np.ndarray, mass: np.ndar
     # the bodies the film touches, numbered compactly: unknowns of the free ones, given the others
     body, slot = np.unique(np.concatenate([a, bb]), return_inverse=True)
     sa, sb = slot[: len(a)], slot[len(a):]
-    nt = len(body)
     isfree = free[body]
     if not isfree.any():
         return V
+    # the system in the free bodies' unknowns only: ``fs`` numbers them 0 … n_f − 1 (−1: given)
+    fs = np.cumsum(isfree) - 1
+    fs[~isfree] = -1
+    nf = int(isfree.sum())
+    v = V[body]
+    m3 = np.column_stack([mass[body], mass[body], inertia[body]])[isfree]
+    rhs = m3 * v[isfree]  # (n_f, 3): M_ff V*_f …
     dof3 = np.arange(3)
     rows, cols, vals = [], [], []
-    for s1, g1 in ((sa, ga), (sb, gb)):
-        for s2, g2 in ((sa, ga), (sb, gb)):
-            rows.append((3 * s1[:, None, None] + dof3[None, :, None]).repeat(3, axis=2).ravel())
-            cols.append((3 * s2[:, None, None] + dof3[None, None, :]).repeat(3, axis=1).ravel())
-            vals.append((c[:, None, None] * g1[:, :, None] * g2[:, None, :]).ravel())
-    rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-    fd = (3 * np.flatnonzero(isfree)[:, None] + dof3).ravel()
-    kd = (3 * np.flatnonzero(~isfree)[:, None] + dof3).ravel()
-    v = V[body].ravel()
-    Mf = np.column_stack([mass[body], mass[body], inertia[body]]).ravel()[fd]
-    if nt <= 64:  # a few clusters: dense is cheaper than building a sparse matrix
-        C = np.zeros((3 * nt, 3 * nt))
-        np.add.at(C, (rows, cols), vals)
-        A = dt * C[np.ix_(fd, fd)]
-        A[np.diag_indices_from(A)] += Mf
-        rhs = Mf * v[fd] - (dt * (C[np.ix_(fd, kd)] @ v[kd]) if len(kd) else 0.0)
-        v[fd] = np.linalg.solve(A, rhs)
+    ends = ((fs[sa], sa, ga), (fs[sb], sb, gb))
+    for f1, _, g1 in ends:
+        cg1 = c[:, None] * g1
+        for f2, s2, g2 in ends:
+            ff = (f1 >= 0) & (f2 >= 0)
+            blk = cg1[ff, :, None] * g2[ff, None, :]  # c g₁ g₂ᵀ (P, 3, 3)
+            rows.append((3 * f1[ff, None, None] + dof3[None, :, None]).repeat(3, axis=2).ravel())
+            cols.append((3 * f2[ff, None, None] + dof3[None, None, :]).repeat(3, axis=1).ravel())
+            vals.append(blk.ravel())
+            fk = (f1 >= 0) & (f2 < 0)  # … − Δt C_fk V_k
+            if fk.any():
+                np.add.at(rhs, f1[fk], -dt * cg1[fk] * (g2[fk] * v[s2[fk]]).sum(axis=1)[:, None])
+    rows, cols, vals = np.concatenate(rows), np.concatenate(cols), dt * np.concatenate(vals)
+    diag = np.arange(3 * nf)
+    rows, cols = np.concatenate([rows, diag]), np.concatenate([cols, diag])
+    vals = np.concatenate([vals, m3.ravel()])
+    if nf <= 64:  # a few clusters: dense is cheaper than building a sparse matrix
+        A = np.zeros((3 * nf, 3 * nf))
+        np.add.at(A, (rows, cols), vals)
+        vf = np.linalg.solve(A, rhs.ravel())
     else:
         import scipy.sparse as sp
         import scipy.sparse.linalg as spla
 
-        C = sp.csr_matrix((vals, (rows, cols)), shape=(3 * nt, 3 * nt))
-        rhs = Mf * v[fd] - (dt * (C[fd][:, kd] @ v[kd]) if len(kd) else 0.0)
-        v[fd] = spla.spsolve((sp.diags(Mf) + dt * C[fd][:, fd]).tocsc(), rhs)
-    V[body] = v.reshape(nt, 3)
+        A = sp.csc_matrix((vals, (rows, cols)), shape=(3 * nf, 3 * nf))  # duplicates summed
+        vf = spla.spsolve(A, rhs.ravel())
+    v[isfree] = vf.reshape(nf, 3)
+    V[body] = v
     return V

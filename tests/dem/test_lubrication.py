@@ -129,6 +129,68 @@ def test_the_implicit_damper_never_reverses_the_approach_at_any_sub_step():
     assert np.abs(v[13:]).max() < 1e-12                    # stopped; measured 3.1e-13 at the 13th
 
 
+def test_the_implicit_damper_of_a_pile_solves_backward_euler_keeps_momentum_and_dissipates():
+    """Two hundred bodies on a jittered lattice, film pairs between neighbours (c from 0.1 to 1000), a floor
+    under the bottom row and every tenth body prescribed: above 64 free bodies the damper solves the sparse
+    system in the free unknowns.  Against (M + Δt C) V = M V* assembled here densely from the pairs'
+    generalised normals (the prescribed bodies' velocities given): measured to 6.1e-16 of the largest speed.
+    Without floor and prescribed bodies the total momentum is kept (measured 1.9e-17 of Σ m|U|) and the kinetic
+    energy falls (measured to 0.69 of its value)."""
+    from scipy.spatial import cKDTree
+
+    from fluidem.dem.lubrication import generalised_normals, implicit_damping
+
+    rng = np.random.default_rng(7)
+    n = 200
+    pos = np.array([[k % 15, k // 15] for k in range(n)], float) + 0.05 * rng.standard_normal((n, 2))
+    pairs = cKDTree(pos).query_pairs(1.2, output_type="ndarray")
+    a, b = pairs[:, 0], pairs[:, 1]
+    c = 10 ** rng.uniform(-1, 3, len(a))
+    point = 0.5 * (pos[a] + pos[b]) + 0.01 * rng.standard_normal((len(a), 2))
+    normal = (pos[a] - pos[b]) / np.linalg.norm(pos[a] - pos[b], axis=1)[:, None]
+    mass, inertia = rng.uniform(1, 2, n), rng.uniform(0.1, 0.2, n)
+    V0 = rng.standard_normal((n, 3))
+    dt = 1e-2
+
+    # all free, no walls: momentum kept, energy dissipated
+    V = implicit_damping((a, b, c, point, normal), pos, V0, mass, inertia, np.ones(n, bool), dt)
+    P0, P1 = (mass[:, None] * V0[:, :2]).sum(axis=0), (mass[:, None] * V[:, :2]).sum(axis=0)
+    assert np.abs(P1 - P0).max() < 5e-17 * (mass * np.hypot(*V0[:, :2].T)).sum()  # measured 1.9e-17
+
+    def energy(W):
+        return float((mass * (W[:, :2] ** 2).sum(axis=1) + inertia * W[:, 2] ** 2).sum())
+
+    assert energy(V) < 0.75 * energy(V0)                                                 # measured 0.69
+
+    # a floor under the bottom row and prescribed bodies: the dense backward-Euler system built here
+    floor = np.flatnonzero(pos[:, 1] < 0.5)
+    A = np.concatenate([a, floor])
+    B = np.concatenate([b, -np.ones(len(floor), int)])
+    C = np.concatenate([c, 10 ** rng.uniform(-1, 3, len(floor))])
+    pt = np.concatenate([point, pos[floor] - [0.0, 0.45]])
+    nr = np.concatenate([normal, np.tile([0.0, 1.0], (len(floor), 1))])
+    free = np.ones(n, bool)
+    free[::10] = False
+    V = implicit_damping((A, B, C, pt, nr), pos, V0, mass, inertia, free, dt)
+    ga = generalised_normals(pos, A, pt, nr)
+    gb = np.where((B >= 0)[:, None], -generalised_normals(pos, np.maximum(B, 0), pt, nr), 0.0)
+    K = np.zeros((3 * n, 3 * n))
+    for p in range(len(A)):  # C = Σ c g gᵀ with g = (+g_a at a, −g_b at b), one pair at a time
+        g = np.zeros(3 * n)
+        g[3 * A[p]:3 * A[p] + 3] += ga[p]
+        if B[p] >= 0:
+            g[3 * B[p]:3 * B[p] + 3] += gb[p]
+        K += C[p] * np.outer(g, g)
+    fd = np.flatnonzero(np.repeat(free, 3))
+    kd = np.flatnonzero(~np.repeat(free, 3))
+    M = np.column_stack([mass, mass, inertia]).ravel()
+    lhs = np.diag(M[fd]) + dt * K[np.ix_(fd, fd)]
+    rhs = M[fd] * V0.ravel()[fd] - dt * K[np.ix_(fd, kd)] @ V0.ravel()[kd]
+    expected = V0.ravel().copy()
+    expected[fd] = np.linalg.solve(lhs, rhs)
+    assert np.abs(V.ravel() - expected).max() < 2e-15 * np.abs(V0).max()  # measured 6.1e-16
+
+
 def test_lubrication_checks_its_parameters():
     with pytest.raises(ValueError, match="min_gap"):
         Lubrication(viscosity=MU, range=0.01, min_gap=0.01)
