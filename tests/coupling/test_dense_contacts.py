@@ -14,7 +14,7 @@ from fluidem.simulation import Simulation
 from test_fluid_contacts import A, _floor_scene, _run  # same folder (pytest puts it on the path)
 
 
-def _at_the_dems_bound(self, dt, *args):
+def _at_the_dems_bound(self, dt, *args, **kwargs):
     """FluidContacts.sub_steps as before the stiffness in play: every pass at the DEM's own bound."""
     return max(int(np.ceil(dt / self.dem.dt_max - 1e-9)), 1), -np.inf, "the DEM's bound"
 
@@ -88,3 +88,45 @@ def test_history_counts_the_contacts_of_bodies_in_a_fluid(tmp_path):
     poses = sim.flow.poses.copy()
     poses[0, 1] = A + 2.0 * rng
     assert sim.flow.contacts.contact_counts(poses).tolist() == [0]
+
+
+def test_the_next_pass_of_a_step_takes_its_sub_steps_from_the_gap_the_last_one_met():
+    """Two polygons 5.7e-3 apart inside the repulsion's range 0.01, turning and closing fast enough that
+    the gap may close in the step by the kinematic bound: the first pass takes the DEM's bound (35 sub-steps).
+    It meets a closest gap of 5.64e-3, so the next pass of the same step (the same start, the contact load of
+    the first in its solve) takes the repulsion's stiffness at half that gap: 21 sub-steps, no pass redone.
+    Its load is that of the same pass at the DEM's bound to 2.0e-4 (relative to the largest component)."""
+    from fluidem.coupling.contacts import FluidContacts
+    from fluidem.dem.bodies import random_convex_vertices
+    from fluidem.scene import Scene
+
+    va = random_convex_vertices(0.1, 6, 1.3, rng=np.random.default_rng(1))
+    vb = random_convex_vertices(0.1, 5, 1.5, rng=np.random.default_rng(2))
+    sc = Scene.from_dict({
+        "gravity": [0.0, 0.0], "fluid": {"density": 1.0, "viscosity": 0.01}, "domain": {"box": [0.0, 2.0, 0.0, 1.0]},
+        "bodies": [{"name": "a", "shape": "polygon", "vertices": va.tolist(), "position": [1.0, 0.5], "density": 1.2},
+                   {"name": "b", "shape": "polygon", "vertices": vb.tolist(), "position": [0.928, 0.52],
+                    "density": 1.2}],
+        "contact": {"E": 1e4, "mu": 0.0, "repulsion_force": 0.01, "repulsion_range": 0.01},
+        "mesh": {"h": 0.04}, "time": {"dt": 0.01, "t_end": 0.1}})
+
+    def contacts():
+        return FluidContacts(sc.bodies, np.array([0, 1]), [va, vb], [None, None], domain=sc.domain, fluid=sc.fluid,
+                             contact=sc.contact, gravity=sc.gravity, h=sc.mesh.h)
+
+    poses = np.array([[1.0, 0.5, 0.3], [0.928, 0.52, -0.2]])
+    vel = np.array([[-0.3, 0.1, 2.0], [0.2, 0.0, -1.0]])
+    dt = 0.01
+    c = contacts()
+    load = c.load_function(0.0, dt, poses, vel)
+    first = load(vel, np.zeros((2, 3)))
+    n_first = c.substeps
+    assert n_first == int(np.ceil(dt / c.dem.dt_max - 1e-9)) == 35                  # the DEM's bound
+    assert 0.0 < c.dem.closest_gap_seen < c.repulsion.range                         # measured 5.64e-3
+    second = load(vel, first)
+    assert c.substeps - n_first < 0.7 * n_first and c.redone == 0                  # measured 21 of 35
+    assert c.last_set_by.startswith("the repulsion's stiffness at half the closest gap")
+    ref = contacts()
+    at_bound = ref.load_function(0.0, dt, poses, vel)(vel, first)                    # a first pass: the bound
+    assert ref.substeps == 35
+    assert np.abs(second - at_bound).max() < 5e-4 * np.abs(at_bound).max()           # measured 2.0e-4
