@@ -412,21 +412,18 @@ class FluidContacts:
         floor = float((g - cl).min())
         n = max(int(np.ceil((cl / (0.25 * np.maximum(g, max(rng, 1e-300)))).max() - 1e-9)), 1)
         by = "the gaps' change: a quarter of a gap per sub-step"
+        origin = ""
         if floor <= 0.0:
             if seen is None or not seen > 0.0 or rng <= 0.0:
                 return n_max, -np.inf, "a gap that may close in the pass: the DEM's bound"
             floor = 0.5 * float(seen)
-            by = f"half the closest gap {seen:.3g} of the step's last pass"
-            if floor < rng:
-                n_k, _ = self._repulsion_sub_steps(dt, floor)
-                if n_k > n:
-                    n, by = n_k, f"the repulsion's stiffness at half the closest gap {seen:.3g} of the step's last pass"
-            return (n_max, -np.inf, "the DEM's bound") if n >= n_max else (n, floor, by)
+            origin = f" (half the closest gap {seen:.3g} of the step's last pass)"
+            by += origin
         if floor < rng:
             n_k, _ = self._repulsion_sub_steps(dt, floor)
             if n_k > n:
                 k = float(self.repulsion.stiffness(np.array([floor]))[0])
-                n, by = n_k, f"the repulsion's stiffness at the gap floor {floor:.3g}: {k:.3g} force/length"
+                n, by = n_k, f"the repulsion's stiffness at the gap floor {floor:.3g}{origin}: {k:.3g} force/length"
         if n >= n_max:
             return n_max, -np.inf, "the DEM's bound"
         return n, floor, by
