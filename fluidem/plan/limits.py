@@ -145,7 +145,8 @@ def sub_step_check(scene: Scene) -> tuple[str | None, str | None]:
     if sub is None or sub[0] <= MAX_CONTACT_SUBSTEPS:
         return None, None
     n, dt_max, by = sub
-    text = (f"contacts take up to {n:.3g} DEM sub-steps per pass over each step of time.dt = {scene.time.dt:g} "
+    count = f"up to {n:.3g}" if np.isfinite(n) else "more than 1e15"
+    text = (f"contacts take {count} DEM sub-steps per pass over each step of time.dt = {scene.time.dt:g} "
             f"(dt_max = {dt_max:.3g}, set by {by}, with the lightest free body); expected at most "
             f"{MAX_CONTACT_SUBSTEPS}: "
             "lower that stiffness (a smaller E or repulsion_force, a larger repulsion_epsilon or repulsion_range), "
