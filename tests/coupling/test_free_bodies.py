@@ -60,3 +60,39 @@ def test_first_step_of_a_settling_disk_balances_weight_inertia_and_fluid_force(e
     # measured 1.148 (th) and 1.154 (p2b) at h = 0.04: the no-slip layer of one element adds to it
     C = -F_hyd[1] / (rho_f * area * V[1] / DT)
     assert 0.0 < C - 1.065 < 0.2
+
+
+def _iterate(contraction: float, stall: float, memory: int = 0):
+    """The contact-load iteration of FreeBodyStepper on a linear contact map ``G(F) = F* + c (F − F*)`` of two
+    bodies (no fluid: the body rows alone, the preconditioner and the final solve the identity)."""
+    from types import SimpleNamespace
+
+    from fluidem.cost import CostSplit
+
+    F_star = np.array([[1.0, -2.0, 0.5], [0.3, 0.8, -0.1]])
+    st = FreeBodyStepper.__new__(FreeBodyStepper)
+    st.system = SimpleNamespace(n_fluid=0, n_bodies=2, split=lambda z: (None, z.reshape(2, 3)))
+    identity = SimpleNamespace(matvec=lambda e: e)
+    st.solver = SimpleNamespace(as_preconditioner=lambda: identity)
+    st._correction_solve = lambda e: e
+    st.rho, st.contact_tolerance, st.contact_iterations = 1.0, 1e-3, 8
+    st.contact_memory, st.contact_stall, st.last_contact_iterations = memory, stall, 0
+    z = np.zeros(6)
+    F = st._iterate_contacts(z, lambda V, F: F_star + contraction * (F - F_star), np.zeros((2, 3)), 1.0, CostSplit())
+    return st, np.abs(F - F_star).max()
+
+
+def test_the_contact_iteration_stops_once_it_stalls_and_not_while_it_contracts():
+    """A plain iteration (no mixing) contracting by 0.95 a pass leaves 0.95² = 0.90 > ``contact_stall`` = 0.7 of the
+    change two passes before at its third pass: it stops there, unsettled, 1.71 off, instead of running to the cap
+    of 8 (the rule off, ``contact_stall = 0``: 8 passes, 1.33 off).  One contracting by 0.5 (0.25 over two passes)
+    never stalls and runs to the cap (0.0078 off); one contracting by 0.1 settles in 4 passes (2e-5 off)."""
+    stalled, off = _iterate(0.95, 0.7)
+    assert stalled.last_contact_iterations == 3 and not stalled.last_contact_converged
+    assert off == pytest.approx(2.0 * 0.95**3, rel=1e-12)        # F* off by 0.95³ of its largest entry
+    capped, _ = _iterate(0.95, 0.0)
+    assert capped.last_contact_iterations == 8 and not capped.last_contact_converged
+    contracting, off = _iterate(0.5, 0.7)
+    assert contracting.last_contact_iterations == 8 and off == pytest.approx(2.0 * 0.5**8, rel=1e-12)
+    fast, off = _iterate(0.1, 0.7)
+    assert fast.last_contact_converged and fast.last_contact_iterations == 4 and off < 1e-4
