@@ -109,5 +109,6 @@ def test_the_plan_predicts_the_sub_steps_and_refuses_contacts_that_would_never_f
         assert main(["plan", str(p)]) == 2  # refused: such a step would never end (it hung, deaf to SIGTERM)
         out = capsys.readouterr()
         said = out.out + out.err
-        assert "contacts take more than 1e15 DEM sub-steps per pass over each step of time.dt = 0.02 (dt_max = " in said
+        assert ("contacts take more than 1e+15 DEM sub-steps per pass over each step of time.dt = 0.02 "
+                "(dt_max = ") in said
         assert f"set by {by}" in said

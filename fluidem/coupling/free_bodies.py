@@ -159,8 +159,8 @@ class FreeBodyStepper:
             ``contact_tolerance`` × the largest |external| (at most ``contact_iterations``, and no more
             once a correction leaves more than ``contact_stall`` of the change two corrections before:
             the contact load of grains flowing as a dense layer in ``column-collapse-fluid`` stalls 60–300
-            tolerances off, and the passes after the stall changed its front at t = 1 s by 0.6 %
-            while taking a third of the step); one
+            tolerances off, and the passes after the stall, 40 % of them, moved its front at t = 1 s
+            by 0.6 %); one
             solve to full accuracy then makes fluid and bodies agree on the body velocities.
             ``last_contact_iterations`` counts the corrections.
         contact_guess : (n_bodies, 3) float or None

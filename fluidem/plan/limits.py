@@ -93,6 +93,8 @@ def flux_refusal(scene: Scene) -> str | None:
 #: DEM sub-steps per pass over one step above which the plan warns, and above which it refuses
 #: (such a step would not end in any useful time)
 MAX_CONTACT_SUBSTEPS, REFUSED_CONTACT_SUBSTEPS = 10_000, 1_000_000
+#: sub-step counts from here on are reported as infinite (beyond the float's integer precision)
+COUNTED_CONTACT_SUBSTEPS = 1e15
 
 
 def contact_sub_steps(scene: Scene) -> tuple[float, float, str] | None:
@@ -136,7 +138,7 @@ def contact_sub_steps(scene: Scene) -> tuple[float, float, str] | None:
     dt_max, by = stable_sub_step(mass, c.E, rep)
     with np.errstate(all="ignore"):
         n = scene.time.dt / dt_max
-    return (float(np.ceil(n - 1e-9)) if np.isfinite(n) and n < 1e15 else float("inf")), dt_max, by
+    return (float(np.ceil(n - 1e-9)) if np.isfinite(n) and n < COUNTED_CONTACT_SUBSTEPS else float("inf")), dt_max, by
 
 
 def sub_step_check(scene: Scene) -> tuple[str | None, str | None]:
@@ -145,7 +147,7 @@ def sub_step_check(scene: Scene) -> tuple[str | None, str | None]:
     if sub is None or sub[0] <= MAX_CONTACT_SUBSTEPS:
         return None, None
     n, dt_max, by = sub
-    count = f"up to {n:.3g}" if np.isfinite(n) else "more than 1e15"
+    count = f"up to {n:.3g}" if np.isfinite(n) else f"more than {COUNTED_CONTACT_SUBSTEPS:.0e}"
     text = (f"contacts take {count} DEM sub-steps per pass over each step of time.dt = {scene.time.dt:g} "
             f"(dt_max = {dt_max:.3g}, set by {by}, with the lightest free body); expected at most "
             f"{MAX_CONTACT_SUBSTEPS}: "

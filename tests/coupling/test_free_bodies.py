@@ -62,9 +62,9 @@ def test_first_step_of_a_settling_disk_balances_weight_inertia_and_fluid_force(e
     assert 0.0 < C - 1.065 < 0.2
 
 
-def _iterate(contraction: float, stall: float, memory: int = 0):
+def _iterate(contraction: float, stall: float):
     """The contact-load iteration of FreeBodyStepper on a linear contact map ``G(F) = F* + c (F − F*)`` of two
-    bodies (no fluid: the body rows alone, the preconditioner and the final solve the identity)."""
+    bodies (no fluid: the body rows alone, the preconditioner and the final solve the identity; no mixing)."""
     from types import SimpleNamespace
 
     from fluidem.cost import CostSplit
@@ -76,7 +76,7 @@ def _iterate(contraction: float, stall: float, memory: int = 0):
     st.solver = SimpleNamespace(as_preconditioner=lambda: identity)
     st._correction_solve = lambda e: e
     st.rho, st.contact_tolerance, st.contact_iterations = 1.0, 1e-3, 8
-    st.contact_memory, st.contact_stall, st.last_contact_iterations = memory, stall, 0
+    st.contact_memory, st.contact_stall, st.last_contact_iterations = 0, stall, 0
     z = np.zeros(6)
     F = st._iterate_contacts(z, lambda V, F: F_star + contraction * (F - F_star), np.zeros((2, 3)), 1.0, CostSplit())
     return st, np.abs(F - F_star).max()
