@@ -21,7 +21,8 @@ from .build import dem_from_kinematic
 from .coupling.bodies import DEMBodies, KinematicBodies
 from .errors import InputError, RunWarning, one_line
 
-__all__ = ["RESTART_MAY_CHANGE", "scene_changes", "scene_key", "restore", "apply_checkpoint", "set_state",
+__all__ = ["RESTART_MAY_CHANGE", "SCENE_RTOL", "changes_text", "scene_changes", "scene_key",
+           "restore", "apply_checkpoint", "set_state",
            "check_restored"]
 
 #: parts of a run's state whose sizes change as it goes (contact lists, spring histories, neighbour pairs)
@@ -43,6 +44,40 @@ def _flatten(d, prefix="") -> dict:
             out.update(_flatten(v, f"bodies[{i}]"))
         return out
     return {prefix: d}
+
+
+#: relative difference below which two numbers of a scene count as equal (relative to the largest
+#: magnitude of their list, for outlines): a run's ``scene.toml`` read back differs from the run's own
+#: scene in the last digits of its polygon outlines (shifted again onto their area centroid, computed
+#: to about 1e-12 of the outline's size where the vertices were given far from the origin), which must
+#: not refuse a restart from that file
+SCENE_RTOL = 1e-10
+
+
+def _numbers(v):
+    """The numbers of a (nested) list of numbers as a float array, else None."""
+    if isinstance(v, (bool, np.bool_, str)) or v is None or isinstance(v, dict):
+        return None
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    return a if a.dtype == float and a.size else None
+
+
+def _same_value(a, b) -> bool:
+    """``a == b``, numbers (and lists of numbers of one shape) within :data:`SCENE_RTOL` of the largest
+    magnitude among them."""
+    if type(a) is type(b) and a == b:
+        return True
+    x, y = _numbers(a), _numbers(b)
+    if x is None or y is None or x.shape != y.shape or (isinstance(a, bool) or isinstance(b, bool)):
+        return False
+    if not (np.array_equal(np.isfinite(x), np.isfinite(y)) and np.array_equal(x[~np.isfinite(x)], y[~np.isfinite(y)])):
+        return False
+    fin = np.isfinite(x)
+    scale = max(float(np.abs(x[fin]).max(initial=0.0)), float(np.abs(y[fin]).max(initial=0.0)))
+    return bool(np.all(np.abs(x[fin] - y[fin]) <= SCENE_RTOL * scale))
 
 
 def _fixed(flat: dict) -> dict:
@@ -67,7 +102,20 @@ def scene_changes(old: dict, new: dict) -> list:
     missing = "(absent)"
     keys = list(a) + [k for k in b if k not in a]
     return [f"{k} {a.get(k, missing)!r} -> {b.get(k, missing)!r}".replace("'(absent)'", missing)
-            for k in keys if a.get(k, missing) != b.get(k, missing)]
+            for k in keys if not _same_value(a.get(k, missing), b.get(k, missing))]
+
+
+def changes_text(changes: list, shown: int = 3, width: int = 300) -> str:
+    """The first ``shown`` of :func:`scene_changes`, each cut to ``width`` characters, and how many more.
+
+    Examples
+    --------
+    >>> changes_text(["a 1 -> 2", "b 1 -> 3", "c 0 -> 1", "d 0 -> 2"], shown=2)
+    'a 1 -> 2; b 1 -> 3; and 2 more'
+    """
+    cut = [c if len(c) <= width else c[: width - 5] + " ..." for c in changes[:shown]]
+    more = len(changes) - len(cut)
+    return "; ".join(cut + ([f"and {more} more"] if more > 0 else []))
 
 
 def scene_key(d: dict) -> str:
@@ -167,7 +215,7 @@ def apply_checkpoint(sim, path: Path, data: dict, template: dict) -> None:
     changes = scene_changes(data.get("scene") or {}, sc.to_dict())
     if changes:
         raise InputError(f"checkpoint {str(path)!r} belongs to a different scene: changed "
-                         + "; ".join(changes) + "; a restart may change only time.t_end and [output] (anything "
+                         + changes_text(changes) + "; a restart may change only time.t_end and [output] (anything "
                          "else is a new run: --overwrite or another --out)")
     try:
         step, t = int(data["step"]), float(data["t"])

@@ -407,7 +407,8 @@ class Simulation:
         ck_used, n_events = None, len(self.events)
         if restarting:
             ck_used = self.restore(restart, allow_pickle=allow_pickle)  # lists any change of the scene
-            if out_dir is not None and Path(out_dir).is_dir():
+            if out_dir is not None and Path(out_dir).is_dir() and \
+                    Path(out_dir).resolve() not in Path(ck_used).resolve().parents:
                 check_owner(self, out_dir)  # a checkpoint from elsewhere: the folder must be this scene's
         N = self.plan.n_steps if n_steps is None else n_steps
         writer = None
