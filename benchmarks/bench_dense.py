@@ -16,8 +16,10 @@ Run (tens of minutes)::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py [--before PATH] [N ...]
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py --apart [N]   # a dense step against the same bodies apart
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py --lu [N ...]   # SuperLU against PARDISO, at once
 
-writes ``benchmarks/results/dense.{md,json}``.  ``--before PATH`` also runs every case, side by side,
+writes ``benchmarks/results/dense.{md,json}`` (``--lu``: ``dense_lu.{md,json}``; the ``pardiso`` extra
+installed, MKL pinned to one thread).  ``--before PATH`` also runs every case, side by side,
 with the fluidem package found at ``PATH`` (a checkout of an earlier version; keys it does not know
 are left out of its scene).  ``python benchmarks/bench_dense.py --scene N FILE.toml`` writes the scene
 of ``N`` bodies.
@@ -123,6 +125,9 @@ def main(argv: list[str]) -> None:
     if argv[:1] == ["--apart"]:
         dense_against_apart(int(argv[1]) if len(argv) > 1 else 100)
         return
+    if argv[:1] == ["--lu"]:
+        lu_side_by_side([int(a) for a in argv[1:]] or [100])
+        return
     before = None
     if argv[:1] == ["--before"]:
         before, argv = argv[1], argv[2:]
@@ -169,6 +174,57 @@ def main(argv: list[str]) -> None:
                      f"{r['retriangulations_per_100']:.0f} | {r['peak_mib']:.0f} | {r['error'] or ''} |")
     lines += ["", "Machines:"] + sorted({f"- {r['bodies']} bodies: {r.get('machine', '')}" for r in rows})
     (RESULTS / "dense.md").write_text("\n".join(lines) + "\n")
+
+
+def lu_side_by_side(cases: list) -> None:
+    """Each case with ``fluid.lu_backend = "superlu"`` and ``"pardiso"`` (one MKL thread), the two processes
+    run at the same time (load 2 on two cores); writes ``results/dense_lu.{md,json}``."""
+    from results_io import markdown_table
+
+    from fluidem.scene import Scene
+
+    rows = []
+    for n in cases:
+        procs = {}
+        for lu in ("superlu", "pardiso"):
+            d = scene_dict(n, CASES.get(n, 30))
+            d["fluid"]["lu_backend"] = lu
+            path = RESULTS / f"dense-{n}-{lu}.toml"
+            Scene.from_dict(d).to_toml(str(path))
+            env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+            procs[lu] = (path, subprocess.Popen([sys.executable, __file__, "--case", str(path), str(CASES.get(n, 30))],
+                                                stdout=subprocess.PIPE, text=True, env=env))
+        outs = {lu: proc.communicate()[0] for lu, (_, proc) in procs.items()}
+        load = os.getloadavg()[0]  # the last minute's, with both running
+        for lu, (path, proc) in procs.items():
+            out = outs[lu]
+            path.unlink()
+            if proc.returncode:
+                raise SystemExit(f"the {lu} case of {n} bodies failed (exit code {proc.returncode})")
+            res = json.loads(out.strip().splitlines()[-1])
+            r = res["rows"][1:]
+            rows.append(dict(summary(n, res), lu=lu, solve_s=float(np.median([x["solve"] for x in r])), load=load))
+            print(rows[-1], flush=True)
+    machine = machine_description()
+    write_json("dense_lu", machine, rows)
+    lines = ["# Settling suspensions: the LU backends side by side", "",
+             f"Machine: {machine}.  `benchmarks/bench_dense.py --lu`: the settling suspension of `dense.md` (h = {H}, "
+             f"dt = {DT}, P2+bubble, the lagged LU) with `fluid.lu_backend = \"superlu\"` and `\"pardiso\"` (Intel "
+             "MKL through the optional `pardiso` extra, one MKL thread), the two processes started together on the "
+             "two cores (the faster one ends first); medians over the steps after the first.", "",
+             *markdown_table(["bodies", "LU", "DOFs", "steps", "s/step", "solve s/step", "DEM share (total)",
+                              "re-triangulations/100 steps", "peak MiB", "load at the end"],
+                             [[str(r["bodies"]), r["lu"], str(r["dofs"]), str(r["steps"]), f"{r['s_per_step']:.3g}",
+                               f"{r['solve_s']:.3g}", f"{r['dem_share_total']:.1%}",
+                               f"{r['retriangulations_per_100']:.0f}", f"{r['peak_mib']:.0f}", f"{r['load']:.1f}"]
+                              for r in rows])]
+    for n in cases:
+        by = {r["lu"]: r for r in rows if r["bodies"] == n}
+        ratio = by["superlu"]["s_per_step"] / by["pardiso"]["s_per_step"]
+        verdict = ", ".join(f"{'met' if by[k]['s_per_step'] <= 2.0 else 'missed'} with {k}" for k in by)
+        lines.append(f"\n{n} bodies: SuperLU / PARDISO = {ratio:.2f} per step"
+                     + (f"; the target 'at most 2 s a step for 100 bodies' is {verdict}." if n == 100 else "."))
+    (RESULTS / "dense_lu.md").write_text("\n".join(lines) + "\n")
 
 
 def dense_against_apart(n: int, steps: int = 12) -> None:
