@@ -71,12 +71,12 @@ def _same_value(a, b) -> bool:
     if type(a) is type(b) and a == b:
         return True
     x, y = _numbers(a), _numbers(b)
-    if x is None or y is None or x.shape != y.shape or (isinstance(a, bool) or isinstance(b, bool)):
-        return False
-    if not (np.array_equal(np.isfinite(x), np.isfinite(y)) and np.array_equal(x[~np.isfinite(x)], y[~np.isfinite(y)])):
+    if x is None or y is None or x.shape != y.shape:
         return False
     fin = np.isfinite(x)
-    scale = max(float(np.abs(x[fin]).max(initial=0.0)), float(np.abs(y[fin]).max(initial=0.0)))
+    if not (np.array_equal(fin, np.isfinite(y)) and np.array_equal(x[~fin], y[~fin], equal_nan=True)):
+        return False
+    scale = float(np.abs(np.concatenate([x[fin], y[fin]])).max(initial=0.0))
     return bool(np.all(np.abs(x[fin] - y[fin]) <= SCENE_RTOL * scale))
 
 
