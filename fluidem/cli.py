@@ -12,7 +12,8 @@ read too; old spellings are accepted as aliases.  An error fluidem raises on pur
 ``fluidem: error: <message>`` to stderr and exits with status 2; ``--debug`` shows the
 traceback instead.  A run stopped by Ctrl-C or SIGTERM exits with 130 or 143, a run whose
 step failed with 3, each after a one-line message saying where its last checkpoint is and
-how to continue (``fluidem run SCENE --out DIR --restart``).  ``fluidem plan`` exits with 2
+how to continue (``fluidem run SCENE --out DIR --restart``; without ``SCENE`` a restart continues the
+``scene.toml`` the run wrote in ``DIR``).  ``fluidem plan`` exits with 2
 for a scene this version cannot run (the plan's ``unsupported`` reasons, one
 ``fluidem: error:`` line each on stderr, after the plan on stdout), and ``fluidem run``
 refuses such a scene with the same lines before building anything.  ``--overwrite`` clears an
@@ -26,6 +27,7 @@ import os
 import sys
 import time
 import warnings
+from pathlib import Path
 
 from . import names
 from .errors import FluidemError
@@ -161,7 +163,8 @@ def _add_scene_commands(sub) -> None:
     r.add_argument("--out", metavar="DIR", help="output directory (default: the scene's [output] dir)")
     r.add_argument("--restart", nargs="?", const=True, metavar="CHECKPOINT",
                    help="continue from a checkpoint file, or from the newest valid one in the output directory "
-                        "(only time.t_end and [output] may differ from the run's scene)")
+                        "(only time.t_end and [output] may differ from the run's scene; with no scene given, "
+                        "the scene.toml the run wrote in its output directory)")
     r.add_argument("--overwrite", action="store_true",
                    help="clear the output of an earlier run in the output directory first")
     r.add_argument("--steps", type=_positive_int, metavar="N", help="stop after N steps in total (N >= 1)")
@@ -242,8 +245,6 @@ def _add_fill_command(sub) -> None:
 
 
 def _fill_main(args) -> int:
-    from pathlib import Path
-
     from .errors import InputError
     from .scene.fill import fill
 
@@ -374,8 +375,34 @@ def _scene_from_args(args):
 
         return example_scene(args.example)
     if not args.scene:
-        raise InputError("no scene: give a scene TOML file or --example NAME (see 'fluidem examples')")
+        own = _restarted_scene(args)
+        if own is not None:
+            return Scene.from_toml(own)
+        raise InputError("no scene: give a scene TOML file or --example NAME (see 'fluidem examples')"
+                         + (", or with --restart an --out directory holding a run's scene.toml"
+                            if getattr(args, "restart", None) else ""))
     return Scene.from_toml(args.scene)
+
+
+def _restarted_scene(args):
+    """The scene a ``run --restart`` without a scene continues: the ``scene.toml`` its run wrote in the output
+    directory (``--out``, or the run directory of a ``--restart CHECKPOINT`` file, which then becomes ``--out``),
+    else None."""
+    restart = getattr(args, "restart", None)
+    if not restart:
+        return None
+    if args.out:
+        out = Path(args.out)
+    elif restart is not True:
+        ck = Path(restart)
+        out = ck if ck.is_dir() else ck.parent.parent  # OUT/checkpoints/ckpt_*.npz
+    else:
+        return None
+    own = out / "scene.toml"
+    if not own.is_file():
+        return None
+    args.out = str(out)
+    return own
 
 
 def _scene_main(args) -> int:

@@ -302,6 +302,18 @@ def test_a_run_continues_from_its_own_written_scene_file(tmp_path, capsys):
     full = tmp_path / "full"
     Simulation(Scene.from_dict(_off_centre_polygons())).run(out_dir=full)
     assert _same_history(full, out) < 1e-9
+    # with no scene given, a restart continues the scene.toml of the run it continues: that of --out, or of
+    # the run directory holding a checkpoint named by path (which then is the output directory too)
+    for argv, steps in ((["--out", str(out), "--restart"], 8), ([], 4)):
+        out2 = tmp_path / f"o{steps}"
+        Simulation(Scene.from_dict(_off_centre_polygons())).run(out_dir=out2, n_steps=steps)
+        ck = sorted((out2 / "checkpoints").glob("*.npz"))[-1]
+        args = [a.replace(str(out), str(out2)) for a in argv] or ["--restart", str(ck)]
+        assert main(["run", *args, "--quiet"]) == 0
+        assert "20 steps to t = 0.08" in capsys.readouterr().out
+        assert _same_history(full, out2) < 1e-9
+    assert main(["run", "--out", str(tmp_path / "none"), "--restart", "--quiet"]) == 2
+    assert "no scene: give a scene TOML file or --example NAME" in capsys.readouterr().err
 
 
 def test_a_refused_restart_names_the_first_changes_and_counts_the_rest(tmp_path):
