@@ -178,7 +178,7 @@ def main(argv: list[str]) -> None:
 
 def lu_side_by_side(cases: list) -> None:
     """Each case with ``fluid.lu_backend = "superlu"`` and ``"pardiso"`` (one MKL thread), the two processes
-    run at the same time (load 2 on two cores); writes ``results/dense_lu.{md,json}``."""
+    started together on the two cores (the faster one ends first); writes ``results/dense_lu.{md,json}``."""
     from results_io import markdown_table
 
     from fluidem.scene import Scene
@@ -196,9 +196,10 @@ def lu_side_by_side(cases: list) -> None:
                                                 stdout=subprocess.PIPE, text=True, env=env))
         outs = {lu: proc.communicate()[0] for lu, (_, proc) in procs.items()}
         load = os.getloadavg()[0]  # the last minute's, with both running
-        for lu, (path, proc) in procs.items():
-            out = outs[lu]
+        for path, _ in procs.values():
             path.unlink()
+        for lu, (_, proc) in procs.items():
+            out = outs[lu]
             if proc.returncode:
                 raise SystemExit(f"the {lu} case of {n} bodies failed (exit code {proc.returncode})")
             res = json.loads(out.strip().splitlines()[-1])
