@@ -272,7 +272,7 @@ def column_collapse_fluid(out: Path) -> dict:
 
     dry_out = out.parent / "column-collapse-fluid-dry"
     wall_dry = ensure_run("column-collapse-fluid-dry", dry_out)
-    if not (out / "run.json").exists():  # about an hour; a run stopped early is used as it is
+    if not (out / "run.json").exists():  # 20–25 min on one core; a run stopped early is used as it is
         ensure_run("column-collapse-fluid", out)
     scene = example_scene("column-collapse-fluid")
     areas = np.array([shapely.Polygon(b.world_vertices()).area for b in scene.bodies])
