@@ -44,7 +44,7 @@ import numpy as np
 
 from ..cost import CostSplit
 from .contacts import FluidContacts
-from .free_bodies import FreeBodyStepper
+from .free_bodies import FreeBodyStepper, carried_contact_load
 from .mean_gradient import flux_conditions, flux_solver
 from .moving_flow import MovingMeshFlow
 from .rigid_system import RigidBodySystem
@@ -113,6 +113,8 @@ class FreeBodyFlow(MovingMeshFlow):
         self.explicit = fluid.coupling == "explicit" and not self.stokes
         self.contacts = None
         self._contact_step = False  # Stokes: the last mobility solve had the repulsion in it
+        #: fluid regions of the mesh the last contact load was found on (:func:`carried_contact_load`)
+        self._load_regions = None
         #: Stokes with contacts: Newton iterations of the repulsion per step (relative tolerance
         #: on the force, of the repulsion's force scale, and most iterations); the last count and
         #: the repulsion (n_free, 3) at the end poses of the last step
@@ -232,7 +234,10 @@ class FreeBodyFlow(MovingMeshFlow):
                                                                                    self.body_velocities)
             dem_s = 0.0 if self.contacts is None else self.contacts.seconds
             passes = self._dem_work()
-            self.coupled.step(self._weight, contact=load, contact_guess=self.coupled.last_contact_load)
+            regions = self.problem.components.n_components
+            guess = carried_contact_load(self.coupled.last_contact_load, self._load_regions, regions)
+            self._load_regions = regions
+            self.coupled.step(self._weight, contact=load, contact_guess=guess)
             dem_s = 0.0 if self.contacts is None else self.contacts.seconds - dem_s
             self._count_dem_work(passes, cost)
             tm = self.coupled.last_cost
@@ -454,6 +459,7 @@ class FreeBodyFlow(MovingMeshFlow):
             s["bodies"]["contacts"] = self.contacts.get_state()
         if self.coupled is not None:
             s["bodies"]["contact_load"] = self.coupled.last_contact_load.copy()
+            s["bodies"]["contact_regions"] = self._load_regions
             s["bodies"]["coupled_V"] = self.coupled.V.copy()
             s["bodies"]["coupled_V_prev"] = None if self.coupled.V_prev is None else self.coupled.V_prev.copy()
         return s
@@ -477,6 +483,8 @@ class FreeBodyFlow(MovingMeshFlow):
             self.coupled.V = np.array(b["coupled_V"], float)
             if "contact_load" in b:
                 self.coupled.last_contact_load = np.array(b["contact_load"], float)
+            regions = b.get("contact_regions")
+            self._load_regions = None if regions is None else int(regions)
             self.coupled.V_prev = None if b["coupled_V_prev"] is None else np.array(b["coupled_V_prev"], float)
             self.coupled.refactorize = True
 
