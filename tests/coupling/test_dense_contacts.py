@@ -131,3 +131,41 @@ def test_the_next_pass_of_a_step_takes_its_sub_steps_from_the_gap_the_last_one_m
     at_bound = ref.load_function(0.0, dt, poses, vel)(vel, first)                    # a first pass: the bound
     assert ref.substeps == 35
     assert np.abs(second - at_bound).max() < 5e-4 * np.abs(at_bound).max()           # measured 2.0e-4
+
+
+@pytest.mark.filterwarnings("ignore:the mesh has degenerate triangles")  # the disk 2e-4 above the floor
+def test_a_step_starts_from_no_contact_load_when_the_fluid_regions_changed_and_a_checkpoint_keeps_the_count():
+    """The contact load a step starts from (``contact_guess``) is the last step's while the mesh has as many fluid
+    regions as when that load was found, and no load once the count changed (a closed pore opened or closed:
+    :func:`fluidem.coupling.free_bodies.carried_contact_load`); the count goes through a checkpoint."""
+    sc = _floor_scene(h=0.04, dt=0.04, t_end=0.2, start=0.5)
+    d = sc.to_dict()
+    d["bodies"][0]["position"] = [d["bodies"][0]["position"][0], A + 0.5 * 0.01 * sc.mesh.h]  # in the film
+    from fluidem.scene import Scene
+
+    fl = Simulation(Scene.from_dict(d)).flow
+    guesses, loads = [], []
+    step = fl.coupled.step
+
+    def spy(*args, contact_guess=None, **kwargs):
+        guesses.append(contact_guess)
+        loads.append(fl.coupled.last_contact_load.copy())
+        return step(*args, contact_guess=contact_guess, **kwargs)
+
+    fl.coupled.step = spy
+    fl.step(0.04)
+    fl.step(0.04)
+    assert fl.problem.components.n_components == 1 and fl._load_regions == 1
+    assert guesses[1] is not None and np.array_equal(guesses[1], loads[1])
+    assert np.abs(loads[1][:, 1]).max() > 0.0  # the film carries the disk: a load that could be carried
+    fl._load_regions = 2  # as if the last load had been found on a mesh with a closed pore
+    fl.step(0.04)
+    assert guesses[2] is None and fl._load_regions == 1
+    state = fl.get_state()
+    assert state["bodies"]["contact_regions"] == 1
+    state["bodies"]["contact_regions"] = 2
+    fl.set_state(state)
+    assert fl._load_regions == 2
+    del state["bodies"]["contact_regions"]  # a checkpoint written before the count: the guess is kept
+    fl.set_state(state)
+    assert fl._load_regions is None
