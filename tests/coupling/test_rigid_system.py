@@ -51,6 +51,20 @@ def test_coupled_matrix_is_the_bordered_product(element):
     assert np.allclose(sysm.prolong(z, xd), T @ z, rtol=0, atol=1e-12)
 
 
+
+def test_the_coupled_matrix_does_not_depend_on_how_many_entries_are_expanded_at_a_time(monkeypatch):
+    """The maps are built a chunk of K entries at a time (memory); every chunk size gives the same matrix bit
+    for bit (the same sums in the same order), here 997 entries at a time against all at once."""
+    pr, rm = _problem("p2b")
+    rng = np.random.default_rng(1)
+    data, diag = rng.standard_normal(pr.assembler.nnz), rng.standard_normal(6)
+    whole = RigidBodySystem(pr, rm, bodies=[0, 1]).matrix(data, diag)
+    monkeypatch.setattr(RigidBodySystem, "CHUNK", 997)
+    chunked = RigidBodySystem(pr, rm, bodies=[0, 1]).matrix(data, diag)
+    assert pr.assembler.nnz > 20 * 997  # many chunks
+    assert np.array_equal(whole.indptr, chunked.indptr) and np.array_equal(whole.indices, chunked.indices)
+    assert np.array_equal(whole.data, chunked.data)
+
 def faxen(k):
     """F/(μU) of a cylinder between two plane walls (Faxén 1946, REFERENCES.md)."""
     return 4 * math.pi / (math.log(1 / k) - 0.9157 + 1.7244 * k**2 - 1.7302 * k**4 + 2.4056 * k**6
