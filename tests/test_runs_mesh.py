@@ -123,3 +123,29 @@ def test_pressure_and_loads_share_one_convention(tmp_path):
     Simulation(Scene.from_dict(_channel(density=2.0, mesh={"h": 0.07}))).run(out_dir=tmp_path)
     m = meshio.read(read_pvd(tmp_path / "fields.pvd")[-1][1])
     assert np.allclose(m.point_data["pressure"], 2.0 * m.point_data["kinematic_pressure"])
+
+
+def test_the_memory_estimate_follows_the_solver_the_run_will_take(monkeypatch):
+    """2 000 settling polygons at h = 0.012 (the suspension of ``benchmarks/bench_dense.py``): 3.15M DOFs, which
+    ``solver = "auto"`` solves with block GMRES (beyond the LU's size limit). That run peaked at 22 000 MiB on a
+    24 GB machine (``benchmarks/results/solver_scale.md``); the plan estimates it at 7.5 kB a DOF (measured
+    1.035 times the peak) and lets it run, while the same scene with the lagged LU is refused."""
+    from fluidem.scene.fill import fill
+
+    monkeypatch.setattr(plan_mod, "machine_memory", lambda: (24151 * 2**20, 22000 * 2**20))
+    n, mean_area = 2000, np.pi * 0.0325**2
+    width = float(np.sqrt(n * mean_area / 0.35 / 0.8))
+    p = fill((0.0, width, 0.0, 0.8 * width), n=n, shapes=("disk", "rectangle", "triangle", "hexagon"),
+             radius=(0.025, 0.04), seed=2, min_gap=0.004)
+    d = {"gravity": [0.0, -9.81], "fluid": {"density": 1.0, "viscosity": 0.01, "element": "p2b"},
+         "domain": {"box": [0.0, width, 0.0, 1.3 * width]}, "bodies": [dict(b, density=2.0) for b in p.bodies],
+         "contact": {"E": 1e4, "mu": 0.3, "gamma": 0.3}, "mesh": {"h": 0.012}, "time": {"dt": 0.01, "t_end": 0.06}}
+    s = Scene.from_dict(d)
+    pl = s.plan()
+    e = plan_mod.mesh_estimate(s, plan_mod.machine_memory())
+    assert not pl.unsupported and e["solver"] == "iterative"
+    assert abs(e["dofs"] / 3_146_586 - 1) < 0.05                            # measured 1.005
+    assert abs(e["peak_bytes"] / (22000 * 2**20) - 1) < 0.1                 # measured 1.035
+    d["fluid"]["solver"] = "lagged"
+    refused = Scene.from_dict(d).plan().unsupported
+    assert any("more than this machine's" in r and "(solver 'lagged')" in r for r in refused)

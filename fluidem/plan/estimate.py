@@ -8,6 +8,7 @@ import numpy as np
 from .effects import readable_bytes
 
 __all__ = ["DOFS_PER_VERTEX", "TRIANGLES_PER_AREA", "TRIANGLES_PER_AREA_FK", "BYTES_PER_DOF", "BYTES_BASE",
+           "BYTES_PER_DOF_ITERATIVE", "planned_solver",
            "MIN_EDGES_PER_BODY", "MIN_THICKNESS_PER_H", "machine_memory", "moving_mesh_scene", "mesh_estimate",
            "mesh_warnings"]
 
@@ -23,6 +24,11 @@ TRIANGLES_PER_AREA = 3.6
 TRIANGLES_PER_AREA_FK = 2.1
 #: measured peak memory per DOF of a run (matrices, the LU factors, the moving mesh), bytes; plus a base
 BYTES_PER_DOF, BYTES_BASE = 11e3, 150e6
+#: the same where the run solves with block-preconditioned GMRES (``fluid.solver = "iterative"``, or
+#: ``"auto"`` above the LU's size limit): memory linear in DOFs, the peak in the first Krylov solve.
+#: Measured on settling suspensions (P2+bubble, ``benchmarks/bench_solver_scale.py``): 7.4 kB a DOF at
+#: 474k DOFs and 7.0 kB at 3.15M (22.0 GiB)
+BYTES_PER_DOF_ITERATIVE = 7.5e3
 #: smallest mesh edges along a body's outline, and smallest thickness / h, before a warning
 MIN_EDGES_PER_BODY, MIN_THICKNESS_PER_H = 8, 0.1
 
@@ -99,7 +105,8 @@ def mesh_estimate(scene, memory: tuple[float, float] | None = None) -> dict:
     :data:`TRIANGLES_PER_AREA` × (fluid area) / h² (graded: × the mean of
     (h/h(x))² over the box for the graded size h(x)); nodes ≈ triangles / 2; DOFs by
     :data:`DOFS_PER_VERTEX`; peak memory ≈ :data:`BYTES_BASE` + :data:`BYTES_PER_DOF` × DOFs
-    (measured for a Taylor–Hood channel with the default solver).  Within a factor of ~2.
+    (measured for a Taylor–Hood channel with the default solver), or :data:`BYTES_PER_DOF_ITERATIVE` × DOFs
+    where the run will solve without an LU (:func:`planned_solver`).  Within a factor of ~2.
 
     Parameters
     ----------
@@ -112,7 +119,7 @@ def mesh_estimate(scene, memory: tuple[float, float] | None = None) -> dict:
     -------
     dict
         ``triangles``, ``nodes``, ``dofs``, ``peak_bytes``, ``machine_bytes``,
-        ``available_bytes`` (floats).
+        ``available_bytes`` (floats) and ``solver`` (:func:`planned_solver`).
     """
     x0, x1, y0, y1 = scene.domain.box
     area_b, _ = _outline_stats(scene) if scene.bodies else (np.zeros(0), None)
@@ -130,8 +137,37 @@ def mesh_estimate(scene, memory: tuple[float, float] | None = None) -> dict:
     nodes = max(tri / 2.0, n_boundary)
     dofs = DOFS_PER_VERTEX.get(scene.fluid.element, 9.0) * nodes
     total, avail = machine_memory() if memory is None else memory
-    return {"triangles": tri, "nodes": nodes, "dofs": dofs, "peak_bytes": BYTES_BASE + BYTES_PER_DOF * dofs,
-            "machine_bytes": total, "available_bytes": avail}
+    solver = planned_solver(scene, dofs, avail)
+    per_dof = BYTES_PER_DOF_ITERATIVE if solver == "iterative" else BYTES_PER_DOF
+    return {"triangles": tri, "nodes": nodes, "dofs": dofs, "peak_bytes": BYTES_BASE + per_dof * dofs,
+            "machine_bytes": total, "available_bytes": avail, "solver": solver}
+
+
+def planned_solver(scene, dofs: float, available_bytes: float | None = None) -> str:
+    """The linear solver a fluid scene of about ``dofs`` DOFs will run with: ``fluid.solver``, or for
+    ``"auto"`` the choice of :func:`fluidem.fluid.solvers.choose.choose_solver` at that size (``"iterative"``
+    above the LU's size limit or where its LU would not fit in ``available_bytes``).
+
+    >>> from fluidem.scene import Scene
+    >>> sc = Scene.from_dict({"domain": {"box": [0, 1, 0, 1]}, "fluid": {"viscosity": 1.0},
+    ...                       "time": {"dt": 0.1, "t_end": 1.0}})
+    >>> planned_solver(sc, 1e4), planned_solver(sc, 1e8)
+    ('lagged', 'iterative')
+    """
+    from ..fluid.solvers.choose import choose_solver
+    from ..fluid.solvers.direct import default_direct_backend
+    from ..fluid.solvers.memory import lu_fits
+
+    fl = scene.fluid
+    if fl.solver != "auto":
+        return fl.solver
+    n = int(min(max(dofs, 1.0), 2.0**62))
+    backend = fl.lu_backend if fl.lu_backend != "auto" else default_direct_backend(n)
+    kind = "stokes" if fl.model == "stokes" else "unsteady"
+    name, _ = choose_solver(n, kind, backend)
+    if name != "iterative" and available_bytes is not None and np.isfinite(available_bytes):
+        name = name if lu_fits(n, backend, available_bytes)[0] else "iterative"
+    return name
 
 
 def mesh_warnings(scene, est) -> tuple[list, list]:
@@ -141,7 +177,7 @@ def mesh_warnings(scene, est) -> tuple[list, list]:
     x0, x1, y0, y1 = scene.domain.box
     L = min(x1 - x0, y1 - y0)
     size = (f"mesh.h = {h:g}: about {est['nodes']:.2g} nodes, {est['dofs']:.2g} DOFs, peak memory "
-            f"{readable_bytes(est['peak_bytes'])}")
+            f"{readable_bytes(est['peak_bytes'])} (solver {est.get('solver', 'auto')!r})")
     if not np.isfinite(est["peak_bytes"]):
         refuse.append(f"mesh.h = {h:g} in the box {x1 - x0:g} × {y1 - y0:g}: more than 1e308 nodes (the estimate "
                       f"overflows), far beyond this machine's {readable_bytes(est['machine_bytes'])}: raise mesh.h "
