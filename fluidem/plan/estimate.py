@@ -27,7 +27,7 @@ BYTES_PER_DOF, BYTES_BASE = 11e3, 150e6
 #: the same where the run solves with block-preconditioned GMRES (``fluid.solver = "iterative"``, or
 #: ``"auto"`` above the LU's size limit): memory linear in DOFs, the peak in the first Krylov solve.
 #: Measured on settling suspensions (P2+bubble, ``benchmarks/bench_solver_scale.py``): 7.4 kB a DOF at
-#: 474k DOFs and 7.0 kB at 3.15M (22.0 GiB)
+#: 474k DOFs and 7.0 kB at 3.15M (21 718 MiB)
 BYTES_PER_DOF_ITERATIVE = 7.5e3
 #: smallest mesh edges along a body's outline, and smallest thickness / h, before a warning
 MIN_EDGES_PER_BODY, MIN_THICKNESS_PER_H = 8, 0.1
