@@ -5,6 +5,7 @@ import inspect
 
 import pytest
 
+import fluidem.plan as plan_mod
 from fluidem.plan import Effect, make_plan
 from fluidem.plan.rules import RULES, Caution, Context, Note, Refusal, apply_rules, defaults_note
 from fluidem.scene import Scene
@@ -35,10 +36,14 @@ def test_each_effect_rule_gives_one_effect_in_the_plans_order(name):
     assert [e.name for e in make_plan(s).effects] == EFFECTS
 
 
-def test_a_rule_left_out_takes_only_its_own_line():
+def test_a_rule_left_out_takes_only_its_own_line(monkeypatch):
+    def memory():  # one machine for both plans: the available memory read twice differs on a busy machine
+        return 16e9, 8e9
+
+    monkeypatch.setattr(plan_mod, "machine_memory", memory)
     s = Scene.from_dict({"fluid": {}, "domain": {"box": [0, 1, 0, 1]}})  # no [time], no mesh.h: two default notes
     full = make_plan(s)
-    ctx = Context.of(s)
+    ctx = Context.of(s, memory=memory)
     mine = [str(n) for n in defaults_note(s, ctx)]
     assert len(mine) == 2 and mine == full.notes[-2:], full.notes
     less = apply_rules(s, ctx, [r for r in RULES if r is not defaults_note])

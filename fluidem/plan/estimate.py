@@ -161,7 +161,7 @@ def planned_solver(scene, dofs: float, available_bytes: float | None = None) -> 
     fl = scene.fluid
     if fl.solver != "auto":
         return fl.solver
-    n = int(min(max(dofs, 1.0), 2.0**62))
+    n = int(min(max(dofs, 1.0), 2.0**62)) if np.isfinite(dofs) else 2**62  # an estimate beyond 1e308: huge
     backend = fl.lu_backend if fl.lu_backend != "auto" else default_direct_backend(n)
     kind = "stokes" if fl.model == "stokes" else "unsteady"
     name, _ = choose_solver(n, kind, backend)
