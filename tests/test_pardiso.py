@@ -72,6 +72,36 @@ def test_numerical_refactorisation_on_the_same_pattern(saddle):
     assert not d.factorize(K3.tocsr()).numeric_only and np.linalg.norm(K3 @ d.solve(b) - b) < 1e-10 * np.linalg.norm(b)
 
 
+def test_a_factorisation_dropped_without_free_releases_mkl_memory(saddle, monkeypatch):
+    """MKL's memory is not Python's: a PardisoLU that goes out of scope must release it itself.
+    Counted by the calls that free all of MKL's memory of the handle: one per LU, whether freed
+    explicitly, replaced or dropped (none were made for a dropped LU before the finaliser)."""
+    import gc
+
+    import pypardiso
+    import scipy.sparse as sp
+
+    calls = []
+    real = pypardiso.PyPardisoSolver.free_memory
+    monkeypatch.setattr(pypardiso.PyPardisoSolver, "free_memory",
+                        lambda self, everything=False: (calls.append(everything), real(self, everything))[1])
+    K = saddle.K.tocsr()
+    lu = PardisoLU(K)
+    del lu
+    gc.collect()
+    assert calls == [True]
+    lu = PardisoLU(K)
+    lu.free()
+    lu.free()  # a second free is harmless and frees nothing more
+    del lu
+    gc.collect()
+    assert calls == [True, True]
+    d = DirectSolver(backend="pardiso").factorize(K)
+    d.factorize(K + 1e-9 * sp.eye(K.shape[0], format="csr"))  # another pattern (the pressure diagonal):
+    # a new analysis, the old LU released first
+    assert calls == [True, True, True]
+
+
 def test_pardiso_condition_estimate_matches_superlu(saddle):
     """‖K⁻¹‖₁ estimated from either factorisation (Hager–Higham on the LU and its transpose), each from the
     same random start (the estimator draws its starting vectors; unseeded, the two differed by 1.4 % and

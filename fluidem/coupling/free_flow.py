@@ -325,6 +325,20 @@ class FreeBodyFlow(MovingMeshFlow):
         self.t, self.x = st.t, st.state.x
         self._finish(cost)
 
+    def _release_factors(self):
+        """The fluid's LU (:meth:`MovingMeshFlow._release_factors`), the coupled one, the Stokes
+        mobility's, and the coupled index maps of the old mesh (rebuilt after the new problem)."""
+        super()._release_factors()
+        for s in (getattr(self.coupled, "solver", None), self._lagged_mobility):
+            release = getattr(s, "release", None)
+            if release is not None:
+                release()
+        self._lagged_mobility = None
+        if not self.explicit:
+            self.system = None
+            if self.coupled is not None:
+                self.coupled.system = None
+
     def _mobility_solver(self, rebuilt):
         """Stokes: a fresh LU every step for ``solver = "direct"`` (bit-for-bit restarts), otherwise
         one lagged LU kept between steps (the matrix changes only with the geometry) and refactorised

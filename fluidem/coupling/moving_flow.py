@@ -213,6 +213,15 @@ class MovingMeshFlow(FlowLoads):
             s.lagged_options.update(MOVING_MESH_STEPPING)
         return s
 
+    def _release_factors(self):
+        """At a re-triangulation, before the new problem is built: drop the LU of the old mesh (it
+        is refactorised for the new DOFs anyway).  Held through the build it raised the peak of a
+        run: 1 000 settling polygons (1.57M DOFs) peaked at 16.3 GB at a re-triangulation against
+        9.6 GB in an ordinary step."""
+        release = getattr(getattr(self.stepper, "solver", None), "release", None)
+        if release is not None:
+            release()
+
     def _retarget_solver(self):
         """After a re-triangulation: the solver's problem data (velocity DOFs, pressure and velocity
         masses of the block preconditioner) for the new problem; an LU is refactorised anyway."""
@@ -327,6 +336,7 @@ class MovingMeshFlow(FlowLoads):
         cost.add("mesh", time.perf_counter() - t0)
         if ev.retriangulated:
             self.sim.counters["triangulations"] += 1
+            self._release_factors()
         t0 = time.perf_counter()
         old_space = self.space
         rebuilt = ev.retriangulated or not self._refit(t_new)

@@ -301,6 +301,13 @@ class AutoSolver:
             self.solver.factorize(K)
         return self
 
+    def release(self) -> None:
+        """Drop the factors of the chosen LU (:meth:`LaggedLUSolver.release`), if it has any."""
+        release = getattr(self.solver, "release", None)
+        if release is not None:
+            release()
+        self.K = None
+
     def solve(self, b: np.ndarray, rtol: float | None = None) -> np.ndarray:
         """Solve with the chosen solver; ``b`` shape (n,), returns ``x`` shape (n,).  ``rtol``: the
         relative residual of this solve for a lagged LU (:meth:`LaggedLUSolver.solve`); other

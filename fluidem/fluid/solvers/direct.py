@@ -211,6 +211,15 @@ class DirectSolver:
             self._lu.free()
             self._lu = None
 
+    def release(self) -> None:
+        """Drop the factors and the matrix (before a system of other DOFs is built, e.g. at a
+        re-triangulation: an LU of the old mesh preconditions nothing there, and holding it while
+        the new system is built raised a run's peak memory).  The next :meth:`factorize` starts
+        afresh."""
+        self._free()
+        self._lu = None
+        self.K = None
+
     def refactorize_if_changed(self, K) -> bool:
         """Factorise ``K`` unless it equals the matrix factorised last.
 

@@ -146,6 +146,12 @@ class LaggedLUSolver:
             self._setup_s = 0.0
         return self
 
+    def release(self) -> None:
+        """Drop the LU and the matrices (:meth:`DirectSolver.release`); the next :meth:`factorize`
+        factorises."""
+        self.direct.release()
+        self.K = None
+
     def solve(self, b: np.ndarray, rtol: float | None = None) -> np.ndarray:
         """Solve ``K x = b`` for the current ``K``.
 

@@ -52,6 +52,7 @@ Examples
 from __future__ import annotations
 
 import functools
+import weakref
 
 import numpy as np
 import scipy.sparse as sp
@@ -105,6 +106,9 @@ class PardisoLU:
         K.sort_indices()
         self.K = K
         self._ps = pypardiso.PyPardisoSolver(mtype=11)
+        # MKL's memory is outside Python's: released when this object goes, not only by free()
+        # (a solver dropped without free() kept its factors until the process ended)
+        self._release = weakref.finalize(self, _release, self._ps)
         self._ps.set_statistical_info_off()
         for i, v in PARDISO_IPARM.items():
             self._ps.set_iparm(i, v)
@@ -171,7 +175,12 @@ class PardisoLU:
         return np.asarray(x).reshape(b.shape)
 
     def free(self) -> None:
-        """Release PARDISO's memory of this factorisation."""
+        """Release PARDISO's memory of this factorisation (also done when the object is collected)."""
         if self._ps is not None:
-            self._ps.free_memory(everything=True)
+            self._release()
             self._ps = None
+
+
+def _release(ps) -> None:
+    """Free all of MKL's memory held for the PARDISO handle ``ps``."""
+    ps.free_memory(everything=True)
