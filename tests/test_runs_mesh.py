@@ -127,9 +127,11 @@ def test_pressure_and_loads_share_one_convention(tmp_path):
 
 def test_the_memory_estimate_follows_the_solver_the_run_will_take(monkeypatch):
     """2 000 settling polygons at h = 0.012 (the suspension of ``benchmarks/bench_dense.py``): 3.15M DOFs, which
-    ``solver = "auto"`` solves with block GMRES (beyond the LU's size limit). That run peaked at 21 718 MiB on a
-    24 GB machine (``benchmarks/results/solver_scale.md``); the plan estimates it at 7.5 kB a DOF (measured
-    1.048 times the peak) and lets it run, while the same scene with the lagged LU is refused."""
+    ``solver = "auto"`` solves with block GMRES where the LU is SuperLU (beyond its size limit). That run peaked
+    at 21 718 MiB on a 24 GB machine (``benchmarks/results/solver_scale.md``); the plan estimates it at 7.5 kB a
+    DOF (measured 1.048 times the peak) and lets it run, while the same scene with the lagged SuperLU LU is
+    refused.  With PARDISO the lagged LU ran there too, but its re-triangulation peaked at 23 152 MiB: "auto"
+    keeps block GMRES on this machine."""
     from fluidem.scene.fill import fill
 
     monkeypatch.setattr(plan_mod, "machine_memory", lambda: (24151 * 2**20, 22000 * 2**20))
@@ -140,6 +142,7 @@ def test_the_memory_estimate_follows_the_solver_the_run_will_take(monkeypatch):
     d = {"gravity": [0.0, -9.81], "fluid": {"density": 1.0, "viscosity": 0.01, "element": "p2b"},
          "domain": {"box": [0.0, width, 0.0, 1.3 * width]}, "bodies": [dict(b, density=2.0) for b in p.bodies],
          "contact": {"E": 1e4, "mu": 0.3, "gamma": 0.3}, "mesh": {"h": 0.012}, "time": {"dt": 0.01, "t_end": 0.06}}
+    d["fluid"]["lu_backend"] = "superlu"
     s = Scene.from_dict(d)
     pl = s.plan()
     e = plan_mod.mesh_estimate(s, plan_mod.machine_memory())
@@ -148,4 +151,13 @@ def test_the_memory_estimate_follows_the_solver_the_run_will_take(monkeypatch):
     assert abs(e["peak_bytes"] / (21718 * 2**20) - 1) < 0.12                # measured 1.048
     d["fluid"]["solver"] = "lagged"
     refused = Scene.from_dict(d).plan().unsupported
-    assert any("more than this machine's" in r and "(solver 'lagged')" in r for r in refused)
+    assert any("more than this machine's" in r and "(solver 'lagged' with the superlu LU)" in r for r in refused)
+    # PARDISO, installed or not: "auto" keeps block GMRES here (after the set-up ~11 GiB are left, and the
+    # LU and a re-triangulation need 16); the lagged LU is estimated at the peak of its re-triangulation
+    monkeypatch.setattr(plan_mod.estimate, "planned_lu_backend", lambda scene, dofs: "pardiso")
+    d["fluid"]["solver"] = "auto"
+    assert plan_mod.mesh_estimate(Scene.from_dict(d), plan_mod.machine_memory())["solver"] == "iterative"
+    d["fluid"]["solver"] = "lagged"
+    e = plan_mod.mesh_estimate(Scene.from_dict(d), plan_mod.machine_memory())
+    assert e["solver"] == "lagged" and e["lu_backend"] == "pardiso"
+    assert abs(e["peak_bytes"] / (23152 * 2**20) - 1) < 0.06                # measured 1.02

@@ -451,6 +451,9 @@ def test_choose_solver_rule_by_kind_and_size(monkeypatch):
                                           ("stokes", solvers.DIRECT_MAX_DOFS, "direct", "iterative"),
                                           ("unsteady", solvers.LAGGED_MAX_DOFS, "lagged", "iterative")):
             limit = table[backend]
+            if limit is None:  # no size limit: the memory rule alone
+                assert choose_solver(10**8, kind, backend=backend)[0] == small
+                continue
             assert choose_solver(limit - 1, kind, backend=backend)[0] == small
             name, reason = choose_solver(limit, kind, backend=backend)
             assert name == large and str(limit) in reason and backend in reason
@@ -459,6 +462,11 @@ def test_choose_solver_rule_by_kind_and_size(monkeypatch):
     assert name == "iterative" and "does not fit" in reason
     assert choose_solver(250_000, "unsteady", backend="pardiso")[0] == "lagged"  # ~0.8 GiB
     assert choose_solver(250_000, "steady", backend="superlu")[0] == "direct"  # Newton: GMRES does not converge
+    # time stepping with PARDISO: no size limit, the memory rule alone, counting the LU held as free
+    name, reason = choose_solver(1_000_000, "unsteady", backend="pardiso")  # ~2.9 GiB > 70 % of 4 GiB
+    assert name == "iterative" and "does not fit" in reason
+    name, reason = choose_solver(1_000_000, "unsteady", backend="pardiso", freed_bytes=2 * 2**30)
+    assert name == "lagged" and "fits" in reason and "with the LU held" in reason
     monkeypatch.setattr(memory, "available_bytes", lambda: 2.0**50)
     # the measured choices with SuperLU: steady Newton direct, Stokes iterative from 20k, time stepping lagged
     assert choose_solver(50_000, "steady", backend="superlu")[0] == "direct"

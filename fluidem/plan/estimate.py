@@ -8,9 +8,9 @@ import numpy as np
 from .effects import readable_bytes
 
 __all__ = ["DOFS_PER_VERTEX", "TRIANGLES_PER_AREA", "TRIANGLES_PER_AREA_FK", "BYTES_PER_DOF", "BYTES_BASE",
-           "BYTES_PER_DOF_ITERATIVE", "planned_solver",
-           "MIN_EDGES_PER_BODY", "MIN_THICKNESS_PER_H", "machine_memory", "moving_mesh_scene", "mesh_estimate",
-           "mesh_warnings"]
+           "BYTES_PER_DOF_ITERATIVE", "BYTES_PER_DOF_PARDISO", "BYTES_SETUP_PER_DOF", "planned_solver",
+           "planned_lu_backend", "MIN_EDGES_PER_BODY", "MIN_THICKNESS_PER_H", "machine_memory", "moving_mesh_scene",
+           "mesh_estimate", "mesh_warnings"]
 
 #: DOFs per mesh vertex of each element pair on a triangle mesh (E ≈ 3V edges, T ≈ 2V triangles)
 DOFS_PER_VERTEX = {"th": 9.0, "p2b": 18.0, "p3": 22.0, "mini": 7.0}
@@ -29,6 +29,14 @@ BYTES_PER_DOF, BYTES_BASE = 11e3, 150e6
 #: Measured on settling suspensions (P2+bubble, ``benchmarks/bench_solver_scale.py``): 7.4 kB a DOF at
 #: 474k DOFs and 7.0 kB at 3.15M (21 718 MiB)
 BYTES_PER_DOF_ITERATIVE = 7.5e3
+#: the same where the run keeps a lagged PARDISO LU (``fluid.lu_backend`` ``"pardiso"``, or ``"auto"`` with
+#: ``pypardiso`` installed): PARDISO's fill grows as n^1.1, about as the rest of a run's memory shrinks per
+#: DOF.  Measured on the same suspensions, the peak at a re-triangulation (the old LU released first):
+#: 7.6 kB a DOF at 1.57M DOFs (11 711 MiB) and 7.7 kB at 3.15M (23 152 MiB); an ordinary step 6.3 and 6.5
+BYTES_PER_DOF_PARDISO = 7.8e3
+#: resident memory of a run after its set-up, before the first LU, bytes per DOF (2 000 settling polygons,
+#: 3.15M DOFs: 10 523 MiB): what the plan takes from the available memory before it asks whether the LU fits
+BYTES_SETUP_PER_DOF = 3.5e3
 #: smallest mesh edges along a body's outline, and smallest thickness / h, before a warning
 MIN_EDGES_PER_BODY, MIN_THICKNESS_PER_H = 8, 0.1
 
@@ -138,15 +146,33 @@ def mesh_estimate(scene, memory: tuple[float, float] | None = None) -> dict:
     dofs = DOFS_PER_VERTEX.get(scene.fluid.element, 9.0) * nodes
     total, avail = machine_memory() if memory is None else memory
     solver = planned_solver(scene, dofs, avail)
-    per_dof = BYTES_PER_DOF_ITERATIVE if solver == "iterative" else BYTES_PER_DOF
+    backend = planned_lu_backend(scene, dofs)
+    per_dof = (BYTES_PER_DOF_ITERATIVE if solver == "iterative" else
+               BYTES_PER_DOF_PARDISO if backend == "pardiso" else BYTES_PER_DOF)
     return {"triangles": tri, "nodes": nodes, "dofs": dofs, "peak_bytes": BYTES_BASE + per_dof * dofs,
-            "machine_bytes": total, "available_bytes": avail, "solver": solver}
+            "machine_bytes": total, "available_bytes": avail, "solver": solver, "lu_backend": backend}
+
+
+def _dofs_int(dofs: float) -> int:
+    """An estimate of DOFs as an integer (beyond 1e308 or 2⁶²: 2⁶², huge)."""
+    return int(min(max(dofs, 1.0), 2.0**62)) if np.isfinite(dofs) else 2**62
+
+
+def planned_lu_backend(scene, dofs: float) -> str:
+    """The sparse LU a fluid scene of about ``dofs`` DOFs will factorise with: ``fluid.lu_backend``, or
+    for ``"auto"`` PARDISO from its threshold when ``pypardiso`` is installed, SuperLU otherwise
+    (:func:`fluidem.fluid.solvers.direct.default_direct_backend`)."""
+    from ..fluid.solvers.direct import default_direct_backend
+
+    b = scene.fluid.lu_backend
+    return b if b != "auto" else default_direct_backend(_dofs_int(dofs))
 
 
 def planned_solver(scene, dofs: float, available_bytes: float | None = None) -> str:
     """The linear solver a fluid scene of about ``dofs`` DOFs will run with: ``fluid.solver``, or for
     ``"auto"`` the choice of :func:`fluidem.fluid.solvers.choose.choose_solver` at that size (``"iterative"``
-    above the LU's size limit or where its LU would not fit in ``available_bytes``).
+    above the LU's size limit or where its LU would not fit in ``available_bytes`` less the set-up's
+    :data:`BYTES_SETUP_PER_DOF`).
 
     >>> from fluidem.scene import Scene
     >>> sc = Scene.from_dict({"domain": {"box": [0, 1, 0, 1]}, "fluid": {"viscosity": 1.0},
@@ -155,19 +181,17 @@ def planned_solver(scene, dofs: float, available_bytes: float | None = None) -> 
     ('lagged', 'iterative')
     """
     from ..fluid.solvers.choose import choose_solver
-    from ..fluid.solvers.direct import default_direct_backend
-    from ..fluid.solvers.memory import lu_fits
 
     fl = scene.fluid
     if fl.solver != "auto":
         return fl.solver
-    n = int(min(max(dofs, 1.0), 2.0**62)) if np.isfinite(dofs) else 2**62  # an estimate beyond 1e308: huge
-    backend = fl.lu_backend if fl.lu_backend != "auto" else default_direct_backend(n)
+    n = _dofs_int(dofs)
     kind = "stokes" if fl.model == "stokes" else "unsteady"
-    name, _ = choose_solver(n, kind, backend)
-    if name != "iterative" and available_bytes is not None and np.isfinite(available_bytes):
-        name = name if lu_fits(n, backend, available_bytes)[0] else "iterative"
-    return name
+    if available_bytes is None or not np.isfinite(available_bytes):
+        return choose_solver(n, kind, planned_lu_backend(scene, dofs))[0]
+    # the run asks once its problem is set up: what is available then
+    left = max(available_bytes - BYTES_SETUP_PER_DOF * n, 0.0)
+    return choose_solver(n, kind, planned_lu_backend(scene, dofs), available_bytes=left)[0]
 
 
 def mesh_warnings(scene, est) -> tuple[list, list]:
@@ -176,8 +200,9 @@ def mesh_warnings(scene, est) -> tuple[list, list]:
     h = scene.mesh.h
     x0, x1, y0, y1 = scene.domain.box
     L = min(x1 - x0, y1 - y0)
+    lu = f" with the {est['lu_backend']} LU" if est.get("solver") != "iterative" and "lu_backend" in est else ""
     size = (f"mesh.h = {h:g}: about {est['nodes']:.2g} nodes, {est['dofs']:.2g} DOFs, peak memory "
-            f"{readable_bytes(est['peak_bytes'])} (solver {est.get('solver', 'auto')!r})")
+            f"{readable_bytes(est['peak_bytes'])} (solver {est.get('solver', 'auto')!r}{lu})")
     if not np.isfinite(est["peak_bytes"]):
         refuse.append(f"mesh.h = {h:g} in the box {x1 - x0:g} × {y1 - y0:g}: more than 1e308 nodes (the estimate "
                       f"overflows), far beyond this machine's {readable_bytes(est['machine_bytes'])}: raise mesh.h "

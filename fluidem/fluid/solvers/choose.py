@@ -10,7 +10,7 @@ of 10k, 50k and 200k DOFs, one thread; the table is in that file's docstring):
 * ``"stokes"``: ``"direct"`` below ``DIRECT_MAX_DOFS`` (SuperLU 20k, PARDISO 2M),
   ``"iterative"`` above;
 * ``"unsteady"`` (a run of time steps): ``"lagged"`` below ``LAGGED_MAX_DOFS``
-  (SuperLU 300k, PARDISO 2M), ``"iterative"`` above;
+  (SuperLU 300k; PARDISO: no size limit), ``"iterative"`` above;
 * ``"stokes"`` and ``"unsteady"``: ``"iterative"`` also where the LU would not fit in the memory
   available (:func:`fluidem.fluid.solvers.memory.lu_fits`).
 
@@ -29,8 +29,11 @@ Why:
   preconditioner (:class:`~fluidem.fluid.solvers.lagged.LaggedLUSolver`) took 0.05 / 0.21 /
   1.39 s per step at 10k / 50k / 200k DOFs against 0.36 / 1.46 / 6.93 s for block GMRES with
   the Cahouet--Chabard Schur approximation; a refactorisation (SuperLU 42.9 s at 200k) pays
-  for itself within 8 steps, so the lagged LU is used up to the memory limit of the LU,
-  the same as for steady convective systems.
+  for itself within 8 steps, so the lagged LU is used up to the memory limit of the LU.
+  With PARDISO that limit is memory alone: on the coupled systems of 2 000 settling polygons
+  (3.15M DOFs) the lagged PARDISO LU took 27.5 s a step against 379 s for block GMRES, and less
+  memory in an ordinary step (19.5 against 21.7 GB peak; ``benchmarks/results/solver_scale.md``),
+  but a re-triangulation peaked at 23.2 GB: the memory rule's headroom is for that.
 
 :func:`choose_method` is the crossover for *one* system (direct or iterative), also used by
 :class:`AutoSolver` for the steady kinds; its unsteady limit ``DIRECT_MAX_DOFS_UNSTEADY``
@@ -83,8 +86,11 @@ DIRECT_MAX_DOFS_UNSTEADY = {"superlu": 20_000, "pardiso": 400_000}
 #: 5x the memory of PARDISO at 50k DOFs).
 DIRECT_MAX_DOFS_CONVECTIVE = {"superlu": 300_000, "pardiso": 2_000_000}
 #: Time stepping: the lagged LU (5-7x cheaper per step than block GMRES at 10k-200k DOFs)
-#: up to the memory limit of the LU, the same as :data:`DIRECT_MAX_DOFS_CONVECTIVE`.
-LAGGED_MAX_DOFS = {"superlu": 300_000, "pardiso": 2_000_000}
+#: up to the memory limit of the LU: for SuperLU the size of :data:`DIRECT_MAX_DOFS_CONVECTIVE`;
+#: for PARDISO no size limit (``None``), only :func:`~fluidem.fluid.solvers.memory.lu_fits` — the
+#: lagged PARDISO LU was 14x faster per step than block GMRES at 3.15M DOFs (27.5 against 379 s, one
+#: thread) and peaked lower in an ordinary step (19.5 against 21.7 GB).
+LAGGED_MAX_DOFS = {"superlu": 300_000, "pardiso": None}
 
 #: Problem kinds of the automatic choice: steady Oseen/Newton systems, Stokes systems
 #: (symmetric velocity block, no time derivative), time stepping.
@@ -143,7 +149,8 @@ def choose_method(n_dofs: int, convective: bool = False, dt: float | None = None
     return "iterative", f"{kind}: {n_dofs} DOFs >= {limit} {where}"
 
 
-def choose_solver(n_dofs: int, kind: str = "steady", backend: str | None = None) -> tuple[str, str]:
+def choose_solver(n_dofs: int, kind: str = "steady", backend: str | None = None,
+                  freed_bytes: float = 0.0, available_bytes: float | None = None) -> tuple[str, str]:
     """The solver name ``"auto"`` stands for, by problem kind and size (the module's table).
 
     Parameters
@@ -156,6 +163,11 @@ def choose_solver(n_dofs: int, kind: str = "steady", backend: str | None = None)
         time steps.
     backend : {"superlu", "pardiso"}, optional
         Direct backend; default :func:`default_direct_backend`.
+    freed_bytes : float
+        Memory released before the factorisation (the PARDISO LU the caller holds), bytes: counted
+        as available by :func:`~fluidem.fluid.solvers.memory.lu_fits`.
+    available_bytes : float, optional
+        The memory available, bytes (default: what the machine says now).
 
     Returns
     -------
@@ -185,16 +197,18 @@ def choose_solver(n_dofs: int, kind: str = "steady", backend: str | None = None)
     if kind == "unsteady":
         limit = LAGGED_MAX_DOFS[backend]
         where = f"(lagged {backend} LU up to its memory limit)"
-        if n_dofs >= limit:
+        if limit is not None and n_dofs >= limit:
             return "iterative", f"unsteady: {n_dofs} DOFs >= {limit} {where}"
         name, reason = "lagged", f"unsteady: {n_dofs} DOFs < {limit} {where}"
     else:
         name, reason = choose_method(n_dofs, convective=kind == "steady", backend=backend)
     if name != "iterative" and kind != "steady":
         # block GMRES, whose memory grows linearly, where the LU would not fit (Stokes, time steps)
-        fits, why = lu_fits(n_dofs, backend)
+        fits, why = lu_fits(n_dofs, backend, available_bytes=available_bytes, freed_bytes=freed_bytes)
         if not fits:
             return "iterative", f"{kind}: {why}"
+        if kind == "unsteady" and LAGGED_MAX_DOFS[backend] is None:
+            reason = f"unsteady: the lagged {backend} LU fits ({why})"
     return name, reason
 
 
@@ -272,6 +286,15 @@ class AutoSolver:
             return LaggedLUSolver(direct=DirectSolver(**self.direct_options), **self.lagged_options)
         return BlockKrylovSolver(self.n_u, **self.iterative_options)
 
+    def _held_lu_bytes(self) -> float:
+        """Bytes of the PARDISO LU this solver holds (PARDISO's own peak of it), released before a
+        new one is computed (:meth:`DirectSolver.factorize`): the memory rule counts them as
+        available, or a run whose LU fitted would leave it at the next step.  SuperLU keeps its old
+        factors until the new ones are done: 0."""
+        direct = getattr(self.solver, "direct", self.solver)
+        lu = getattr(direct, "_lu", None)
+        return float(getattr(lu, "peak_bytes", 0.0)) if lu is not None and getattr(lu, "_ps", None) else 0.0
+
     def factorize(self, K, force: bool = False) -> "AutoSolver":
         """Choose a method for ``K`` (shape (n, n)) and set it up; returns self.
 
@@ -283,7 +306,7 @@ class AutoSolver:
         kind = self._kind(K)
         backend = self.direct_options.get("backend", "auto")
         backend = default_direct_backend(K.shape[0]) if backend == "auto" else backend
-        method, reason = choose_solver(K.shape[0], kind, backend=backend)
+        method, reason = choose_solver(K.shape[0], kind, backend=backend, freed_bytes=self._held_lu_bytes())
         if method == "iterative" and (self.n_u is None or (
                 opts.get("pressure_mass") is None and opts.get("schur") != "lsc")):
             instead = "lagged" if kind == "unsteady" else "direct"
