@@ -88,6 +88,13 @@ class BodyBlockKrylovSolver:
         self.inner.factorize(K[p][:, p], rebuild=force)
         return self
 
+    def release(self) -> None:
+        """Drop the preconditioner (AMG hierarchy, matrix copies) and the matrix before a re-triangulation
+        builds the new problem; the next :meth:`factorize` sets up afresh (as it would with ``force``)."""
+        self.inner = None
+        self._perm = None
+        self.K = None
+
     def solve(self, b: np.ndarray) -> np.ndarray:
         """Solve ``K z = b`` to the relative residual ``rtol``; (nz,) -> (nz,)."""
         p = self._perm

@@ -2,6 +2,7 @@
 the bodies in the velocity block of the fluid's preconditioner."""
 
 import numpy as np
+import pytest
 
 from fluidem.cases.settling import settling_scene
 from fluidem.scene import Scene
@@ -46,14 +47,14 @@ def test_body_block_gmres_moves_the_body_as_the_lu_does_through_re_triangulation
     assert it[:, 3].max() <= 70  # measured 35
 
 
-def test_a_re_triangulation_builds_the_new_system_without_the_old_lu():
+@pytest.mark.parametrize("solver", ["lagged", "iterative"])
+def test_a_re_triangulation_builds_the_new_system_without_the_old_lu(solver):
     """The LU of the old mesh is dropped before the new problem and coupled system are built (it is
     refactorised for the new DOFs anyway): held through the build, it raised the peak memory of 1 000
-    settling polygons from 9.6 to 16.3 GB.  The settling disk above, ``solver = "lagged"``, 25 steps with
-    two re-triangulations: at each build no LU and no coupled index maps are held, and the body
-    velocities are bit for bit those of the same run holding them (the LU is recomputed either way)."""
-    import pytest
-
+    settling polygons from 9.6 to 16.3 GB.  The settling disk above, 25 steps with two re-triangulations:
+    at each build no LU (``"lagged"``) or block preconditioner (``"iterative"``) and no coupled index maps
+    are held, and the body velocities are those of the same run holding them (the solver is set up afresh
+    either way): bit for bit with the LU, to 2e-13 with block GMRES."""
     from fluidem.coupling.moving_flow import MovingMeshFlow
 
     build = MovingMeshFlow._build
@@ -64,7 +65,9 @@ def test_a_re_triangulation_builds_the_new_system_without_the_old_lu():
         def spy(self, t):
             coupled = getattr(self, "coupled", None)
             if coupled is not None:  # not the first build
-                held.append((coupled.solver.direct._lu is not None, coupled.system is not None))
+                s = coupled.solver
+                held.append((s.direct._lu is not None if solver == "lagged" else s.inner is not None,
+                             coupled.system is not None))
             return build(self, t)
 
         with pytest.MonkeyPatch.context() as mp:
@@ -73,10 +76,14 @@ def test_a_re_triangulation_builds_the_new_system_without_the_old_lu():
                 from fluidem.coupling.free_flow import FreeBodyFlow
 
                 mp.setattr(FreeBodyFlow, "_release_factors", lambda self: None)
-            _, sim, rows = _run("lagged", steps=25)
-        return held, rows, sim.flow.coupled.solver.factorizations
+            _, sim, rows = _run(solver, steps=25)
+        return held, rows, getattr(sim.flow.coupled.solver, "factorizations", None)
 
     held, rows, lus = run(True)
     held_before, rows_before, lus_before = run(False)
     assert held == [(False, False), (False, False)] and held_before == [(True, True), (True, True)]
-    assert np.array_equal(rows[:, :3], rows_before[:, :3]) and lus == lus_before
+    if solver == "lagged":
+        assert np.array_equal(rows[:, :3], rows_before[:, :3]) and lus == lus_before
+    else:  # AMG's set-up draws random vectors: two runs of the same code differ by 7e-16 of the largest velocity
+        diff = np.abs(rows[:, :3] - rows_before[:, :3]).max() / np.abs(rows_before[:, :3]).max()
+        assert diff < 6e-13                                                      # measured 2.0e-13
