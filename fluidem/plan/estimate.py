@@ -25,10 +25,12 @@ TRIANGLES_PER_AREA_FK = 2.1
 #: measured peak memory per DOF of a run (matrices, the LU factors, the moving mesh), bytes; plus a base
 BYTES_PER_DOF, BYTES_BASE = 11e3, 150e6
 #: the same where the run solves with block-preconditioned GMRES (``fluid.solver = "iterative"``, or
-#: ``"auto"`` above the LU's size limit): memory linear in DOFs, the peak in the first Krylov solve.
-#: Measured on settling suspensions (P2+bubble, ``benchmarks/bench_solver_scale.py``): 7.4 kB a DOF at
-#: 474k DOFs and 7.0 kB at 3.15M (21 718 MiB)
-BYTES_PER_DOF_ITERATIVE = 7.5e3
+#: ``"auto"`` where the LU would not fit): memory linear in DOFs, the peak at a re-triangulation (the new
+#: problem built beside the old one) or in a Krylov solve.  Measured on settling suspensions (P2+bubble,
+#: ``benchmarks/bench_solver_scale.py`` scenes): a re-triangulation of 300 polygons peaked at 9.3 kB a DOF
+#: (4 203 MiB at 474k DOFs; ordinary steps 7.5 kB); 2 000 polygons (3.15M DOFs, ordinary steps 7.0 kB,
+#: 21 718 MiB) were killed at their first re-triangulation on a 24 GB machine (above 7.8 kB a DOF)
+BYTES_PER_DOF_ITERATIVE = 9.0e3
 #: the same where the run keeps a lagged PARDISO LU (``fluid.lu_backend`` ``"pardiso"``, or ``"auto"`` with
 #: ``pypardiso`` installed): PARDISO's fill grows as n^1.1, about as the rest of a run's memory shrinks per
 #: DOF.  Measured on the same suspensions, the peak at a re-triangulation (the old LU released first):
