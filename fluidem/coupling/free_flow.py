@@ -328,11 +328,10 @@ class FreeBodyFlow(MovingMeshFlow):
     def _release_factors(self):
         """The fluid's LU (:meth:`MovingMeshFlow._release_factors`), the coupled one, the Stokes
         mobility's, and the coupled index maps of the old mesh (rebuilt after the new problem)."""
+        from ..fluid.solvers import release_factors
+
         super()._release_factors()
-        for s in (getattr(self.coupled, "solver", None), self._lagged_mobility):
-            release = getattr(s, "release", None)
-            if release is not None:
-                release()
+        release_factors(getattr(self.coupled, "solver", None), self._lagged_mobility)
         self._lagged_mobility = None
         if not self.explicit:
             self.system = None

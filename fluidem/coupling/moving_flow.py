@@ -218,9 +218,9 @@ class MovingMeshFlow(FlowLoads):
         is refactorised for the new DOFs anyway).  Held through the build it raised the peak of a
         run: 1 000 settling polygons (1.57M DOFs) peaked at 16.3 GB at a re-triangulation against
         9.6 GB in an ordinary step."""
-        release = getattr(getattr(self.stepper, "solver", None), "release", None)
-        if release is not None:
-            release()
+        from ..fluid.solvers import release_factors
+
+        release_factors(getattr(self.stepper, "solver", None))
 
     def _retarget_solver(self):
         """After a re-triangulation: the solver's problem data (velocity DOFs, pressure and velocity

@@ -91,7 +91,7 @@ from .choose import (
     choose_solver,
 )
 from .direct import DirectSolver, _pardiso_available, default_direct_backend  # noqa: F401
-from .factory import _DIRECT_KEYS, SOLVERS, flow_solver_options, make_solver  # noqa: F401
+from .factory import _DIRECT_KEYS, SOLVERS, flow_solver_options, make_solver, release_factors  # noqa: F401
 from .krylov import _krylov_start, run_fgmres, run_minres  # noqa: F401
 from .lagged import LaggedLUSolver
 from .results import LinearSolverError, SolveInfo, SolverError, _history_summary  # noqa: F401

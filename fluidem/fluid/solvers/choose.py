@@ -287,13 +287,10 @@ class AutoSolver:
         return BlockKrylovSolver(self.n_u, **self.iterative_options)
 
     def _held_lu_bytes(self) -> float:
-        """Bytes of the PARDISO LU this solver holds (PARDISO's own peak of it), released before a
-        new one is computed (:meth:`DirectSolver.factorize`): the memory rule counts them as
-        available, or a run whose LU fitted would leave it at the next step.  SuperLU keeps its old
-        factors until the new ones are done: 0."""
-        direct = getattr(self.solver, "direct", self.solver)
-        lu = getattr(direct, "_lu", None)
-        return float(getattr(lu, "peak_bytes", 0.0)) if lu is not None and getattr(lu, "_ps", None) else 0.0
+        """:attr:`DirectSolver.held_lu_bytes` of the LU in use (0 for block GMRES): released before a new
+        one is computed, so the memory rule counts them as available, or a run whose LU fitted would
+        leave it at the next step."""
+        return float(getattr(getattr(self.solver, "direct", self.solver), "held_lu_bytes", 0.0))
 
     def factorize(self, K, force: bool = False) -> "AutoSolver":
         """Choose a method for ``K`` (shape (n, n)) and set it up; returns self.

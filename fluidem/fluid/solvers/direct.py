@@ -211,6 +211,13 @@ class DirectSolver:
             self._lu.free()
             self._lu = None
 
+    @property
+    def held_lu_bytes(self) -> float:
+        """Memory of the PARDISO factorisation held now (PARDISO's own peak of it, bytes), which
+        :meth:`factorize` releases before computing the next; 0 for none and for SuperLU, which keeps
+        its old factors until the new ones are done."""
+        return float(self._lu.peak_bytes) if isinstance(self._lu, PardisoLU) else 0.0
+
     def release(self) -> None:
         """Drop the factors and the matrix (before a system of other DOFs is built, e.g. at a
         re-triangulation: an LU of the old mesh preconditions nothing there, and holding it while

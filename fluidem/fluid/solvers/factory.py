@@ -27,7 +27,7 @@ from .choose import AutoSolver
 from .direct import DirectSolver
 from .lagged import LaggedLUSolver
 
-__all__ = ["SOLVERS", "make_solver", "flow_solver_options"]
+__all__ = ["SOLVERS", "make_solver", "flow_solver_options", "release_factors"]
 
 #: Solvers by the names used in scene files and on the command line (the canonical names of
 #: kind ``"solver"`` in :mod:`fluidem.names`, in its order).
@@ -171,3 +171,14 @@ def _for_problem(method: str, problem, dt, kind, options: dict):
         lagged["rtol"] = options["rtol"]
     return AutoSolver(n_u=fo["n_u"], direct_options=direct, iterative_options={**iterative, **options},
                       fallback=fallback, kind=kind, lagged_options=lagged)
+
+
+def release_factors(*solvers) -> None:
+    """Drop the factors and matrices of each of ``solvers`` that holds any (its ``release``:
+    :meth:`DirectSolver.release`, :meth:`LaggedLUSolver.release`, :meth:`AutoSolver.release`, the
+    coupled block GMRES); ``None`` and solvers without them are skipped.  For the moment a
+    re-triangulation makes them useless, before the new problem is built."""
+    for s in solvers:
+        release = getattr(s, "release", None)
+        if release is not None:
+            release()
