@@ -100,6 +100,8 @@ def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str
         if cost.counts.get("contact_unsettled"):
             dem += ", contact load unsettled"
         parts.append(dem)
+    if cost is not None and cost.counts.get("approach_unresolved"):
+        parts.append("approach not resolved (two bodies predicted into each other)")
     if cost is not None:
         parts.append(str(cost))
     return "  ".join(parts)

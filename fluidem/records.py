@@ -369,6 +369,34 @@ def log_mesh_event(sim, writer, ev_mesh) -> None:
                      oscillation_text(len(ev_mesh.oscillating), len(sim.flow.mm.points), swing))
 
 
+def log_unresolved_approach(sim, writer) -> None:
+    """An ``approach`` line in the event log when the step's prediction put two bodies into each other
+    (:meth:`fluidem.coupling.free_flow.FreeBodyFlow.predicted_into_each_other`), and a
+    :class:`~fluidem.errors.RunWarning` the first time in a run.
+
+    Parameters
+    ----------
+    sim : fluidem.simulation.Simulation
+        After a step.
+    writer : fluidem.io.OutputWriter or None
+        None: the warning only.
+    """
+    pair = getattr(sim.flow, "unresolved_approach", None) if sim.flow is not None else None
+    if pair is None:
+        return
+    a, b, gap = pair
+    msg = (f"bodies {a!r} and {b!r}, {gap:.3g} apart, were predicted into each other within one step of "
+           f"time.dt = {sim.scene.time.dt:g}: the step does not resolve their approach (the mesh follows them "
+           "into each other: such a step has kicked a pair through each other); a smaller time.dt shortens the "
+           "approach per step")
+    if writer is not None:
+        writer.event(sim.step_index, sim.t, "approach", msg)
+    if not sim.__dict__.get("_approach_warned"):
+        sim._approach_warned = True
+        warnings.warn(f"step {sim.step_index}: {msg} (docs: free bodies, where a kiss can still fail; every "
+                      "such step is an 'approach' line of events.log)", RunWarning, stacklevel=4)
+
+
 def close_complete(sim, writer, out_dir, n_steps: int, checkpoint, totals: CostSplit, wall0: float) -> None:
     """Close the output of a run that was not stopped: the XDMF time series if the scene asks for
     one (a failure to write it is an event and a :class:`~fluidem.errors.RunWarning`, the run's

@@ -66,7 +66,8 @@ from .diagnostics import RunDiagnostics
 from .errors import InputError, RunStopped, RunWarning
 from .progress import VerboseProgress, step_info, verbose_line
 from .records import TRANSIENT_FAILURES  # noqa: F401 (importable from here, as before the split)
-from .records import _ccw, check_owner, close_complete, close_stopped, log_mesh_event, open_output, record_step
+from .records import (_ccw, check_owner, close_complete, close_stopped, log_mesh_event, log_unresolved_approach,
+                      open_output, record_step)
 from .records import summary as run_summary
 from .restart import RESTART_MAY_CHANGE, scene_changes
 from .restart import scene_key  # noqa: F401 (importable from here, as before the split)
@@ -494,6 +495,7 @@ class Simulation:
             self._health(writer, ev_mesh)
         if ev_mesh is not None and writer is not None:  # after the loads: the force change is known
             log_mesh_event(self, writer, ev_mesh)
+        log_unresolved_approach(self, writer)
         if writer is not None and self.plan.mesh == "moving" and output_step:
             writer.mesh_quality(self.step_index, self.t, self.flow.mm.quality())
         if writer is not None:

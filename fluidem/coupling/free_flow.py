@@ -199,12 +199,9 @@ class FreeBodyFlow(MovingMeshFlow):
         """Poses at t + dt from the velocities there: BDF2, (4Xⁿ − Xⁿ⁻¹ + 2Δt V)/3 (BDF1 on the first step)."""
         return X + dt * V if self._poses_prev is None else (4 * X - self._poses_prev + 2 * dt * V) / 3
 
-    def step(self, dt):
-        """One coupled step to t + dt (see the module docstring)."""
-        if self.explicit:
-            return self._staggered_step(dt)
-        cost = CostSplit()
-        t_new = self.t + dt
+    def _predicted_poses(self, dt):
+        """Poses (n_bodies, 3) the mesh moves to for the step to t + dt (step 1 of the module
+        docstring): the free bodies' predictions, the paths of the others."""
         f = self.free
         X, V = self.poses[f], self.body_velocities[f]
         if self.stokes:  # Adams–Bashforth 2 with the mobilities of the current geometry
@@ -213,9 +210,103 @@ class FreeBodyFlow(MovingMeshFlow):
         else:
             V_star = V if self._V_prev is None else 2.0 * V - self._V_prev
             X_new = self._bdf_pose(X, V_star, dt)
-        P, Vp = self._prescribed(t_new)
-        self._mesh_poses = P.copy()
-        self._mesh_poses[f] = X_new
+        P, _ = self._prescribed(self.t + dt)
+        P[f] = X_new
+        return P
+
+    def predicted_into_each_other(self, predicted) -> tuple | None:
+        """Two bodies apart now (by more than the mesh's ``min_gap``, less than ``h``) whose
+        outlines overlap at the ``predicted`` poses (n_bodies, 3): ``(name, name, gap)``, the
+        pair with the narrowest gap (length) at the current poses, or None.
+
+        The step then does not resolve their approach: the mesh follows the bodies into each
+        other, re-triangulates an inverted mesh (an Eulerian step) and can kick them through
+        each other (``docs/free-bodies.md``, "Where a kiss can still fail").
+
+        >>> from fluidem.cases.dkt import uhlmann_dkt_scene
+        >>> from fluidem.simulation import Simulation
+        >>> fl = Simulation(uhlmann_dkt_scene(h=0.05, t_end=1e-3)).flow   # disks d = 0.25 cm, 0.25 cm apart
+        >>> fl.predicted_into_each_other(fl.poses) is None
+        True
+        >>> fl.poses[1] = fl.poses[0] + [0.0, 0.25 + 0.03, 0.0]   # the trailing disk 0.03 cm above the leading
+        >>> ahead = fl.poses.copy(); ahead[1, 1] -= 0.04           # predicted 0.01 cm into it
+        >>> a, b, gap = fl.predicted_into_each_other(ahead)
+        >>> a, b, round(gap, 3)
+        ('leading', 'trailing', 0.03)
+        >>> ahead[1, 1] += 0.02                                    # predicted 0.01 cm apart
+        >>> fl.predicted_into_each_other(ahead) is None
+        True
+        """
+        import shapely
+
+        from ..mesh.moving_images import image_poses
+
+        mm = self.mm
+        if mm.n_bodies < 2:
+            return None
+        now = self.poses.copy()
+        fixed = np.setdiff1d(np.arange(len(now)), self.free)
+        now[fixed] = self._prescribed(self.t)[0][fixed]
+        poly = mm._polygons(image_poses(now, mm.images))
+        a, b = shapely.STRtree(poly).query(poly, predicate="dwithin", distance=mm.h)
+        keep = (a < b) & (mm.images.body[a] != mm.images.body[b])
+        a, b = a[keep], b[keep]
+        if not len(a):
+            return None
+        gap = shapely.distance(poly[a], poly[b])
+        apart = gap > mm.min_gap
+        a, b, gap = a[apart], b[apart], gap[apart]
+        ahead = mm._polygons(image_poses(predicted, mm.images))
+        hit = shapely.intersects(ahead[a], ahead[b])
+        if not hit.any():
+            return None
+        k = np.flatnonzero(hit)[np.argmin(gap[hit])]
+        return self.names[mm.images.body[a[k]]], self.names[mm.images.body[b[k]]], float(gap[k])
+
+    def step(self, dt):
+        """One coupled step to t + dt (see the module docstring).
+
+        Navier–Stokes: ``unresolved_approach`` is set to the pair the prediction put into each
+        other (:meth:`predicted_into_each_other`; None if none) if the solve kept them apart
+        (farther than the mesh's ``min_gap`` at the corrected poses: the mesh followed an overlap
+        the bodies did not reach), and the step's cost counts ``approach_unresolved``.  Bodies
+        that do come into contact in the step (a collision) are not reported.
+        """
+        if self.explicit:
+            return self._staggered_step(dt)
+        predicted = self._predicted_poses(dt)
+        closing = None if self.stokes else self.predicted_into_each_other(predicted)
+        self._step(dt, predicted)
+        if closing is not None and self._gap_between(*closing[:2]) <= self.mm.min_gap:
+            closing = None
+        self.unresolved_approach = closing
+        if closing is not None:
+            self.last_cost.count("approach_unresolved")
+
+    def _gap_between(self, a: str, b: str) -> float:
+        """Distance (length) between the outlines of bodies ``a`` and ``b`` (names) at the current poses
+        (their nearest periodic images)."""
+        import shapely
+
+        from ..mesh.moving_images import image_poses
+
+        mm = self.mm
+        poly = mm._polygons(image_poses(self.poses, mm.images))
+        ia = np.flatnonzero(mm.images.body == self.names.index(a))
+        ib = np.flatnonzero(mm.images.body == self.names.index(b))
+        return float(shapely.distance(poly[ia][:, None], poly[ib][None, :]).min())
+
+    #: Navier–Stokes: the pair of bodies (name, name, gap) the last step's prediction put into each other
+    unresolved_approach = None
+
+    def _step(self, dt, mesh_poses):
+        """One coupled step to t + dt with the mesh at ``mesh_poses`` (n_bodies, 3) (module docstring)."""
+        cost = CostSplit()
+        t_new = self.t + dt
+        f = self.free
+        X, V = self.poses[f], self.body_velocities[f]
+        _, Vp = self._prescribed(t_new)
+        self._mesh_poses = np.array(mesh_poses, float, copy=True)
         ev, rebuilt, old_space = self._move_mesh(self._mesh_poses, t_new, cost)
         if rebuilt:
             self.system = RigidBodySystem(self.problem, self.rigid, f)
