@@ -370,7 +370,8 @@ def log_mesh_event(sim, writer, ev_mesh) -> None:
 
 
 def log_unresolved_approach(sim, writer) -> None:
-    """An ``approach`` line in the event log when the step's prediction put two bodies into each other
+    """An ``approach`` line in the event log when the step's prediction put two bodies (or a body and a
+    wall) into each other and the solve kept them apart
     (:meth:`fluidem.coupling.free_flow.FreeBodyFlow.predicted_into_each_other`), and a
     :class:`~fluidem.errors.RunWarning` the first time in a run.
 
@@ -381,11 +382,12 @@ def log_unresolved_approach(sim, writer) -> None:
     writer : fluidem.io.OutputWriter or None
         None: the warning only.
     """
-    pair = getattr(sim.flow, "unresolved_approach", None) if sim.flow is not None else None
-    if pair is None:
+    ap = getattr(sim.flow, "unresolved_approach", None) if sim.flow is not None else None
+    if ap is None:
         return
-    a, b, gap = pair
-    msg = (f"bodies {a!r} and {b!r}, {gap:.3g} apart, were predicted into each other within one step of "
+    who = (f"body {ap.first!r} and the {ap.second} wall" if ap.wall else
+           f"bodies {ap.first!r} and {ap.second!r}")
+    msg = (f"{who}, {ap.gap:.3g} apart, were predicted into each other within one step of "
            f"time.dt = {sim.scene.time.dt:g}: the step does not resolve their approach (the mesh follows them "
            "into each other: such a step has kicked a pair through each other); a smaller time.dt shortens the "
            "approach per step")

@@ -39,17 +39,42 @@ its buoyant weight at any stiffness; no lubrication correction, DEM contact law 
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import numpy as np
 
 from ..cost import CostSplit
+from ..mesh.triangulate import SIDE_NAMES
 from .contacts import FluidContacts
 from .free_bodies import FreeBodyStepper, carried_contact_load
 from .mean_gradient import flux_conditions, flux_solver
 from .moving_flow import MovingMeshFlow
 from .rigid_system import RigidBodySystem
 
-__all__ = ["FreeBodyFlow"]
+__all__ = ["Approach", "FreeBodyFlow"]
+
+
+class Approach(NamedTuple):
+    """Two outlines the prediction of a step put into each other, or an outline past a wall
+    (:meth:`FreeBodyFlow.predicted_into_each_other`)."""
+
+    first: str
+    """A body's name."""
+    second: str
+    """The other body's name, or the wall's side (``"bottom"``, ``"right"``, ``"top"``, ``"left"``) if ``wall``."""
+    gap: float
+    """Their distance at the start of the step, length."""
+    wall: bool = False
+
+
+def _wall_gaps(polygons, box) -> np.ndarray:
+    """Distances ``(n, 4)`` of the ``polygons`` (shapely, (n,)) from the box sides bottom, right, top,
+    left (negative: past the side)."""
+    import shapely
+
+    bx = shapely.bounds(polygons)  # minx, miny, maxx, maxy
+    xmin, xmax, ymin, ymax = box
+    return np.column_stack([bx[:, 1] - ymin, xmax - bx[:, 2], ymax - bx[:, 3], bx[:, 0] - xmin])
 
 
 def _polygon_inertia(v: np.ndarray) -> tuple[float, float]:
@@ -214,10 +239,10 @@ class FreeBodyFlow(MovingMeshFlow):
         P[f] = X_new
         return P
 
-    def predicted_into_each_other(self, predicted) -> tuple | None:
-        """Two bodies apart now (by more than the mesh's ``min_gap``, less than ``h``) whose
-        outlines overlap at the ``predicted`` poses (n_bodies, 3): ``(name, name, gap)``, the
-        pair with the narrowest gap (length) at the current poses, or None.
+    def predicted_into_each_other(self, predicted) -> Approach | None:
+        """Two bodies, or a body and a wall, apart now (by more than the mesh's ``min_gap``, less
+        than ``h``) whose outlines overlap (or cross the wall) at the ``predicted`` poses
+        (n_bodies, 3): the :class:`Approach` with the narrowest gap at the current poses, or None.
 
         The step then does not resolve their approach: the mesh follows the bodies into each
         other, re-triangulates an inverted mesh (an Eulerian step) and can kick them through
@@ -230,38 +255,52 @@ class FreeBodyFlow(MovingMeshFlow):
         True
         >>> fl.poses[1] = fl.poses[0] + [0.0, 0.25 + 0.03, 0.0]   # the trailing disk 0.03 cm above the leading
         >>> ahead = fl.poses.copy(); ahead[1, 1] -= 0.04           # predicted 0.01 cm into it
-        >>> a, b, gap = fl.predicted_into_each_other(ahead)
-        >>> a, b, round(gap, 3)
-        ('leading', 'trailing', 0.03)
+        >>> a = fl.predicted_into_each_other(ahead)
+        >>> a.first, a.second, round(a.gap, 3), a.wall
+        ('leading', 'trailing', 0.03, False)
         >>> ahead[1, 1] += 0.02                                    # predicted 0.01 cm apart
         >>> fl.predicted_into_each_other(ahead) is None
         True
+        >>> fl.poses[0, 1] = 0.125 + 0.03                          # the leading disk 0.03 cm above the floor
+        >>> ahead = fl.poses.copy(); ahead[0, 1] -= 0.04
+        >>> a = fl.predicted_into_each_other(ahead)
+        >>> a.first, a.second, round(a.gap, 3), a.wall
+        ('leading', 'bottom', 0.03, True)
         """
         import shapely
 
         from ..mesh.moving_images import image_poses
 
         mm = self.mm
-        if mm.n_bodies < 2:
+        if not mm.n_bodies:
             return None
         now = self.poses.copy()
         fixed = np.setdiff1d(np.arange(len(now)), self.free)
         now[fixed] = self._prescribed(self.t)[0][fixed]
         poly = mm._polygons(image_poses(now, mm.images))
+        ahead = mm._polygons(image_poses(predicted, mm.images))
+        found = []  # (gap, first, second, wall)
         a, b = shapely.STRtree(poly).query(poly, predicate="dwithin", distance=mm.h)
         keep = (a < b) & (mm.images.body[a] != mm.images.body[b])
         a, b = a[keep], b[keep]
-        if not len(a):
+        if len(a):
+            gap = shapely.distance(poly[a], poly[b])
+            apart = gap > mm.min_gap
+            a, b, gap = a[apart], b[apart], gap[apart]
+            hit = np.flatnonzero(shapely.intersects(ahead[a], ahead[b]))
+            if len(hit):
+                k = hit[np.argmin(gap[hit])]
+                found.append((float(gap[k]), self.names[mm.images.body[a[k]]], self.names[mm.images.body[b[k]]],
+                              False))
+        gap_w, ahead_w = _wall_gaps(poly, mm.box), _wall_gaps(ahead, mm.box)
+        hit_w = (gap_w > mm.min_gap) & (gap_w < mm.h) & (ahead_w <= 0.0) & mm._wall_sides[None, :]
+        if hit_w.any():
+            i, side = np.unravel_index(np.argmin(np.where(hit_w, gap_w, np.inf)), gap_w.shape)
+            found.append((float(gap_w[i, side]), self.names[mm.images.body[i]], SIDE_NAMES[side], True))
+        if not found:
             return None
-        gap = shapely.distance(poly[a], poly[b])
-        apart = gap > mm.min_gap
-        a, b, gap = a[apart], b[apart], gap[apart]
-        ahead = mm._polygons(image_poses(predicted, mm.images))
-        hit = shapely.intersects(ahead[a], ahead[b])
-        if not hit.any():
-            return None
-        k = np.flatnonzero(hit)[np.argmin(gap[hit])]
-        return self.names[mm.images.body[a[k]]], self.names[mm.images.body[b[k]]], float(gap[k])
+        g, first, second, wall = min(found)
+        return Approach(first, second, g, wall)
 
     def step(self, dt):
         """One coupled step to t + dt (see the module docstring).
@@ -277,26 +316,28 @@ class FreeBodyFlow(MovingMeshFlow):
         predicted = self._predicted_poses(dt)
         closing = None if self.stokes else self.predicted_into_each_other(predicted)
         self._step(dt, predicted)
-        if closing is not None and self._gap_between(*closing[:2]) <= self.mm.min_gap:
+        if closing is not None and self._gap_now(closing) <= self.mm.min_gap:
             closing = None
         self.unresolved_approach = closing
         if closing is not None:
             self.last_cost.count("approach_unresolved")
 
-    def _gap_between(self, a: str, b: str) -> float:
-        """Distance (length) between the outlines of bodies ``a`` and ``b`` (names) at the current poses
-        (their nearest periodic images)."""
+    def _gap_now(self, approach: Approach) -> float:
+        """Distance (length) at the current poses between the two outlines, or the outline and the
+        wall, of ``approach`` (nearest periodic images)."""
         import shapely
 
         from ..mesh.moving_images import image_poses
 
         mm = self.mm
         poly = mm._polygons(image_poses(self.poses, mm.images))
-        ia = np.flatnonzero(mm.images.body == self.names.index(a))
-        ib = np.flatnonzero(mm.images.body == self.names.index(b))
+        ia = np.flatnonzero(mm.images.body == self.names.index(approach.first))
+        if approach.wall:
+            return float(_wall_gaps(poly[ia], mm.box)[:, SIDE_NAMES.index(approach.second)].min())
+        ib = np.flatnonzero(mm.images.body == self.names.index(approach.second))
         return float(shapely.distance(poly[ia][:, None], poly[ib][None, :]).min())
 
-    #: Navier–Stokes: the pair of bodies (name, name, gap) the last step's prediction put into each other
+    #: Navier–Stokes: what the last step's prediction put into each other and the solve kept apart (:class:`Approach`)
     unresolved_approach = None
 
     def _step(self, dt, mesh_poses):

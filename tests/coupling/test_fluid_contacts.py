@@ -222,3 +222,20 @@ def test_an_approach_the_step_does_not_resolve_is_reported(tmp_path):
     assert " approach " not in (tmp_path / "slow" / "events.log").read_text()
     counts = json.loads((tmp_path / "slow" / "run.json").read_text())["cost"]["counts"]
     assert counts.get("approach_unresolved", 0) == 0
+
+
+def test_an_approach_to_a_wall_the_step_does_not_resolve_is_reported(tmp_path):
+    """The same for a wall: a disk of ρ_s = 10 released 0.06 above the floor at dt = 0.03.  Measured:
+    0.0126 above the floor at step 4 (the outline's lowest vertex), falling at 0.51 per unit time,
+    predicted 0.0011 past it at step 5, left 0.0065 above it (the film)."""
+    import json
+
+    from fluidem.errors import RunWarning
+
+    d = _ball_on_disk(0.03, 10.0, t_end=0.18).to_dict()
+    d["bodies"] = [dict(d["bodies"][1], position=[0.5, 0.16])]
+    with pytest.warns(RunWarning, match="body 'ball' and the bottom wall, 0.0126 apart, were predicted into"):
+        Simulation(Scene.from_dict(d)).run(out_dir=tmp_path)
+    approach = [e for e in (tmp_path / "events.log").read_text().splitlines() if " approach " in e]
+    assert len(approach) == 1 and approach[0].startswith("step=5 ")  # measured: step 5 only, of 6
+    assert json.loads((tmp_path / "run.json").read_text())["cost"]["counts"]["approach_unresolved"] == 1
