@@ -101,7 +101,7 @@ def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str
             dem += ", contact load unsettled"
         parts.append(dem)
     if cost is not None and cost.counts.get("approach_unresolved"):
-        parts.append("approach not resolved (two bodies predicted into each other)")
+        parts.append("approach not resolved (bodies predicted into each other or past a wall)")
     if cost is not None:
         parts.append(str(cost))
     return "  ".join(parts)
