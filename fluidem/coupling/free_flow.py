@@ -44,6 +44,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ..cost import CostSplit
+from ..mesh.contact_outline import wall_depths
+from ..mesh.nodes import world
 from ..mesh.triangulate import SIDE_NAMES
 from .contacts import FluidContacts
 from .free_bodies import FreeBodyStepper, carried_contact_load
@@ -67,14 +69,10 @@ class Approach(NamedTuple):
     wall: bool = False
 
 
-def _wall_gaps(polygons, box) -> np.ndarray:
-    """Distances ``(n, 4)`` of the ``polygons`` (shapely, (n,)) from the box sides bottom, right, top,
-    left (negative: past the side)."""
-    import shapely
-
-    bx = shapely.bounds(polygons)  # minx, miny, maxx, maxy
-    xmin, xmax, ymin, ymax = box
-    return np.column_stack([bx[:, 1] - ymin, xmax - bx[:, 2], ymax - bx[:, 3], bx[:, 0] - xmin])
+def _wall_gaps(mm, image_poses) -> np.ndarray:
+    """Distances ``(n_images, 4)`` of the outlines of ``mm`` (a MovingMesh) at ``image_poses`` from the box
+    sides bottom, right, top, left (negative: past the side; :func:`fluidem.mesh.contact_outline.wall_depths`)."""
+    return wall_depths(world(mm._vcat, mm._vbody, image_poses), mm._vbody, mm.n_bodies, mm.box)
 
 
 def _polygon_inertia(v: np.ndarray) -> tuple[float, float]:
@@ -292,7 +290,8 @@ class FreeBodyFlow(MovingMeshFlow):
                 k = hit[np.argmin(gap[hit])]
                 found.append((float(gap[k]), self.names[mm.images.body[a[k]]], self.names[mm.images.body[b[k]]],
                               False))
-        gap_w, ahead_w = _wall_gaps(poly, mm.box), _wall_gaps(ahead, mm.box)
+        gap_w = _wall_gaps(mm, image_poses(now, mm.images))
+        ahead_w = _wall_gaps(mm, image_poses(predicted, mm.images))
         hit_w = (gap_w > mm.min_gap) & (gap_w < mm.h) & (ahead_w <= 0.0) & mm._wall_sides[None, :]
         if hit_w.any():
             i, side = np.unravel_index(np.argmin(np.where(hit_w, gap_w, np.inf)), gap_w.shape)
@@ -330,10 +329,11 @@ class FreeBodyFlow(MovingMeshFlow):
         from ..mesh.moving_images import image_poses
 
         mm = self.mm
-        poly = mm._polygons(image_poses(self.poses, mm.images))
         ia = np.flatnonzero(mm.images.body == self.names.index(approach.first))
         if approach.wall:
-            return float(_wall_gaps(poly[ia], mm.box)[:, SIDE_NAMES.index(approach.second)].min())
+            gaps = _wall_gaps(mm, image_poses(self.poses, mm.images))
+            return float(gaps[ia, SIDE_NAMES.index(approach.second)].min())
+        poly = mm._polygons(image_poses(self.poses, mm.images))
         ib = np.flatnonzero(mm.images.body == self.names.index(approach.second))
         return float(shapely.distance(poly[ia][:, None], poly[ib][None, :]).min())
 
