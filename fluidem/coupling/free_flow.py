@@ -272,9 +272,7 @@ class FreeBodyFlow(MovingMeshFlow):
         mm = self.mm
         if not mm.n_bodies:
             return None
-        now = self.poses.copy()
-        fixed = np.setdiff1d(np.arange(len(now)), self.free)
-        now[fixed] = self._prescribed(self.t)[0][fixed]
+        now = self.poses  # the prescribed bodies' path poses at t too (set by the last step)
         poly = mm._polygons(image_poses(now, mm.images))
         ahead = mm._polygons(image_poses(predicted, mm.images))
         found = []  # (gap, first, second, wall)
