@@ -171,6 +171,42 @@ def test_lagged_pardiso_preconditions_as_well_as_superlu(saddle):
     assert 0 < its["pardiso"] <= its["superlu"] + 2
 
 
+def test_the_lagged_pardiso_lu_refactorises_by_count_not_by_the_clock(saddle, monkeypatch):
+    """The same matrices and right-hand sides give the same LUs and the same solutions to the last bit
+    whatever the clock says (a busy or an idle machine): the rent-or-buy rule of the lagged PARDISO LU
+    counts iterations (``PARDISO_REFACTOR_ITERATIONS``).  When it compared seconds, a factorisation
+    that seemed to take no time refactorised after the first lagged solve and one that seemed to take
+    hours never did; 40 steps of ``column-collapse-fluid`` with a jittering clock then moved grains by
+    up to 1.1e-4 m (2.5 % of a grain's radius)."""
+    import types
+
+    import scipy.sparse as sp
+
+    from fluidem.fluid.solvers import lagged
+
+    K = saddle.K.tocsr()
+    d = np.r_[K.diagonal()[:saddle.n_u], np.zeros(K.shape[0] - saddle.n_u)]
+    # a drift of 1 % a step in the velocity diagonal (a moving mesh's matrices change about that much)
+    mats = [(K + sp.diags(0.01 * k * d)).tocsr() for k in range(8)]
+
+    def run(seed):
+        # a clock whose readings are 1 µs to 1 000 s apart, at random: the machine's load
+        steps = 10.0 ** np.random.default_rng(seed).uniform(-6, 3, 10_000)
+        clock = iter(np.cumsum(steps))
+        monkeypatch.setattr(lagged, "time", types.SimpleNamespace(perf_counter=lambda: float(next(clock))))
+        s = LaggedLUSolver(direct=DirectSolver(backend="pardiso"), rtol=1e-10, max_iterations_before_refactor=50)
+        xs = [s.factorize(M).solve(saddle.b) for M in mats]
+        return s.factorizations, s.total_iterations, np.array(xs)
+
+    runs = [run(seed) for seed in range(4)]
+    for other in runs[1:]:
+        assert other[0] == runs[0][0] and other[1] == runs[0][1]
+        assert np.array_equal(other[2], runs[0][2])
+    # and the rule does refactorise here, by the count alone: measured 3 LUs, the lagged solves taking
+    # 9, 11 (7 + 9 past 12) | 7, 9, 10 (5 + 7 + 8 past 12) | iterations
+    assert runs[0][0] >= 2
+
+
 def test_free_bodies_run_the_same_with_either_lu(tmp_path):
     """Ten polygons settling in Navier–Stokes (15k DOFs) for 4 steps with fluid.lu_backend = 'pardiso'
     and 'superlu': the same body poses to 9e-14 measured (bound 1e-12: the round-off of two different

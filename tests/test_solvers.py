@@ -300,6 +300,32 @@ def test_lagged_lu_solves_perturbed_matrix_in_few_iterations():
     assert s.solves == 4 and s.total_iterations >= 2
 
 
+def test_lagged_lu_refactorises_once_its_extra_iterations_cost_a_factorisation():
+    """Rent or buy (``refactor_after``): the iterations beyond two a solve are summed since the last
+    LU, and the next matrix is factorised once they pass the cost of a factorisation; no single solve
+    here comes near ``max_iterations_before_refactor`` (50)."""
+    P0 = problem(10, nu=1e-3, dt=1e-2, peclet=0.2)
+    P1 = problem(10, nu=1e-3, dt=1.05e-2, peclet=0.25)
+    probe = LaggedLUSolver(rtol=1e-10, max_iterations_before_refactor=50).factorize(P0.K)
+    probe.factorize(P1.K).solve(P1.b)
+    extra = probe.last_info.iterations - 2  # measured 5 (7 iterations)
+    assert extra > 0
+    s = LaggedLUSolver(rtol=1e-10, max_iterations_before_refactor=50, refactor_after=2 * extra)
+    assert s.refactor_after == 2 * extra
+    s.factorize(P0.K)
+    notes = []
+    for _ in range(3):  # the lag: extra, 2 extra (not past the price), 3 extra (past it)
+        s.factorize(P1.K).solve(P1.b)
+        notes.append(s.last_info.note)
+    assert s.factorizations == 1 and notes[:2] == ["", ""] and "lag cost a factorisation" in notes[2]
+    s.factorize(P1.K)
+    assert s.factorizations == 2
+    s.solve(P1.b)
+    assert s.last_info.iterations == 0  # the fresh LU of P1 solves directly
+    # SuperLU's own default: the iteration threshold alone
+    assert LaggedLUSolver(direct=DirectSolver(backend="superlu")).refactor_after is None
+
+
 def test_lagged_lu_solves_to_a_looser_tolerance_when_asked():
     """``solve(b, rtol=...)`` (the contact-load correction of free bodies): the residual asked for is
     met with fewer iterations than the solver's own rtol needs (measured 1 against 6); through

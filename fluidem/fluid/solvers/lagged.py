@@ -20,7 +20,7 @@ from .direct import DirectSolver
 from .krylov import run_fgmres
 from .results import SolveInfo, SolverError, _notify_solve
 
-__all__ = ["LaggedLUSolver", "FIXED_MESH_STEPPING", "MOVING_MESH_STEPPING"]
+__all__ = ["LaggedLUSolver", "FIXED_MESH_STEPPING", "MOVING_MESH_STEPPING", "PARDISO_REFACTOR_ITERATIONS"]
 
 #: Lagged-LU settings for runs of time steps on a fixed mesh (semi-implicit convection): solve each
 #: step's correction to a relative residual of 1e-6 (its right-hand side is the residual of the
@@ -39,6 +39,16 @@ FIXED_MESH_STEPPING = {"rtol": 1e-6}
 #: either way, centres agree to 1.6e-5 cm (8e-5 d).
 MOVING_MESH_STEPPING = {"rtol": 1e-6, "max_iterations_before_refactor": 25}
 
+#: GMRES iterations with the lagged LU, beyond the two back-substitutions of a fresh LU's solve, that
+#: cost what a PARDISO numerical factorisation on the same analysis costs
+#: (:meth:`~.pardiso.PardisoLU.refactor`): the price of "buy" in the rent-or-buy rule of
+#: :attr:`LaggedLUSolver.refactor_after`.  Measured in runs of the coupled free-body systems (one MKL
+#: thread, two runs side by side, medians): a numerical factorisation took 11.6-15.9 iterations at
+#: 54k DOFs (``column-collapse-fluid``, 0.22-0.31 s against 0.019 s an iteration) and 10.2-14.4 at
+#: 152k (100 settling polygons, 0.64-0.91 s against 0.063 s).  A count, not a clock: the rule decides
+#: alike on a busy and an idle machine, so a run repeats to the last bit.
+PARDISO_REFACTOR_ITERATIONS = 12
+
 
 # ==========================================================================
 class LaggedLUSolver:
@@ -46,8 +56,9 @@ class LaggedLUSolver:
 
     ``factorize(K)`` stores ``K`` but computes a new LU only when there is
     none yet, when the shape changed (re-triangulation), when the last solve
-    needed more than ``max_iterations_before_refactor`` iterations, or when
-    ``force=True``.  ``solve`` then runs GMRES on the current ``K`` with the
+    needed more than ``max_iterations_before_refactor`` iterations, when the
+    iterations since the last LU cost a factorisation (:attr:`refactor_after`),
+    or when ``force=True``.  ``solve`` then runs GMRES on the current ``K`` with the
     old LU as right preconditioner.  If GMRES fails within ``maxiter``, the
     current ``K`` is factorised and solved directly, so the result always
     meets ``rtol``.
@@ -63,6 +74,10 @@ class LaggedLUSolver:
         GMRES iterations before falling back to a fresh LU.
     direct : DirectSolver, optional
         Configured direct solver to use for the factorisations.
+    refactor_after : int, optional
+        GMRES iterations beyond two a solve (summed since the last LU) after which the next
+        matrix is factorised too (:attr:`refactor_after`); default
+        :data:`PARDISO_REFACTOR_ITERATIONS` for PARDISO, none for SuperLU.
 
     Attributes
     ----------
@@ -83,11 +98,12 @@ class LaggedLUSolver:
     """
 
     def __init__(self, max_iterations_before_refactor: int = 10, rtol: float = 1e-10,
-                 maxiter: int = 50, direct: DirectSolver | None = None):
+                 maxiter: int = 50, direct: DirectSolver | None = None, refactor_after: int | None = None):
         self.max_iterations_before_refactor = int(max_iterations_before_refactor)
         self.rtol = float(rtol)
         self.maxiter = int(maxiter)
         self.direct = direct if direct is not None else DirectSolver()
+        self._refactor_after = None if refactor_after is None else int(refactor_after)
         self.K: sp.csr_matrix | None = None
         self.factorizations = 0
         self.solves = 0
@@ -96,10 +112,9 @@ class LaggedLUSolver:
         self._refactor_next = False
         self._fresh = False
         self._setup_s = 0.0
-        #: seconds of the last factorisation, and of the GMRES iterations since it beyond the two
-        #: back-substitutions a fresh LU needs (its solve and one refinement step)
-        self._factor_s = 0.0
-        self._lag_s = 0.0
+        #: GMRES iterations since the last factorisation beyond the two back-substitutions a fresh
+        #: LU needs a solve (its solve and one refinement step)
+        self._lag_iterations = 0
 
     def _factorize_current(self):
         t0 = time.perf_counter()
@@ -107,19 +122,23 @@ class LaggedLUSolver:
         self.factorizations += 1
         self._fresh = True
         self._refactor_next = False
-        self._setup_s = self._factor_s = time.perf_counter() - t0
-        self._lag_s = 0.0
+        self._setup_s = time.perf_counter() - t0
+        self._lag_iterations = 0
 
     @property
-    def refactor_by_cost(self) -> bool:
-        """Whether a refactorisation is also due once the iterations the lagged LU cost beyond a
-        fresh one's have taken as long as the last factorisation (the rent-or-buy rule, which is
-        never more than twice the best choice made in hindsight: Karlin et al., *Competitive
-        snoopy caching*, Algorithmica 3, 1988).  On for PARDISO, whose numerical factorisation on
-        the analysis of the same pattern costs ~20 back-substitutions
-        (:meth:`~.pardiso.PardisoLU.refactor`); a SuperLU factorisation costs hundreds, and
-        ``max_iterations_before_refactor`` alone decides."""
-        return self.direct.backend == "pardiso"
+    def refactor_after(self) -> int | None:
+        """GMRES iterations beyond two a solve, summed since the last LU, after which the next
+        matrix passed to :meth:`factorize` is factorised too: once the lag has cost what a new LU
+        costs (the rent-or-buy rule, never more than twice the best choice made in hindsight:
+        Karlin et al., *Competitive snoopy caching*, Algorithmica 3, 1988).  PARDISO factorises
+        numerically on the analysis of the same pattern (:meth:`~.pardiso.PardisoLU.refactor`) at
+        the cost of :data:`PARDISO_REFACTOR_ITERATIONS` iterations; a SuperLU factorisation costs
+        hundreds, and ``max_iterations_before_refactor`` alone decides (``None``).  The rule counts
+        iterations, not seconds, so the LU in use, and every number of a run, do not depend on
+        the machine's load."""
+        if self._refactor_after is not None:
+            return self._refactor_after
+        return PARDISO_REFACTOR_ITERATIONS if self.direct.backend == "pardiso" else None
 
     def factorize(self, K, force: bool = False) -> "LaggedLUSolver":
         """Make ``K`` the current matrix; compute an LU only when needed.
@@ -189,9 +208,9 @@ class LaggedLUSolver:
             elif it > self.max_iterations_before_refactor:
                 self._refactor_next = True
                 note = "refactorization due at the next factorize"
-            elif self.refactor_by_cost and it > 2:
-                self._lag_s += (time.perf_counter() - t0) * (it - 2) / it
-                if self._lag_s > self._factor_s:
+            elif self.refactor_after is not None and it > 2:
+                self._lag_iterations += it - 2
+                if self._lag_iterations > self.refactor_after:
                     self._refactor_next = True
                     note = "refactorization due at the next factorize (the lag cost a factorisation)"
         info = SolveInfo(method="gmres+lagged-lu" if it else self.direct.backend,
