@@ -126,8 +126,6 @@ MECHANISMS = {
 SERIES_POINTS = 200
 
 
-_SEED = 20001201  # any fixed seed: the estimate of a matrix is the same in every run
-
 
 def condition_estimate(K, inverse, t: int = 2) -> float:
     """Estimate of the 1-norm condition number ``κ₁(K) = ‖K‖₁ ‖K⁻¹‖₁`` from a solver's factors.
@@ -150,15 +148,12 @@ def condition_estimate(K, inverse, t: int = 2) -> float:
     """
     from scipy.sparse.linalg import onenormest
 
+    from .fluid.solvers.seeded import seeded
+
     norm_k = float(abs(K).sum(axis=0).max())
-    # scipy draws the random ±1 start columns from numpy's global generator: seed it for a
-    # reproducible estimate and give the run its generator back as it was
-    state = np.random.get_state()
-    np.random.seed(_SEED)
-    try:
+    # scipy draws the random ±1 start columns from numpy's global generator
+    with seeded():
         return norm_k * float(onenormest(inverse, t=t))
-    finally:
-        np.random.set_state(state)
 
 
 def lu_condition(solver) -> float | None:
@@ -211,6 +206,8 @@ def inf_sup_constant(A, B, Mp) -> float:
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
+    from .fluid.solvers.seeded import seeded
+
     A, B, Mp = sp.csr_matrix(A), sp.csr_matrix(B), sp.csr_matrix(Mp)
     n_u, n_p = A.shape[0], Mp.shape[0]
     K = sp.bmat([[A, B.T], [B, None]], format="csc")
@@ -225,13 +222,9 @@ def inf_sup_constant(A, B, Mp) -> float:
         return lu.solve(w)
 
     op = spla.LinearOperator((n_u + n_p, n_u + n_p), matvec=apply, dtype=float)
-    state = np.random.get_state()  # ARPACK's start vector: fixed, the run's generator left as it was
-    np.random.seed(_SEED)
-    try:
+    with seeded():  # ARPACK's start vector: the same in every run
         mu = spla.eigs(op, k=1, which="LM", v0=np.r_[np.zeros(n_u), np.random.rand(n_p)],
                        return_eigenvectors=False)[0]
-    finally:
-        np.random.set_state(state)
     lam = 1.0 / mu.real  # the eigenvalue of the pencil nearest to 0: −β_h²
     return float(np.sqrt(max(-lam, 0.0)))
 

@@ -54,6 +54,7 @@ from ... import names
 from ._sparse import _as_csr, _is_symmetric, _same_values, _split
 from .krylov import run_fgmres, run_minres
 from .results import SolveInfo, SolverError, _notify_solve
+from .seeded import seeded
 
 __all__ = ["BlockKrylovSolver", "mass_schur_inverse", "cahouet_chabard_schur_inverse",
            "lsc_schur_inverse"]
@@ -299,7 +300,8 @@ class BlockKrylovSolver:
                         presmoother=("gauss_seidel", {"sweep": "forward"}),
                         postsmoother=("gauss_seidel", {"sweep": "backward"}))
         opts.update(self.amg_options)
-        return pyamg.smoothed_aggregation_solver(M, B=B, **opts)
+        with seeded():  # the Jacobi weights' spectral-radius estimates start from numpy.random
+            return pyamg.smoothed_aggregation_solver(M, B=B, **opts)
 
     def _keep(self, old, new) -> bool:
         if self.reuse == "never":
