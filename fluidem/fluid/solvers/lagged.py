@@ -42,10 +42,10 @@ MOVING_MESH_STEPPING = {"rtol": 1e-6, "max_iterations_before_refactor": 25}
 #: GMRES iterations with the lagged LU, beyond the two back-substitutions of a fresh LU's solve, that
 #: cost what a PARDISO numerical factorisation on the same analysis costs
 #: (:meth:`~.pardiso.PardisoLU.refactor`): the price of "buy" in the rent-or-buy rule of
-#: :attr:`LaggedLUSolver.refactor_after`.  Measured in runs of the coupled free-body systems (one MKL
-#: thread, two runs side by side, medians): a numerical factorisation took 11.6-15.9 iterations at
-#: 54k DOFs (``column-collapse-fluid``, 0.22-0.31 s against 0.019 s an iteration) and 10.2-14.4 at
-#: 152k (100 settling polygons, 0.64-0.91 s against 0.063 s).  A count, not a clock: the rule decides
+#: :attr:`LaggedLUSolver.refactor_after`.  Measured in 40-step runs of the coupled free-body systems
+#: (one MKL thread, the two runs side by side): the numerical factorisations took 11.6-15.9 times
+#: the median GMRES iteration at 54k DOFs (``column-collapse-fluid``, 0.22-0.31 s against 0.019 s)
+#: and 10.2-14.4 times at 152k (100 settling polygons, 0.64-0.91 s against 0.063 s).  A count, not a clock: the rule decides
 #: alike on a busy and an idle machine, so a run repeats to the last bit.
 PARDISO_REFACTOR_ITERATIONS = 12
 
@@ -112,8 +112,8 @@ class LaggedLUSolver:
         self._refactor_next = False
         self._fresh = False
         self._setup_s = 0.0
-        #: GMRES iterations since the last factorisation beyond the two back-substitutions a fresh
-        #: LU needs a solve (its solve and one refinement step)
+        #: GMRES iterations since the last factorisation, beyond two a solve (what a fresh LU's
+        #: solve costs: its back-substitution and one refinement step)
         self._lag_iterations = 0
 
     def _factorize_current(self):
