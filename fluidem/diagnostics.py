@@ -126,7 +126,6 @@ MECHANISMS = {
 SERIES_POINTS = 200
 
 
-
 def condition_estimate(K, inverse, t: int = 2) -> float:
     """Estimate of the 1-norm condition number ``κ₁(K) = ‖K‖₁ ‖K⁻¹‖₁`` from a solver's factors.
 
