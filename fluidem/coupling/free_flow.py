@@ -272,9 +272,9 @@ class FreeBodyFlow(MovingMeshFlow):
         mm = self.mm
         if not mm.n_bodies:
             return None
-        now = self.poses  # the prescribed bodies' path poses at t too (set by the last step)
-        poly = mm._polygons(image_poses(now, mm.images))
-        ahead = mm._polygons(image_poses(predicted, mm.images))
+        # the current poses hold the prescribed bodies' path poses at t too (set by the last step)
+        now, then = image_poses(self.poses, mm.images), image_poses(predicted, mm.images)
+        poly = mm._polygons(now)
         found = []  # (gap, first, second, wall)
         a, b = shapely.STRtree(poly).query(poly, predicate="dwithin", distance=mm.h)
         keep = (a < b) & (mm.images.body[a] != mm.images.body[b])
@@ -283,13 +283,13 @@ class FreeBodyFlow(MovingMeshFlow):
             gap = shapely.distance(poly[a], poly[b])
             apart = gap > mm.min_gap
             a, b, gap = a[apart], b[apart], gap[apart]
+            ahead = mm._polygons(then)  # only when some pair is within reach
             hit = np.flatnonzero(shapely.intersects(ahead[a], ahead[b]))
             if len(hit):
                 k = hit[np.argmin(gap[hit])]
                 found.append((float(gap[k]), self.names[mm.images.body[a[k]]], self.names[mm.images.body[b[k]]],
                               False))
-        gap_w = _wall_gaps(mm, image_poses(now, mm.images))
-        ahead_w = _wall_gaps(mm, image_poses(predicted, mm.images))
+        gap_w, ahead_w = _wall_gaps(mm, now), _wall_gaps(mm, then)
         hit_w = (gap_w > mm.min_gap) & (gap_w < mm.h) & (ahead_w <= 0.0) & mm._wall_sides[None, :]
         if hit_w.any():
             i, side = np.unravel_index(np.argmin(np.where(hit_w, gap_w, np.inf)), gap_w.shape)
