@@ -348,15 +348,16 @@ class FreeBodyFlow(MovingMeshFlow):
         self._mesh_poses = np.array(mesh_poses, float, copy=True)
         ev, rebuilt, old_space = self._move_mesh(self._mesh_poses, t_new, cost)
         if rebuilt:
-            self.system = RigidBodySystem(self.problem, self.rigid, f)
-        t0 = time.perf_counter()
+            with cost.timer("rebuild"):
+                self.system = RigidBodySystem(self.problem, self.rigid, f)
         if self.stokes:
             self.t = t_new
             self._solve_mobility(t_new, cost, rebuilt)
             self._V_prev = V
             self.poses = self._mesh_poses.copy()
         else:
-            self._hand_over(ev, rebuilt, old_space, dt, cost)
+            self._hand_over(ev, rebuilt, old_space, dt, cost)  # charges "rebuild" and "mesh" itself
+            t0 = time.perf_counter()
             self.coupled.system = self.system
             if rebuilt:
                 self.coupled.refactorize = True
