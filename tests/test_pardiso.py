@@ -230,3 +230,25 @@ def test_free_bodies_run_the_same_with_either_lu(tmp_path):
     moved = np.abs(out["superlu"][:, :2] - np.array([b["position"] for b in bench_dense.scene_dict(10, 4)["bodies"]]))
     assert moved.max() > 1e-4  # they did settle
     assert np.abs(out["pardiso"] - out["superlu"]).max() < 1e-12
+
+
+def test_a_new_factorisation_does_not_search_the_file_system_for_mkl(saddle, monkeypatch):
+    """pypardiso looks for ``mkl_rt`` at every new solver object, by a recursive search of the
+    environment's library folders when the loader does not know it (0.2-0.4 s each in a virtual
+    environment); the runtime found at import is handed on, so later factorisations do not search."""
+    import glob
+    import os
+
+    import pypardiso
+
+    K, b = saddle.K.tocsr(), saddle.b
+    PardisoLU(K)  # the first one hands the runtime on
+
+    def no_search(*a, **k):
+        raise AssertionError(f"searched for the MKL runtime: {a}")
+
+    monkeypatch.setattr(glob, "glob", no_search)
+    monkeypatch.setattr(pypardiso.pardiso_wrapper, "find_library", lambda name: None)  # as in a venv
+    lu = PardisoLU(K)
+    assert os.environ["PYPARDISO_MKL_RT"] == pypardiso.ps.libmkl._name
+    np.testing.assert_allclose(K @ lu.solve(b), b, atol=1e-9 * np.abs(b).max())
