@@ -18,17 +18,28 @@ Run (tens of minutes)::
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py --apart [N]   # a dense step against the same bodies apart
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py --lu [N ...]   # SuperLU against PARDISO, at once
 
+    python benchmarks/bench_dense.py --log OUT_DIR RUN.LOG [PEAK_MIB]   # a long `fluidem run -v` summarised
+
 writes ``benchmarks/results/dense.{md,json}`` (``--lu``: ``dense_lu.{md,json}``; the ``pardiso`` extra
 installed, MKL pinned to one thread).  ``--before PATH`` also runs every case, side by side,
 with the fluidem package found at ``PATH`` (a checkout of an earlier version; keys it does not know
 are left out of its scene).  ``python benchmarks/bench_dense.py --scene N FILE.toml`` writes the scene
 of ``N`` bodies.
+
+``--log`` reads a run of such a scene too long for a benchmark session (``fluidem run FILE.toml -v
+> RUN.LOG``, continued with ``--restart`` as often as needed): the verbose lines of ``RUN.LOG`` (each
+step's cost split) and the re-triangulations of ``OUT_DIR/events.log``, and writes
+``dense_run.{md,json}``: medians of ordinary and re-triangulation steps, each part's share of the
+wall time, the DEM's sub-steps and passes, LUs, the re-triangulation cadence and the force change
+at them.  ``PEAK_MIB``: the run process's peak resident memory, if measured (``VmHWM`` in
+``/proc/PID/status`` on Linux).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -124,6 +135,9 @@ def main(argv: list[str]) -> None:
         return
     if argv[:1] == ["--apart"]:
         dense_against_apart(int(argv[1]) if len(argv) > 1 else 100)
+        return
+    if argv[:1] == ["--log"]:
+        summarise_run_log(argv[1], argv[2], float(argv[3]) if len(argv) > 3 else None)
         return
     if argv[:1] == ["--lu"]:
         lu_side_by_side([int(a) for a in argv[1:]] or [100])
@@ -275,3 +289,98 @@ def dense_against_apart(n: int, steps: int = 12) -> None:
 
 if __name__ == "__main__":
     main(sys.argv[1:])
+
+
+#: one verbose progress line: step, then the cost split ``part ms + ... = total ms`` (fluidem.progress)
+_STEP = re.compile(r"^step (\d+)/\d+ .*?  ((?:\w+ [\d.]+ \+ )*\w+ [\d.]+) = ([\d.]+) ms$")
+_DEM = re.compile(r" DEM (\d+) sub-steps in (\d+) pass")
+_LU = re.compile(r" LU (\d+) ")
+_RETRI = re.compile(r"^step=(\d+) .*retriangulation reason=(\w+).*?(?:force change ([\d.]+) %)?$")
+
+
+def parse_run_log(log_text: str, events_text: str) -> dict:
+    """The steps of a verbose run log (the last line of each step number: a restart repeats none) and the
+    re-triangulations of its events.log: ``{"steps": {step: {part: s, "total": s, "substeps", "passes", "lu"}},
+    "retri": {step: (reason, force change or nan)}, "dofs": int}``."""
+    steps = {}
+    for line in log_text.splitlines():
+        m = _STEP.match(line.rstrip())
+        if not m:
+            continue
+        parts = {k: float(v) / 1e3 for k, v in (p.rsplit(" ", 1) for p in m.group(2).split(" + "))}
+        lu, dem = _LU.search(line), _DEM.search(line)
+        steps[int(m.group(1))] = dict(parts, total=float(m.group(3)) / 1e3, substeps=int(dem.group(1)) if dem else 0,
+                                      passes=int(dem.group(2)) if dem else 0, lu=int(lu.group(1)) if lu else -1)
+    retri, dofs = {}, 0
+    for line in events_text.splitlines():
+        m = _RETRI.match(line)
+        if m:
+            retri[int(m.group(1))] = (m.group(2), float(m.group(3)) if m.group(3) else float("nan"))
+        d = re.search(r"initial: \d+ triangles, (\d+) DOFs", line)
+        if d:
+            dofs = int(d.group(1))
+    return {"steps": steps, "retri": retri, "dofs": dofs}
+
+
+def summarise_run_log(out_dir: str, log_path: str, peak_mib: float | None = None) -> dict:
+    """Write ``dense_run.{md,json}`` from a long run's verbose log and events.log (module docstring)."""
+    import pathlib
+
+    out = pathlib.Path(out_dir)
+    run = parse_run_log(pathlib.Path(log_path).read_text(errors="replace"), (out / "events.log").read_text())
+    steps = run["steps"]
+    first = min(steps)
+    keep = sorted(k for k in steps if k > first)  # the first step of a (re)start holds a fresh analysis and LU
+    if not keep:
+        raise SystemExit(f"{log_path}: fewer than two verbose step lines")
+    at = [k for k in keep if k in run["retri"]]
+    ordinary = [k for k in keep if k not in run["retri"]]
+    parts = [p for p in steps[keep[0]] if p not in ("total", "substeps", "passes", "lu")]
+    total = sum(steps[k]["total"] for k in keep)
+
+    def med(ks, p):
+        return float(np.median([steps[k][p] for k in ks])) if ks else float("nan")
+
+    lus = [steps[k]["lu"] for k in keep if steps[k]["lu"] >= 0]
+    dem = [k for k in keep if steps[k]["passes"] > 0]
+    forces = np.array([run["retri"][k][1] for k in at], float)
+    reasons = {}
+    for k in at:
+        reasons[run["retri"][k][0]] = reasons.get(run["retri"][k][0], 0) + 1
+    row = {"scene": json.loads((out / "run.json").read_text()).get("scene"), "dofs": run["dofs"],
+           "steps": [keep[0], keep[-1]], "n_steps": len(keep), "n_retri": len(at), "reasons": reasons,
+           "retri_per_100": 100.0 * len(at) / len(keep),
+           "ordinary": {p: med(ordinary, p) for p in parts + ["total"]},
+           "at_retri": {p: med(at, p) for p in parts + ["total"]},
+           "mean_s_per_step": total / len(keep),
+           "share": {p: sum(steps[k][p] for k in keep) / total for p in parts},
+           "lus": (lus[-1] - steps[first]["lu"]) if lus and steps[first]["lu"] >= 0 else None,
+           "dem_substeps_per_pass": float(sum(steps[k]["substeps"] for k in dem) / max(sum(steps[k]["passes"]
+                                                                                          for k in dem), 1)),
+           "dem_passes_median": float(np.median([steps[k]["passes"] for k in dem])) if dem else 0.0,
+           "force_change_median_pct": float(np.nanmedian(forces)) if len(forces) else None,
+           "force_change_max_pct": float(np.nanmax(forces)) if len(forces) else None,
+           "peak_mib": peak_mib, "machine": machine_description()}
+    write_json("dense_run", row["machine"], [row])
+    head = ["part", "ordinary step, median s", "re-triangulation step, median s", "share of the wall time"]
+    table = [[p, f"{row['ordinary'][p]:.2f}", f"{row['at_retri'][p]:.2f}", f"{row['share'][p]:.1%}"] for p in parts]
+    table.append(["total", f"{row['ordinary']['total']:.2f}", f"{row['at_retri']['total']:.2f}", "100 %"])
+    from results_io import markdown_table
+
+    lines = [f"# A long run of `{row['scene']}`: cost per step through settling and contact", "",
+             f"Machine: {row['machine']}; one BLAS and one MKL thread. Steps {keep[0]}–{keep[-1]} of the run "
+             f"({len(keep)} steps; the first step of every (re)start, which holds a fresh analysis and LU, left "
+             f"out), {row['dofs']} DOFs at the start.", "",
+             *markdown_table(head, table), "",
+             f"- Mean {row['mean_s_per_step']:.2f} s a step (re-triangulations included).",
+             f"- Re-triangulations: {len(at)} in {len(keep)} steps, {row['retri_per_100']:.1f} per 100 "
+             f"({', '.join(f'{k} {v}' for k, v in sorted(reasons.items()))}); force change at them "
+             + (f"median {row['force_change_median_pct']:.2f} %, largest {row['force_change_max_pct']:.2f} %."
+                if row["force_change_median_pct"] is not None else "none."),
+             f"- LUs: {row['lus']} in {len(keep)} steps (re-triangulations included); DEM: "
+             f"{row['dem_substeps_per_pass']:.1f} sub-steps a pass, {row['dem_passes_median']:.0f} passes a contact "
+             "step (median).",
+             f"- Peak resident memory of the run process: {peak_mib:.0f} MiB." if peak_mib else
+             "- Peak resident memory: not measured."]
+    (RESULTS / "dense_run.md").write_text("\n".join(lines) + "\n")
+    return row
