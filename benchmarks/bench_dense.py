@@ -19,12 +19,19 @@ Run (tens of minutes)::
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py --lu [N ...]   # SuperLU against PARDISO, at once
 
     python benchmarks/bench_dense.py --log OUT_DIR RUN.LOG [PEAK_MIB]   # a long `fluidem run -v` summarised
+    python benchmarks/bench_dense.py --narrow N [--before PATH]   # the short-range models' gaps of N bodies
 
 writes ``benchmarks/results/dense.{md,json}`` (``--lu``: ``dense_lu.{md,json}``; the ``pardiso`` extra
 installed, MKL pinned to one thread).  ``--before PATH`` also runs every case, side by side,
 with the fluidem package found at ``PATH`` (a checkout of an earlier version; keys it does not know
 are left out of its scene).  ``python benchmarks/bench_dense.py --scene N FILE.toml`` writes the scene
 of ``N`` bodies.
+
+``--narrow`` times :func:`fluidem.dem.repulsion.pair_gaps`, the narrow phase of the repulsion and the
+lubrication that runs at every DEM sub-step, on the pairs of the scene of ``N`` bodies whose bounding
+circles are within ``h`` (their outlines padded to the most vertices of any body, as in the DEM), the
+median of 15 calls, with ``--before`` also with an earlier checkout, each in its own process, one right
+after the other; writes ``dense_narrow.{md,json}``.
 
 ``--log`` reads a run of such a scene too long for a benchmark session (``fluidem run FILE.toml -v
 > RUN.LOG``, continued with ``--restart`` as often as needed): the verbose lines of ``RUN.LOG`` (each
@@ -135,6 +142,12 @@ def main(argv: list[str]) -> None:
         return
     if argv[:1] == ["--apart"]:
         dense_against_apart(int(argv[1]) if len(argv) > 1 else 100)
+        return
+    if argv[:1] == ["--narrow-case"]:
+        print(json.dumps(narrow_case(argv[1])))
+        return
+    if argv[:1] == ["--narrow"]:
+        narrow_phase(int(argv[1]), argv[3] if argv[2:3] == ["--before"] else None)
         return
     if argv[:1] == ["--log"]:
         summarise_run_log(argv[1], argv[2], float(argv[3]) if len(argv) > 3 else None)
@@ -287,8 +300,6 @@ def dense_against_apart(n: int, steps: int = 12) -> None:
     (RESULTS / "dense_apart.md").write_text("\n".join(lines) + "\n")
 
 
-if __name__ == "__main__":
-    main(sys.argv[1:])
 
 
 #: one verbose progress line: step, then the cost split ``part ms + ... = total ms`` (fluidem.progress)
@@ -384,3 +395,67 @@ def summarise_run_log(out_dir: str, log_path: str, peak_mib: float | None = None
              "- Peak resident memory: not measured."]
     (RESULTS / "dense_run.md").write_text("\n".join(lines) + "\n")
     return row
+
+
+def narrow_case(path: str) -> dict:
+    """Median milliseconds of :func:`fluidem.dem.repulsion.pair_gaps` on the pairs within ``h`` of a scene."""
+    from scipy.spatial import cKDTree
+
+    from fluidem.dem.repulsion import pair_gaps
+    from fluidem.geometry import rigid_transform
+    from fluidem.scene import Scene
+
+    sc = Scene.from_toml(path)
+    verts = [b.local_vertices() for b in sc.bodies]
+    K = max(len(v) for v in verts)
+    V = np.stack([np.vstack([v, np.repeat(v[:1], K - len(v), axis=0)]) for v in verts])
+    pos = np.array([b.position for b in sc.bodies], float)
+    W = rigid_transform(V, np.column_stack([pos, [b.angle for b in sc.bodies]]))
+    r = np.array([np.linalg.norm(v, axis=1).max() for v in verts])
+    pairs = np.array(sorted(cKDTree(pos).query_pairs(2 * r.max() + H)), dtype=np.int64).reshape(-1, 2)
+    i, j = pairs[:, 0], pairs[:, 1]
+    keep = np.linalg.norm(pos[i] - pos[j], axis=1) < r[i] + r[j] + H
+    i, j = i[keep], j[keep]
+    times = []
+    for _ in range(15):
+        t0 = time.perf_counter()
+        pair_gaps(W, i, j, pos, r, H)
+        times.append(time.perf_counter() - t0)
+    return {"median_ms": 1e3 * float(np.median(times)), "pairs": int(len(i)), "rows": int(K),
+            "real_vertices": float(np.mean([len(v) for v in verts]))}
+
+
+def narrow_phase(n: int, before: str | None) -> None:
+    """``--narrow``: this version (and ``before``) side by side, ``dense_narrow.{md,json}``."""
+    from fluidem.scene import Scene
+
+    RESULTS.mkdir(exist_ok=True)
+    path = RESULTS / f"dense-{n}-narrow.toml"
+    Scene.from_dict(scene_dict(n, 1)).to_toml(str(path))
+    rows = []
+    for version, where in ([("before", before)] if before else []) + [("this version", None)]:
+        env = dict(os.environ, **({"PYTHONPATH": where} if where else {}))
+        out = subprocess.run([sys.executable, __file__, "--narrow-case", str(path)], capture_output=True, text=True,
+                             check=True, env=env)
+        rows.append(dict(json.loads(out.stdout.strip().splitlines()[-1]), version=version, bodies=n))
+        print(rows[-1], flush=True)
+    path.unlink()
+    machine = machine_description()
+    write_json("dense_narrow", machine, rows)
+    from results_io import markdown_table
+
+    lines = ["# The short-range models' narrow phase (`pair_gaps`) of a settling suspension", "",
+             f"Machine: {machine}; one BLAS thread. The scene of `bench_dense.py` with {n} bodies at its start "
+             f"(triangles, rectangles and disks), the pairs whose bounding circles are within h = {H}; outlines "
+             "padded to the most vertices of any body, as in the DEM; median of 15 calls, each version in its own "
+             "process, one right after the other.", "",
+             *markdown_table(["version", "pairs", "rows per outline", "real vertices (mean)", "ms a call"],
+                             [[r["version"], str(r["pairs"]), str(r["rows"]), f"{r['real_vertices']:.2f}",
+                               f"{r['median_ms']:.2f}"] for r in rows])]
+    if len(rows) == 2:
+        lines += ["", f"Ratio before / this version: {rows[0]['median_ms'] / rows[1]['median_ms']:.2f}."]
+    (RESULTS / "dense_narrow.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -109,6 +109,15 @@ def _point_segment(P, A, B):
     return Q, d
 
 
+def _padding(W: np.ndarray) -> np.ndarray:
+    """Which rows of padded outlines ``W (..., K, 2)`` are padding: (..., K) bool, True where a vertex after
+    the first repeats the first exactly (:func:`fluidem.geometry.rigid_transform` maps equal body-frame
+    vertices to equal world points, bit for bit)."""
+    pad = np.all(W == W[..., :1, :], axis=-1)
+    pad[..., 0] = False
+    return pad
+
+
 def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray | None = None,
               radii: np.ndarray | None = None, reach: float = np.inf, shift: np.ndarray | None = None):
     """Vertex–edge distances of body pairs, both ways.
@@ -138,28 +147,40 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray |
         point on the other body's outline, ordered so that ``p`` lies on ``i`` and ``q`` on ``j``
         (on its shifted image).
     d : (P, 2K) float
-        Their distances, length.
+        Their distances, length; ``inf`` for the padding rows, which are not
+        measured: a weighted mean over the vertices (:func:`approach_geometry`) counts each vertex
+        once, not the first vertex of a body with fewer than K vertices once for each padding row
+        (:func:`_padding`).
     """
     Wi, Wj = W[i], W[j]
     if shift is not None:
         Wj = Wj + shift[:, None, :]
 
-    def vertex_to_outline(V, other, c_other, r_other):  # V (P, K, 2) vertices, other (P, K, 2) outline
+    pad_i, pad_j = _padding(Wi), _padding(Wj)
+
+    def vertex_to_outline(V, pad_V, other, pad_other, c_other, r_other):  # V, other (P, K, 2); pads (P, K)
         P, K = V.shape[:2]
         Q = np.broadcast_to(V, V.shape).copy()
         d = np.full((P, K), np.inf)
-        if c_other is None:
-            near = np.ones((P, K), bool)
-        else:
+        near = ~pad_V
+        if c_other is not None:
             dc = V - c_other[:, None, :]
-            near = (dc * dc).sum(axis=-1) < (r_other[:, None] + reach) ** 2
+            near &= (dc * dc).sum(axis=-1) < (r_other[:, None] + reach) ** 2
         pi, vi = np.nonzero(near)
-        if len(pi):
-            A, B = other[pi], np.roll(other, -1, axis=1)[pi]  # (M, K, 2) edges of the other body
-            Qm, dm = _point_segment(V[pi, vi][:, None, :], A, B)  # (M, K)
+        if not len(pi):
+            return Q, d
+        # the other body's real edges are its first n (the n-th closes onto the first vertex, which the
+        # padding repeats): measured in groups of equal n, a few per scene, not against all K rows
+        n_other = (K - pad_other.sum(axis=1))[pi]
+        for n in np.unique(n_other):
+            g = np.flatnonzero(n_other == n)
+            rows, vs = pi[g], vi[g]
+            A = other[rows, :n]
+            B = np.roll(other, -1, axis=1)[rows, :n]  # (m, n, 2) edges of the other body
+            Qm, dm = _point_segment(V[rows, vs][:, None, :], A, B)  # (m, n)
             k = np.argmin(dm, axis=1)
-            Q[pi, vi] = Qm[np.arange(len(pi)), k]
-            d[pi, vi] = dm[np.arange(len(pi)), k]
+            Q[rows, vs] = Qm[np.arange(len(g)), k]
+            d[rows, vs] = dm[np.arange(len(g)), k]
         return Q, d
 
     ci = cj = ri = rj = None
@@ -167,8 +188,8 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray |
         ci, cj, ri, rj = centres[i], centres[j], radii[i], radii[j]
         if shift is not None:
             cj = cj + shift
-    Qj, dj = vertex_to_outline(Wi, Wj, cj, rj)  # vertices of i, feet on j
-    Qi, di = vertex_to_outline(Wj, Wi, ci, ri)  # vertices of j, feet on i
+    Qj, dj = vertex_to_outline(Wi, pad_i, Wj, pad_j, cj, rj)  # vertices of i, feet on j
+    Qi, di = vertex_to_outline(Wj, pad_j, Wi, pad_i, ci, ri)  # vertices of j, feet on i
     p = np.concatenate([Wi, Qi], axis=1)
     q = np.concatenate([Qj, Wj], axis=1)
     return p, q, np.concatenate([dj, di], axis=1)
@@ -321,11 +342,13 @@ def wall_approaches(W, walls, reach, movable=None):
     """
     mv = np.arange(len(W)) if movable is None else np.flatnonzero(movable)
     Wm = W[mv]
+    pad = _padding(Wm)  # each vertex once: the padding repeats the first
     x0, x1, y0, y1 = walls
     for axis, wall, sign in ((0, x0, 1.0), (0, x1, -1.0), (1, y0, 1.0), (1, y1, -1.0)):
         if not np.isfinite(wall):
             continue
         d = sign * (Wm[:, :, axis] - wall)  # distance of every vertex from the wall (negative: beyond)
+        d = np.where(pad, np.inf, d)
         gap = d.min(axis=1)
         near = gap < reach
         if not near.any():

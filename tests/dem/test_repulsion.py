@@ -48,6 +48,25 @@ def test_square_face_on_a_wall_gets_no_torque_and_a_tilted_one_does():
     assert F[0, 1] > 0 and T[0] < 0
 
 
+def test_a_face_beside_a_body_with_more_vertices_gets_no_torque_from_the_padding():
+    """A square's bottom face at gap 0.01 above a wider block, and above the floor, in a batch padded to a
+    64-gon's 64 rows (as the DEM's outlines are): no torque about its centre, as alone.  Before, the 60
+    padding rows repeated the bottom-left vertex, which then weighed 61 times in the force's point: the
+    torque was −0.968 of force × half-width against the block and on the floor alike."""
+    rep = Repulsion(range=RHO, force=1.0, epsilon=1e-4)
+    sq = np.array([[-0.1, -0.1], [0.1, -0.1], [0.1, 0.1], [-0.1, 0.1]])
+    wide = np.array([[-0.5, -0.1], [0.5, -0.1], [0.5, 0.1], [-0.5, 0.1]])
+    padded = [np.vstack([v, np.repeat(v[:1], 60, axis=0)]) for v in (sq, wide)]
+    pos = np.array([[0.0, 0.11], [5.0, 5.0], [0.0, -0.1]])
+    W = _outlines([padded[0], regular_polygon(R, 64), padded[1]], np.column_stack([pos, np.zeros(3)]))
+    F, T, _ = repulsion_forces(rep, W, pos, np.array([0]), np.array([2]), np.array([False]))
+    assert F[0, 1] == pytest.approx(1e4 * 0.25, rel=1e-12) and F[2, 1] == -F[0, 1]
+    assert abs(T[0]) < 1e-12 and abs(T[2]) < 1e-12
+    F, T, _ = repulsion_forces(rep, W[:1], pos[:1], np.zeros(0, int), np.zeros(0, int), np.zeros(0, bool),
+                               (-np.inf, np.inf, 0.0, np.inf))
+    assert F[0, 1] == pytest.approx(1e4 * 0.25, rel=1e-12) and abs(T[0]) < 1e-12
+
+
 def test_dem_dt_max_takes_the_repulsion_stiffness():
     """dt_max = 0.1 π √(m / max(E, 2c/(ερ)))."""
     b = Body.polygon(regular_polygon(R, 32), density=1.0, position=(0.0, 0.5))
