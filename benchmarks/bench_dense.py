@@ -55,7 +55,7 @@ import time
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from results_io import RESULTS, machine_description, write_json  # noqa: E402
+from results_io import RESULTS, machine_description, write_json, write_results  # noqa: E402
 
 CASES = {10: 60, 40: 40, 100: 20, 300: 20}  # bodies: steps
 #: scene keys of this version an earlier one may not know (left out of the scene ``--before`` runs)
@@ -206,8 +206,6 @@ def main(argv: list[str]) -> None:
 def lu_side_by_side(cases: list) -> None:
     """Each case with ``fluid.lu_backend = "superlu"`` and ``"pardiso"`` (one MKL thread), the two processes
     started together on the two cores (the faster one ends first); writes ``results/dense_lu.{md,json}``."""
-    from results_io import markdown_table
-
     from fluidem.scene import Scene
 
     rows = []
@@ -233,26 +231,23 @@ def lu_side_by_side(cases: list) -> None:
             r = res["rows"][1:]
             rows.append(dict(summary(n, res), lu=lu, solve_s=float(np.median([x["solve"] for x in r])), load=load))
             print(rows[-1], flush=True)
-    machine = machine_description()
-    write_json("dense_lu", machine, rows)
-    lines = ["# Settling suspensions: the LU backends side by side", "",
-             f"Machine: {machine}.  `benchmarks/bench_dense.py --lu`: the settling suspension of `dense.md` (h = {H}, "
-             f"dt = {DT}, P2+bubble, the lagged LU) with `fluid.lu_backend = \"superlu\"` and `\"pardiso\"` (Intel "
-             "MKL through the optional `pardiso` extra, one MKL thread), the two processes started together on the "
-             "two cores (the faster one ends first); medians over the steps after the first.", "",
-             *markdown_table(["bodies", "LU", "DOFs", "steps", "s/step", "solve s/step", "DEM share (total)",
-                              "re-triangulations/100 steps", "peak MiB", "load at the end"],
-                             [[str(r["bodies"]), r["lu"], str(r["dofs"]), str(r["steps"]), f"{r['s_per_step']:.3g}",
-                               f"{r['solve_s']:.3g}", f"{r['dem_share_total']:.1%}",
-                               f"{r['retriangulations_per_100']:.0f}", f"{r['peak_mib']:.0f}", f"{r['load']:.1f}"]
-                              for r in rows])]
+    notes = []
     for n in cases:
         by = {r["lu"]: r for r in rows if r["bodies"] == n}
         ratio = by["superlu"]["s_per_step"] / by["pardiso"]["s_per_step"]
         verdict = ", ".join(f"{'met' if by[k]['s_per_step'] <= 2.0 else 'missed'} with {k}" for k in by)
-        lines.append(f"\n{n} bodies: SuperLU / PARDISO = {ratio:.2f} per step"
+        notes.append(f"\n{n} bodies: SuperLU / PARDISO = {ratio:.2f} per step"
                      + (f"; the target 'at most 2 s a step for 100 bodies' is {verdict}." if n == 100 else "."))
-    (RESULTS / "dense_lu.md").write_text("\n".join(lines) + "\n")
+    write_results("dense_lu", rows, "Settling suspensions: the LU backends side by side",
+                  f"`benchmarks/bench_dense.py --lu`: the settling suspension of `dense.md` (h = {H}, "
+                  f"dt = {DT}, P2+bubble, the lagged LU) with `fluid.lu_backend = \"superlu\"` and `\"pardiso\"` "
+                  "(Intel MKL through the optional `pardiso` extra, one MKL thread), the two processes started "
+                  "together on the two cores (the faster one ends first); medians over the steps after the first.",
+                  ["bodies", "LU", "DOFs", "steps", "s/step", "solve s/step", "DEM share (total)",
+                   "re-triangulations/100 steps", "peak MiB", "load at the end"],
+                  [[str(r["bodies"]), r["lu"], str(r["dofs"]), str(r["steps"]), f"{r['s_per_step']:.3g}",
+                    f"{r['solve_s']:.3g}", f"{r['dem_share_total']:.1%}", f"{r['retriangulations_per_100']:.0f}",
+                    f"{r['peak_mib']:.0f}", f"{r['load']:.1f}"] for r in rows], notes)
 
 
 def dense_against_apart(n: int, steps: int = 12) -> None:
@@ -440,21 +435,17 @@ def narrow_phase(n: int, before: str | None) -> None:
         rows.append(dict(json.loads(out.stdout.strip().splitlines()[-1]), version=version, bodies=n))
         print(rows[-1], flush=True)
     path.unlink()
-    machine = machine_description()
-    write_json("dense_narrow", machine, rows)
-    from results_io import markdown_table
-
-    lines = ["# The short-range models' narrow phase (`pair_gaps`) of a settling suspension", "",
-             f"Machine: {machine}; one BLAS thread. The scene of `bench_dense.py` with {n} bodies at its start "
-             f"(triangles, rectangles and disks), the pairs whose bounding circles are within h = {H}; outlines "
-             "padded to the most vertices of any body, as in the DEM; median of 15 calls, each version in its own "
-             "process, one right after the other.", "",
-             *markdown_table(["version", "pairs", "rows per outline", "real vertices (mean)", "ms a call"],
-                             [[r["version"], str(r["pairs"]), str(r["rows"]), f"{r['real_vertices']:.2f}",
-                               f"{r['median_ms']:.2f}"] for r in rows])]
+    notes = []
     if len(rows) == 2:
-        lines += ["", f"Ratio before / this version: {rows[0]['median_ms'] / rows[1]['median_ms']:.2f}."]
-    (RESULTS / "dense_narrow.md").write_text("\n".join(lines) + "\n")
+        notes = ["", f"Ratio before / this version: {rows[0]['median_ms'] / rows[1]['median_ms']:.2f}."]
+    write_results("dense_narrow", rows, "The short-range models' narrow phase (`pair_gaps`) of a settling suspension",
+                  f"One BLAS thread. The scene of `bench_dense.py` with {n} bodies at its start (triangles, rectangles "
+                  f"and disks), the pairs whose bounding circles are within h = {H}; outlines padded to the most "
+                  "vertices of any body, as in the DEM; median of 15 calls, each version in its own process, one right "
+                  "after the other.",
+                  ["version", "pairs", "rows per outline", "real vertices (mean)", "ms a call"],
+                  [[r["version"], str(r["pairs"]), str(r["rows"]), f"{r['real_vertices']:.2f}", f"{r['median_ms']:.2f}"]
+                   for r in rows], notes)
 
 
 if __name__ == "__main__":

@@ -30,6 +30,17 @@ def markdown_table(header, rows) -> list:
     return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows]
 
 
+def write_results(name: str, rows: list, title: str, intro: str, header, cells, notes=()) -> str:
+    """``results/{name}.json`` (``rows`` and the machine line) and ``results/{name}.md``: ``# title``,
+    ``Machine: ...`` followed by ``intro``, the table of ``header`` and ``cells``, then the ``notes``
+    lines; returns the machine line."""
+    machine = machine_description()
+    write_json(name, machine, rows)
+    lines = [f"# {title}", "", f"Machine: {machine}. {intro}", "", *markdown_table(header, cells), *notes]
+    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
+    return machine
+
+
 def step_recorder(sim, extra=None):
     """``(rows, progress)``: a ``progress`` callback for ``sim.run`` that appends one row per step
     to ``rows``: the step, t, its wall-clock seconds, whether the moving mesh was re-triangulated
