@@ -172,11 +172,11 @@ def pair_gaps(W: np.ndarray, i: np.ndarray, j: np.ndarray, centres: np.ndarray |
         # the other body's real edges are its first n (the n-th closes onto the first vertex, which the
         # padding repeats): measured in groups of equal n, a few per scene, not against all K rows
         n_other = (K - pad_other.sum(axis=1))[pi]
+        ends = np.roll(other, -1, axis=1)  # edge k of the other body: other[:, k] to ends[:, k]
         for n in np.unique(n_other):
             g = np.flatnonzero(n_other == n)
             rows, vs = pi[g], vi[g]
-            A = other[rows, :n]
-            B = np.roll(other, -1, axis=1)[rows, :n]  # (m, n, 2) edges of the other body
+            A, B = other[rows, :n], ends[rows, :n]  # (m, n, 2) edges of the other body
             Qm, dm = _point_segment(V[rows, vs][:, None, :], A, B)  # (m, n)
             k = np.argmin(dm, axis=1)
             Q[rows, vs] = Qm[np.arange(len(g)), k]
