@@ -226,6 +226,8 @@ class DEM:
         self.closest_gap_seen = np.inf
         self._lub = (np.zeros(0, np.int64),) * 2 + (np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2)))
         self.cost = _new_cost()
+        #: the bodies a grouped :meth:`advance` moves now (bool (N,)); None: every body
+        self._active = None
         self.bodies: list[Body] = []
         self._setup(bodies, key="DEM(period=...)")
         self._check_overlaps(np.arange(len(self.bodies)))
@@ -423,8 +425,24 @@ class DEM:
         d = d + image_shift(d, self._L)
         reach = self.radii[i] + self.radii[j] + extra
         keep = (d * d).sum(axis=1) < reach * reach
+        if self._active is not None:  # a group's pairs: among its bodies, or with a fixed body
+            act = self._active
+            present = act | ~self.movable
+            keep &= present[i] & present[j] & (act[i] | act[j])
         self.cost.add("broad", time.perf_counter() - t0)
         return i[keep], j[keep]
+
+    @property
+    def _moving(self) -> np.ndarray:
+        """The bodies that move now (bool (N,)): the movable ones, of the group a grouped :meth:`advance` moves."""
+        return self.movable if self._active is None else self.movable & self._active
+
+    def _others(self, key: np.ndarray) -> np.ndarray:
+        """Contacts (by :func:`~fluidem.dem.contact.pair_key`) of no body of the group moved now (bool)."""
+        i = key >> 32
+        j = (key & 0xFFFFFFFF) - 8
+        act = self._active
+        return ~act[i] & ~(act[np.maximum(j, 0)] & (j >= 0))
 
     def _overlaps(self, x, W=None):
         pos = x[:, :2]
@@ -435,8 +453,9 @@ class DEM:
         if len(i):
             ovs.append(polygon_overlaps(W, self._nv, pos, i, j, image_shift(pos[j] - pos[i], self._L)))
         if self._wall_box is not None:
-            lo, hi = W.min(axis=1), W.max(axis=1)
-            mv = np.flatnonzero(self.movable)
+            mv = np.flatnonzero(self._moving)
+            lo, hi = np.zeros((self.n, 2)), np.zeros((self.n, 2))
+            lo[mv], hi[mv] = W[mv].min(axis=1), W[mv].max(axis=1)
             ow = wall_overlaps(W, self._nv, pos, lo, hi, self._wall_box, mv)
             if ow is not None:
                 ovs.append(ow)
@@ -498,37 +517,58 @@ class DEM:
             self.closest_gap_seen = min(self.closest_gap_seen, self._closest_gap(W, gaps))
             if self.repulsion is not None:
                 Fr, Tr, self.repulsion_pairs = repulsion_forces(self.repulsion, W, pos, ri, rj, touching,
-                                                                self._wall_box, self.movable, self.radii, gaps=gaps,
+                                                                self._wall_box, self._moving, self.radii, gaps=gaps,
                                                                 period=self._L)
                 forces = forces + Fr
                 torques = torques + Tr
             if self.lubrication is not None:  # applied implicitly after the step (:meth:`_damp`)
                 self._lub = lubrication_pairs(self.lubrication, W, pos, ri, rj, touching, self.lubrication_radius,
-                                              self._wall_box, self.movable, gaps=gaps, period=self._L)
+                                              self._wall_box, self._moving, gaps=gaps, period=self._L)
                 self.lubrication_pairs = len(self._lub[0])
-        order = np.argsort(C.key, kind="stable")
-        self._hist = {"key": C.key[order], "xi": C.xi[order], "area": C.area[order],
-                      "g": (self.model.E * C.area / (C.length * C.chord))[order],
-                      "work": C.work[order]}
+        hist = {"key": C.key, "xi": C.xi, "area": C.area, "g": self.model.E * C.area / (C.length * C.chord),
+                "work": C.work}
+        found = len(C)
+        if self._active is not None:  # a group: the other bodies' contacts, springs and forces stay
+            kept = self._others(self._hist["key"])
+            hist = {k: np.concatenate([self._hist[k][kept], v]) for k, v in hist.items()}
+            old = self.contacts
+            C = Contacts.concat([old.select(self._others(old.key)), C])
+            forces = np.where(self._active[:, None], forces, self.forces)
+            torques = np.where(self._active, torques, self.torques)
+        order = np.argsort(hist["key"], kind="stable")
+        self._hist = {k: v[order] for k, v in hist.items()}
         self.contacts = C
         self.forces = forces
         self.torques = torques
         self.cost.add("forces", time.perf_counter() - t0)
-        self.cost.count("contacts", len(C))
-        if len(C):
+        self.cost.count("contacts", found)
+        self._found = found
+        if found:
             self.closest_gap_seen = -np.inf
         return forces, torques
 
-    def _initial_forces(self):
+    def _fresh_rows(self):
+        """The bodies moved now whose accelerations are still to be evaluated (bool (N,)), or None."""
+        rows = np.broadcast_to(np.asarray(self._fresh, bool), (self.n,))
+        if self._active is not None:
+            rows = rows & self._active
+        return rows if rows.any() else None
+
+    def _initial_forces(self, rows=None):
         # accelerations at the current state; no spring increment, no lubrication (implicit, :meth:`_damp`)
-        self._fresh = False
         x = self.gear.X[0]
         if len(self._prescribed):
             self._apply_prescribed(self.time, x, self.gear.X[1])
         F, T = self._evaluate(x, self.gear.X[1], 0.0)
-        self.cost.count("contacts", -len(self.contacts))
+        self.cost.count("contacts", -self._found)
         a = np.where(self._mask, self._acc(F, T), 0.0)
-        self.gear.set(a=a)
+        if rows is None:
+            self._fresh = False
+            self.gear.set(a=a)
+        else:  # a group's bodies (a grouped :meth:`advance`)
+            left = np.broadcast_to(np.asarray(self._fresh, bool), (self.n,)) & ~rows
+            self._fresh = left if left.any() else False
+            self.gear.set(a=a, mask=np.repeat(rows[:, None], 3, axis=1))
 
     def _acc(self, F, T):
         return np.column_stack([F / self.mass[:, None], T / self.inertia])
@@ -536,7 +576,8 @@ class DEM:
     def _apply_prescribed(self, t, x, v):
         # central differences; h balances truncation (h²) against round-off (eps/h)
         h = 1e-2 * (self.dt_max if np.isfinite(self.dt_max) else 1e-3)
-        for k in self._prescribed:  # one call per prescribed body (user callables)
+        moving = self._prescribed if self._active is None else self._prescribed[self._active[self._prescribed]]
+        for k in moving:  # one call per prescribed body (user callables)
             b = self.bodies[k]
             p, a = b.pose_at(t)
             pp, ap = b.pose_at(t + h)
@@ -565,12 +606,14 @@ class DEM:
 
     def _step(self, dt: float) -> None:
         """:meth:`step` without the check of ``dt`` (the caller vouches for its stability)."""
-        if self._fresh:
+        rows = self._fresh_rows()
+        if rows is not None:
             # accelerations at t0 with the external forces the caller may have set since
             # construction (the predictor uses them)
-            self._initial_forces()
+            self._initial_forces(None if self._active is None else rows)
         t0 = time.perf_counter()
-        x, v = self.gear.predict(dt, self._mask)
+        mask = self._mask if self._active is None else self._mask & self._active[:, None]
+        x, v = self.gear.predict(dt, mask)
         x, v = x.copy(), v.copy()
         if len(self._prescribed):
             self._apply_prescribed(self.time + dt, x, v)
@@ -584,6 +627,8 @@ class DEM:
         if len(self._prescribed):
             m = np.zeros((self.n, 3), bool)
             m[self._prescribed] = True
+            if self._active is not None:
+                m &= self._active[:, None]
             self.gear.set(x=x, v=v, a=np.zeros_like(x), mask=m)
         if self.lubrication is not None:
             self._damp(dt)
@@ -601,7 +646,7 @@ class DEM:
         x = self.gear.X[0]
         v0 = self.gear.X[1]
         v1 = implicit_damping(pairs, x[:, :2], v0, self.mass, self.inertia, self.free, dt, self._L)
-        moved = np.repeat(self.free[:, None], 3, axis=1) & (v1 != v0)
+        moved = np.repeat(self._moving[:, None] & self.free[:, None], 3, axis=1) & (v1 != v0)
         if not moved.any():
             return
         dv = np.where(moved, v1 - v0, 0.0)
@@ -622,12 +667,19 @@ class DEM:
             if callback is not None and (k + 1) % every == 0:
                 callback(self)
 
-    def advance(self, duration: float, dt: float | None = None, *, n: int | None = None) -> int:
+    def advance(self, duration: float, dt: float | None = None, *, n: int | None = None, bodies=None) -> int:
         """Advance by ``duration`` (time units) in equal sub-steps no larger than ``dt`` (default :attr:`dt_max`).
 
         ``n`` instead takes exactly ``n`` equal sub-steps, also longer than :attr:`dt_max`: for a caller
         that knows the stiffness in play is lower than the bound assumes (no overlap can form, the
         repulsion far from contact: :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`).
+
+        ``bodies`` (int indices) moves only those bodies, with the forces among them, with fixed bodies
+        and with the walls; every other body stays where it is and keeps its contacts' springs, and
+        :attr:`time` is left unchanged.  For a caller that has split the bodies into groups none of
+        which can come within :attr:`near_range` of another during ``duration``
+        (:meth:`fluidem.coupling.contacts.FluidContacts.sub_step_groups`): each group then takes the
+        sub-steps its own stiffness needs, and after every group the caller sets :attr:`time`.
 
         Returns the number of sub-steps taken.
         """
@@ -637,16 +689,34 @@ class DEM:
         else:
             h = self._dt_max if dt is None else min(validate.positive("DEM.advance(dt=...)", dt), self._dt_max)
             n = max(int(np.ceil(duration / h - 1e-9)), 1)
-        for _ in range(n):
-            self._step(duration / n)
+        if bodies is None:
+            for _ in range(n):
+                self._step(duration / n)
+            return n
+        active = np.zeros(self.n, bool)
+        active[self._indices("DEM.advance(bodies=...)", bodies)] = True
+        t0 = self.time
+        self._active = active
+        try:
+            for _ in range(n):
+                self._step(duration / n)
+        finally:
+            self._active = None
+            self.time = t0
         return n
+
+    def _indices(self, key: str, bodies) -> np.ndarray:
+        idx = np.asarray(bodies)
+        if idx.ndim != 1 or (idx.size and (idx.dtype.kind not in "iu" or idx.min() < 0 or idx.max() >= self.n)):
+            raise validate.fail(key, _Shown(bodies), f"a sequence of body indices in [0, {self.n})")
+        return idx
 
     def _closest_gap(self, W, gaps) -> float:
         """Smallest gap of the pairs measured (``gaps`` of :func:`pair_gaps`, or None) and of the movable
         bodies to the walls, length (``inf`` for none)."""
         g = float(gaps[2].min()) if gaps is not None and gaps[2].size else np.inf
         if self._wall_box is not None:
-            Wm = W[self.movable]
+            Wm = W[self._moving]
             if len(Wm):
                 x0, x1, y0, y1 = self._wall_box
                 lo, hi = Wm.min(axis=(0, 1)), Wm.max(axis=(0, 1))
@@ -672,7 +742,7 @@ class DEM:
         return repulsion_pairs(self.repulsion, W, pos, ri, rj, np.zeros(len(ri), bool), self._wall_box, self.movable,
                                self.radii, period=self._L)
 
-    def set_motion(self, poses: np.ndarray, velocities: np.ndarray, time: float | None = None) -> None:
+    def set_motion(self, poses: np.ndarray, velocities: np.ndarray, time: float | None = None, bodies=None) -> None:
         """Replace every body's pose and velocity (e.g. to sub-step a fluid step from its state).
 
         Accelerations are evaluated afresh at the next step from the forces at the new state
@@ -687,13 +757,21 @@ class DEM:
             U_x, U_y (length/time), ω (rad/time).
         time : float or None
             The new :attr:`time`; None keeps it.
+        bodies : int indices or None
+            Replace only these bodies' rows (e.g. to take a group of a grouped :meth:`advance` again).
         """
         x = np.array(poses, float).reshape(self.n, 3)
         v = np.where((self.motion == "fixed")[:, None], 0.0, np.array(velocities, float).reshape(self.n, 3))
-        self.gear = Gear(x, v, np.zeros_like(x), self.order)
         if time is not None:
             self.time = validate.number("DEM.set_motion(time=...)", time)
-        self._fresh = True
+        if bodies is None:
+            self.gear = Gear(x, v, np.zeros_like(x), self.order)
+            self._fresh = True
+            return
+        rows = np.zeros(self.n, bool)
+        rows[self._indices("DEM.set_motion(bodies=...)", bodies)] = True
+        self.gear.set(x=x, v=v, a=np.zeros_like(x), mask=np.repeat(rows[:, None], 3, axis=1))
+        self._fresh = np.broadcast_to(np.asarray(self._fresh, bool), (self.n,)) | rows
 
     @property
     def spring_history(self) -> dict:
