@@ -97,6 +97,8 @@ def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str
             dem += f", {cost.counts['dem_passes_redone']} redone"
         if info.get("dem_set_by"):
             dem += f" ({info['dem_set_by']})"
+        if cost.counts.get("dem_body_substeps"):  # summed over the bodies (each group at its own sub-steps)
+            dem += f", {cost.counts['dem_body_substeps']} body sub-steps"
         if cost.counts.get("contact_unsettled"):
             dem += ", contact load unsettled"
         parts.append(dem)

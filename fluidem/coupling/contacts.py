@@ -215,6 +215,8 @@ class FluidContacts:
         self.substeps = 0
         self.dem_calls = 0
         self.redone = 0  # passes redone at the DEM's bound (sub_steps)
+        #: sub-steps summed over the bodies that took them (sub_step_groups): the DEM's work
+        self.body_substeps = 0
         #: below this gap a stiff force acts: the repulsion's range (0 without a repulsion: overlaps only)
         self._stiff_range = self.repulsion.range if self.repulsion.force > 0 else 0.0
         self.last_set_by = ""  # what set the sub-steps of the last pass (sub_steps), for --verbose
@@ -275,8 +277,13 @@ class FluidContacts:
         :meth:`fluidem.coupling.free_bodies.FreeBodyStepper.step` converge fast where the true
         added mass is close to it, and does not change its fixed point.
 
+        The bodies move in groups that cannot reach each other during the pass, each at its own sub-steps
+        (:meth:`sub_step_groups`, :meth:`fluidem.dem.DEM.advance` with ``bodies``); a group that meets a
+        stiffer force than its sub-steps assumed is taken again (:meth:`sub_steps`).
+
         ``memo`` (a dict shared by the passes of one step, :meth:`load_function`) keeps the closest gap
-        the last pass met, from which the next pass takes its sub-steps (:meth:`sub_steps`, ``seen``).
+        each body's group met in the last pass, from which the next pass takes its sub-steps
+        (:meth:`sub_steps`, ``seen``).
         """
         t_start = time.perf_counter()
         f = self.free
@@ -284,34 +291,51 @@ class FluidContacts:
         V0 = velocities[f]
         m = np.column_stack([d.mass[f], d.mass[f], d.inertia[f]])
         a = (V_c - V0) / dt - F / m
-        springs = d.spring_history
-        n, floor, by = self.sub_steps(dt, poses, velocities, V_c, seen=None if memo is None else memo.get("gap"))
         n_max = max(int(np.ceil(dt / d.dt_max - 1e-9)), 1)
-        while True:
-            d.set_motion(poses, velocities, time=t)
-            d.external_force = np.zeros((d.n, 2))
-            d.external_torque = np.zeros(d.n)
-            d.external_force[f] = m[:, :2] * a[:, :2]
-            d.external_torque[f] = m[:, 2] * a[:, 2]
-            d.closest_gap_seen = np.inf
-            self.substeps += d.advance(dt, n=n)
-            self.dem_calls += 1
-            # stiffer than assumed only inside the repulsion's range (or on an overlap, -inf)
-            seen = d.closest_gap_seen
-            if n >= n_max or seen >= min(floor, self._stiff_range):
-                break
-            # a gap closed below the floor the sub-steps assumed: the pass again, at the repulsion's
-            # stiffness at half the gap met (no overlap), else at the DEM's own bound
-            self.redone += 1
-            d.spring_history = springs
-            n_k, floor = self._repulsion_sub_steps(dt, 0.5 * seen) if seen > 0 else (n_max, -np.inf)
-            if n_k < n_max and n_k > n:
-                n, by = n_k, f"the repulsion's stiffness at half the gap {seen:.3g} met: a pass redone"
-            else:
-                n, floor, by = n_max, -np.inf, "the DEM's bound: a pass redone"
-        self.last_set_by = by
+        seen = memo.get("gap") if memo is not None else None
+        groups = self.sub_step_groups(dt, poses, velocities, V_c, seen=seen)
+        d.set_motion(poses, velocities, time=t)
+        d.external_force = np.zeros((d.n, 2))
+        d.external_torque = np.zeros(d.n)
+        d.external_force[f] = m[:, :2] * a[:, :2]
+        d.external_torque[f] = m[:, 2] * a[:, 2]
+        seen = np.full(d.n, np.inf)
+        whole = len(groups) == 1
+        largest, by_largest = 0, ""
+        redone = 0
+        for bodies, n, floor, by in groups:
+            springs = d.spring_history
+            taken = 0
+            while True:
+                d.closest_gap_seen = np.inf
+                d.advance(dt, n=n, bodies=None if whole else bodies)
+                self.body_substeps += n * len(bodies)
+                taken += n
+                # stiffer than assumed only inside the repulsion's range (or on an overlap, -inf)
+                met = d.closest_gap_seen
+                if n >= n_max or met >= min(floor, self._stiff_range):
+                    break
+                # a gap closed below the floor the sub-steps assumed: the group again, at the repulsion's
+                # stiffness at half the gap met (no overlap), else at the DEM's own bound
+                self.redone += 1
+                redone += 1
+                d.spring_history = springs
+                d.set_motion(poses, velocities, time=t, bodies=None if whole else bodies)
+                n_k, floor = self._repulsion_sub_steps(dt, 0.5 * met) if met > 0 else (n_max, -np.inf)
+                if n_k < n_max and n_k > n:
+                    n, by = n_k, f"the repulsion's stiffness at half the gap {met:.3g} met: a pass redone"
+                else:
+                    n, floor, by = n_max, -np.inf, "the DEM's bound: a pass redone"
+            seen[bodies] = met
+            if taken > largest:
+                largest, by_largest = taken, by
+        d.time = t + dt
+        d.closest_gap_seen = float(seen.min())
+        self.substeps += largest  # those of the group that took the most, its redone passes included
+        self.dem_calls += 1 + redone
+        self.last_set_by = by_largest
         if memo is not None:
-            memo["gap"] = d.closest_gap_seen
+            memo["gap"] = seen
         V_end = np.column_stack([d.velocities, d.omegas])[f]
         self.seconds += time.perf_counter() - t_start
         return m * (V_end - V0 - dt * a) / dt
@@ -364,10 +388,81 @@ class FluidContacts:
         set_by : str
             What sets ``n``.
         """
+        entries = self._reach(dt, poses, velocities, V_c)
+        if entries is None:
+            return 1, -np.inf, "no gap within the short-range models' reach"
+        g, cl, _, _ = entries
+        req = self._requirements(dt, g, cl, np.zeros(1, np.int64), np.array([np.inf if seen is None else seen], float))
+        return int(req["n"][0]), float(req["floor"][0]), self._set_by(req, 0)
+
+    def sub_step_groups(self, dt: float, poses: np.ndarray, velocities: np.ndarray, V_c: np.ndarray,
+                        seen: np.ndarray | None = None) -> list:
+        """The bodies split into groups that cannot reach each other during a pass, each with its own sub-steps.
+
+        The pairs and walls within the short-range models' reach over the pass (as in :meth:`sub_steps`: the
+        gap less the most it can close, ``1.5 Δt`` times the relative speed, below :attr:`DEM.near_range
+        <fluidem.dem.DEM.near_range>`) join their bodies; each connected component takes the sub-steps of
+        :meth:`sub_steps` over its own pairs and walls, and the bodies within reach of nothing take one
+        (no stiff force acts on them; the held acceleration integrates exactly).  So the one pair of a
+        thousand bodies inside the repulsion's range sets the sub-steps of its cluster, not of every body.
+        Groups of the same sub-steps are merged (they cannot reach each other either).
+
+        ``seen`` (N,) the closest gap each body's group met in an earlier pass of the step (``inf``: none).
+
+        Returns
+        -------
+        list of (bodies, n, floor, set_by)
+            ``bodies`` (k,) int, their sub-steps, gap floor and what sets them (:meth:`sub_steps`), the
+            stiffest group first.
+        """
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        N = len(poses)
+        entries = self._reach(dt, poses, velocities, V_c)
+        if entries is None:
+            return [(np.arange(N), 1, -np.inf, "no gap within the short-range models' reach")]
+        g, cl, a, b = entries
+        pair = b >= 0
+        graph = coo_matrix((np.ones(int(pair.sum())), (a[pair], b[pair])), shape=(N, N))
+        _, label = connected_components(graph, directed=False)
+        reached = np.zeros(N, bool)
+        reached[a] = True
+        reached[b[pair]] = True
+        order = np.argsort(label[a], kind="stable")  # the entries by component
+        comp = label[a][order]
+        starts = np.concatenate([[0], np.flatnonzero(np.diff(comp)) + 1])
+        comps = comp[starts]
+        if seen is None:
+            seen_c = np.full(len(comps), np.inf)
+        else:  # the closest gap a body of each component met
+            seen_c = np.full(label.max() + 1, np.inf)
+            np.minimum.at(seen_c, label, np.asarray(seen, float))
+            seen_c = seen_c[comps]
+        req = self._requirements(dt, g[order], cl[order], starts, seen_c)
+        n_c = req["n"]
+        size = np.bincount(label)[comps]
+        in_comp = np.full(label.max() + 1, -1)
+        in_comp[comps] = np.arange(len(comps))
+        body_run = in_comp[label]  # each body's run (-1: within reach of nothing)
+        groups = []
+        for n in np.unique(n_c)[::-1]:  # one group a number of sub-steps (a few)
+            runs = np.flatnonzero(n_c == n)
+            r = runs[np.argmin(req["floor"][runs])]
+            words = f"{self._set_by(req, r)}; {len(runs)} cluster{'s' if len(runs) > 1 else ''} of at most " \
+                    f"{int(size[runs].max())} bodies"
+            groups.append((np.flatnonzero(np.isin(body_run, runs)), int(n), float(req["floor"][runs].min()), words))
+        alone = np.flatnonzero(~reached)
+        if len(alone):
+            groups.append((alone, 1, -np.inf, "no gap within the short-range models' reach"))
+        return groups
+
+    def _reach(self, dt: float, poses: np.ndarray, velocities: np.ndarray, V_c: np.ndarray):
+        """The pairs and walls within the short-range models' reach over a pass (:meth:`sub_steps`): their gaps
+        and the most they can close (length), their bodies ``a`` and ``b`` (``-1`` for a wall); None for none."""
         from ..dem.repulsion import pair_gaps
 
         d = self.dem
-        n_max = max(int(np.ceil(dt / d.dt_max - 1e-9)), 1)
         x = np.asarray(poses, float)
         V1 = np.array(velocities, float)
         V1[self.free] = V_c
@@ -376,9 +471,8 @@ class FluidContacts:
         turn = np.maximum(np.abs(V0[:, 2]), np.abs(V1[:, 2])) * self.radii  # fastest outline point's turn
         speed = np.maximum(np.hypot(V0[:, 0], V0[:, 1]), np.hypot(V1[:, 0], V1[:, 1])) + turn
         near = d.near_range
-        rng = self.repulsion.range if self.repulsion.force > 0 else 0.0
         W = d.world_vertices(x)
-        gaps, closing = [], []
+        gaps, closing, ends = [], [], []
         pos = x[:, :2]
         if len(x) > 1:
             reach = near + 3.0 * dt * float(speed.max())
@@ -395,6 +489,7 @@ class FluidContacts:
                     g = pair_gaps(W, i, j, pos, self.radii, near + float(cl.max()), shift)[2].min(axis=1)
                     gaps.append(g)
                     closing.append(cl)
+                    ends.append(np.column_stack([i, j]))
         x0, x1, y0, y1 = self.walls
         mv = np.flatnonzero(d.movable)
         lo, hi = W[mv].min(axis=1), W[mv].max(axis=1)
@@ -403,30 +498,56 @@ class FluidContacts:
             normal_speed = np.maximum(np.abs(V0[mv, axis]), np.abs(V1[mv, axis])) + turn[mv]
             gaps.append(gw[ok])
             closing.append(1.5 * dt * normal_speed[ok])
+            ends.append(np.column_stack([mv[ok], np.full(int(ok.sum()), -1)]))
         g = np.concatenate(gaps) if gaps else np.zeros(0)
         cl = np.concatenate(closing) if closing else np.zeros(0)
-        reach_p = g < near + cl
-        if not reach_p.any():
-            return 1, -np.inf, "no gap within the short-range models' reach"
-        g, cl = g[reach_p], cl[reach_p]
-        floor = float((g - cl).min())
-        n = max(int(np.ceil((cl / (0.25 * np.maximum(g, max(rng, 1e-300)))).max() - 1e-9)), 1)
-        by = "the gaps' change: a quarter of a gap per sub-step"
-        origin = ""
-        if floor <= 0.0:
-            if seen is None or not seen > 0.0 or rng <= 0.0:
-                return n_max, -np.inf, "a gap that may close in the pass: the DEM's bound"
-            floor = 0.5 * float(seen)
-            origin = f" (half the closest gap {seen:.3g} of the step's last pass)"
-            by += origin
-        if floor < rng:
-            n_k, _ = self._repulsion_sub_steps(dt, floor)
-            if n_k > n:
-                k = float(self.repulsion.stiffness(np.array([floor]))[0])
-                n, by = n_k, f"the repulsion's stiffness at the gap floor {floor:.3g}{origin}: {k:.3g} force/length"
-        if n >= n_max:
-            return n_max, -np.inf, "the DEM's bound"
-        return n, floor, by
+        e = np.concatenate(ends) if ends else np.zeros((0, 2), np.int64)
+        within = g < near + cl
+        if not within.any():
+            return None
+        return g[within], cl[within], e[within, 0], e[within, 1]
+
+    def _requirements(self, dt: float, g: np.ndarray, cl: np.ndarray, starts: np.ndarray, seen: np.ndarray) -> dict:
+        """The sub-steps of :meth:`sub_steps` for each run of entries beginning at ``starts`` (a component of
+        :meth:`sub_step_groups`, or all of them): the gaps ``g`` that can close by ``cl`` in a pass, ``seen``
+        (one a run) the closest gap an earlier pass of the step met (``inf``: none).
+
+        Returns arrays, one entry a run: ``n`` (int), ``floor`` (length; ``-inf`` at the DEM's bound) and what
+        :meth:`_set_by` needs to say why.
+        """
+        d = self.dem
+        n_max = max(int(np.ceil(dt / d.dt_max - 1e-9)), 1)
+        rng = self.repulsion.range if self.repulsion.force > 0 else 0.0
+        floor = np.minimum.reduceat(g - cl, starts)
+        n = np.maximum(np.maximum.reduceat(np.ceil(cl / (0.25 * np.maximum(g, max(rng, 1e-300))) - 1e-9), starts),
+                       1).astype(np.int64)
+        from_seen = (floor <= 0.0) & (seen > 0.0) & np.isfinite(seen) & (rng > 0.0)
+        closing = (floor <= 0.0) & ~from_seen  # an overlap may form: the contact law acts
+        floor = np.where(from_seen, 0.5 * seen, floor)
+        k = np.where(closing | (floor >= rng), 0.0, self.repulsion.stiffness(floor))
+        m = float(d.mass[d.free].min())
+        n_rep = np.ones(len(n), np.int64)
+        if (k > 0).any():
+            n_rep[k > 0] = np.ceil(dt / critical_sub_step(m, k[k > 0]) - 1e-9)
+        by_repulsion = n_rep > n
+        n = np.maximum(n, n_rep)
+        capped = closing | (n >= n_max)
+        return {"n": np.where(capped, n_max, n), "floor": np.where(capped, -np.inf, floor), "closing": closing,
+                "capped": capped, "by_repulsion": by_repulsion, "from_seen": from_seen, "seen": seen,
+                "stiffness": k}
+
+    @staticmethod
+    def _set_by(req: dict, r: int) -> str:
+        """What sets the sub-steps of run ``r`` of :meth:`_requirements`, in words."""
+        if req["closing"][r]:
+            return "a gap that may close in the pass: the DEM's bound"
+        if req["capped"][r]:
+            return "the DEM's bound"
+        origin = f" (half the closest gap {req['seen'][r]:.3g} of the step's last pass)" if req["from_seen"][r] else ""
+        if req["by_repulsion"][r]:
+            return (f"the repulsion's stiffness at the gap floor {req['floor'][r]:.3g}{origin}: "
+                    f"{req['stiffness'][r]:.3g} force/length")
+        return f"the gaps' change: a quarter of a gap per sub-step{origin}"
 
     def repulsion_linearised(self, poses: np.ndarray):
         """The repulsion on the free bodies at ``poses`` and its derivative in their poses.
@@ -493,9 +614,10 @@ class FluidContacts:
 
     def get_state(self) -> dict:
         return {"springs": self.dem.spring_history, "substeps": self.substeps, "dem_calls": self.dem_calls,
-                "redone": self.redone}
+                "redone": self.redone, "body_substeps": self.body_substeps}
 
     def set_state(self, s: dict) -> None:
         self.dem.spring_history = s["springs"]
         self.substeps, self.dem_calls = s["substeps"], s["dem_calls"]
         self.redone = s.get("redone", 0)  # checkpoints written before it was counted
+        self.body_substeps = s.get("body_substeps", 0)

@@ -395,14 +395,17 @@ class FreeBodyFlow(MovingMeshFlow):
     def _dem_work(self) -> tuple:
         """DEM sub-steps and passes taken so far by the contacts (zeros without them)."""
         c = self.contacts
-        return (0, 0, 0) if c is None else (c.substeps, c.dem_calls, c.redone)
+        return (0, 0, 0, 0) if c is None else (c.substeps, c.dem_calls, c.redone, c.body_substeps)
 
     def _count_dem_work(self, before: tuple, cost: CostSplit) -> None:
-        """Count the step's DEM sub-steps (``dem_substeps``), sub-stepped passes (``dem_passes``) and the
-        passes redone at the DEM's bound (``dem_passes_redone``, :meth:`FluidContacts.sub_steps`)."""
-        sub, calls, redone = self._dem_work()
+        """Count the step's DEM sub-steps (``dem_substeps``: those of the group of bodies that took the most in
+        each pass), the sub-steps summed over the bodies (``dem_body_substeps``,
+        :meth:`FluidContacts.sub_step_groups`), sub-stepped passes (``dem_passes``) and the passes redone at the
+        DEM's bound (``dem_passes_redone``, :meth:`FluidContacts.sub_steps`)."""
+        sub, calls, redone, body_sub = self._dem_work()
         if calls > before[1]:
             cost.count("dem_substeps", sub - before[0])
+            cost.count("dem_body_substeps", body_sub - before[3])
             cost.count("dem_passes", calls - before[1])
             if redone > before[2]:
                 cost.count("dem_passes_redone", redone - before[2])

@@ -14,9 +14,9 @@ from fluidem.simulation import Simulation
 from test_fluid_contacts import A, _floor_scene, _run  # same folder (pytest puts it on the path)
 
 
-def _at_the_dems_bound(self, dt, *args, **kwargs):
-    """FluidContacts.sub_steps as before the stiffness in play: every pass at the DEM's own bound."""
-    return max(int(np.ceil(dt / self.dem.dt_max - 1e-9)), 1), -np.inf, "the DEM's bound"
+def _at_the_dems_bound(self, dt, poses, *args, **kwargs):
+    """FluidContacts.sub_step_groups as before the stiffness in play: every body, every pass at the DEM's bound."""
+    return [(np.arange(len(poses)), max(int(np.ceil(dt / self.dem.dt_max - 1e-9)), 1), -np.inf, "the DEM's bound")]
 
 
 def test_a_disk_draining_onto_the_floor_takes_the_sub_steps_in_play_and_follows_the_bounded_run(monkeypatch):
@@ -28,7 +28,7 @@ def test_a_disk_draining_onto_the_floor_takes_the_sub_steps_in_play_and_follows_
     gap 0.0204), largest speed difference 1.12e-4 = 0.55 % of the largest speed; no pass redone."""
     sim, r = _run(_floor_scene(h=0.04, dt=0.04, t_end=2.4, start=0.15))
     fc = sim.flow.contacts
-    monkeypatch.setattr(fluid_contacts.FluidContacts, "sub_steps", _at_the_dems_bound)
+    monkeypatch.setattr(fluid_contacts.FluidContacts, "sub_step_groups", _at_the_dems_bound)
     ref_sim, ref = _run(_floor_scene(h=0.04, dt=0.04, t_end=2.4, start=0.15))
     ref_fc = ref_sim.flow.contacts
     assert fc.dem_calls == ref_fc.dem_calls > 50                    # the film acts in most steps: measured 93
@@ -169,3 +169,83 @@ def test_a_step_starts_from_no_contact_load_when_the_fluid_regions_changed_and_a
     del state["bodies"]["contact_regions"]  # a checkpoint written before the count: the guess is kept
     fl.set_state(state)
     assert fl._load_regions is None
+
+
+def _three_groups():
+    """Two squares 0.005 apart, inside the repulsion's range 0.01, closing; two disks 0.02 apart in each other's
+    film (cut-off h = 0.04), closing; a disk far from everything: three groups that cannot reach each other."""
+    from fluidem.coupling.contacts import FluidContacts
+    from fluidem.scene import Scene
+
+    sq = [[-0.05, -0.05], [0.05, -0.05], [0.05, 0.05], [-0.05, 0.05]]
+    disk = {"shape": "disk", "radius": 0.05, "density": 1.2}
+    sc = Scene.from_dict({
+        "gravity": [0.0, 0.0], "fluid": {"density": 1.0, "viscosity": 0.01}, "domain": {"box": [0.0, 2.0, 0.0, 1.0]},
+        "bodies": [{"name": "a", "shape": "polygon", "vertices": sq, "position": [0.5, 0.5], "density": 1.2},
+                   {"name": "b", "shape": "polygon", "vertices": sq, "position": [0.605, 0.5], "density": 1.2},
+                   dict(disk, name="c", position=[1.2, 0.5]), dict(disk, name="d", position=[1.32, 0.5]),
+                   dict(disk, name="e", position=[1.0, 0.85])],
+        "contact": {"E": 1e4, "mu": 0.0, "repulsion_force": 0.01, "repulsion_range": 0.01},
+        "mesh": {"h": 0.04}, "time": {"dt": 0.01, "t_end": 0.1}})
+    outlines = [np.asarray(b.local_vertices()) for b in sc.bodies]
+    c = FluidContacts(sc.bodies, np.arange(5), outlines, [None] * 5, domain=sc.domain, fluid=sc.fluid,
+                      contact=sc.contact, gravity=sc.gravity, h=sc.mesh.h)
+    poses = np.array([[*b.position, 0.0] for b in sc.bodies])
+    vel = np.array([[0.05, 0.0, 0.0], [-0.05, 0.0, 0.2], [0.05, 0.0, 0.0], [-0.05, 0.01, 0.0], [0.1, 0.0, 1.0]])
+    return c, poses, vel
+
+
+def test_each_group_of_bodies_takes_the_sub_steps_of_its_own_stiffness():
+    """Of three groups out of each other's reach (:func:`_three_groups`) only the pair inside the repulsion's
+    range takes the sub-steps of its stiffness; the pair in the film takes those that follow its gap, the lone
+    disk one.  Against the same pass with every body at the stiff pair's sub-steps (as before groups): the stiff
+    pair's load is the same (measured to 3.7e-16 of its largest component), the lone disk feels nothing in both,
+    and the film pair's load is that of its own coarser sub-steps, 1st order in them (the dissipative forces,
+    :mod:`fluidem.dem.system`): measured 1.1 % of its largest component apart."""
+    c, poses, vel = _three_groups()
+    dt = 0.01
+    groups = c.sub_step_groups(dt, poses, vel, vel)
+    sizes = {tuple(b.tolist()): n for b, n, _, _ in groups}
+    assert set(sizes) == {(0, 1), (2, 3), (4,)}
+    n_stiff, n_film = sizes[(0, 1)], sizes[(2, 3)]
+    assert n_stiff >= 10 and n_film <= 2 and sizes[(4,)] == 1                 # measured 15, 1, 1
+    assert groups[0][3].startswith("the repulsion's stiffness at the gap floor")
+
+    load = c.load_function(0.0, dt, poses, vel)(vel, np.zeros((5, 3)))
+    assert c.substeps == n_stiff and c.body_substeps == 2 * n_stiff + 2 * n_film + 1
+
+    ref, _, _ = _three_groups()
+    ref.sub_step_groups = lambda dt, poses, *a, **k: [(np.arange(5), n_stiff, -np.inf, "all at the stiff pair's")]
+    whole = ref.load_function(0.0, dt, poses, vel)(vel, np.zeros((5, 3)))
+    assert ref.body_substeps == 5 * n_stiff
+    big = np.abs(whole[:2]).max()
+    assert big > 0 and np.abs(load[:2] - whole[:2]).max() <= 1e-15 * big      # measured 3.7e-16
+    assert not load[4].any() and not whole[4].any()
+    film = np.abs(whole[2:4]).max()
+    assert film > 0 and np.abs(load[2:4] - whole[2:4]).max() < 0.03 * film     # measured 1.1 %
+
+
+def test_a_group_that_meets_a_stiffer_force_is_taken_again_from_its_start_alone():
+    """The stiff pair of :func:`_three_groups` given too few sub-steps (2) for the floor it claims: its pass
+    meets a gap below that floor and is taken again at the repulsion's stiffness there, from the step's start
+    (poses, velocities and springs restored for its bodies only).  Its load is then that of a pass taken at
+    those sub-steps from the outset, bit for bit, and the other groups' loads those of the pass without the
+    redo, bit for bit."""
+    c, poses, vel = _three_groups()
+    dt = 0.01
+    groups = c.sub_step_groups(dt, poses, vel, vel)
+    plain = c.load_function(0.0, dt, poses, vel)(vel, np.zeros((5, 3)))
+    too_few = [(b, 2, 0.9 * c.repulsion.range, "too few") if 0 in b else (b, n, f, by) for b, n, f, by in groups]
+    c2, _, _ = _three_groups()
+    c2.sub_step_groups = lambda *a, **k: too_few
+    load = c2.load_function(0.0, dt, poses, vel)(vel, np.zeros((5, 3)))
+    assert c2.redone == 1 and c2.last_set_by.startswith("the repulsion's stiffness at half the gap")
+    n_again = c2.substeps - 2
+    assert n_again > 2
+    c3, _, _ = _three_groups()
+    c3.sub_step_groups = lambda *a, **k: [(b, n_again, -np.inf, "at once") if 0 in b else (b, n, f, by)
+                                          for b, n, f, by in groups]
+    at_once = c3.load_function(0.0, dt, poses, vel)(vel, np.zeros((5, 3)))
+    assert c3.redone == 0
+    assert np.array_equal(load[:2], at_once[:2])
+    assert np.array_equal(load[2:], plain[2:])
