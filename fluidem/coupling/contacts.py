@@ -149,6 +149,13 @@ def lubrication_for(contact, fluid, h: float) -> Lubrication | None:
                        min_gap=min(backstop, 0.5 * rng), resolved_gap=dr)
 
 
+#: The fixed work of a DEM sub-step of a group of bodies (:meth:`FluidContacts.sub_step_groups`) in body
+#: sub-steps: a group of m bodies at n sub-steps joins a stiffer one at n₀ when m (n₀ − n) is below this
+#: times n.  Measured: a sub-step of a group of two bodies costs 2.2 ms, each further body 0.02–0.05 ms
+#: (1 000 and 100 settling polygons, one core of the machine of ``benchmarks/results/dense_groups.md``).
+GROUP_OVERHEAD = 50
+
+
 class FluidContacts:
     """Contacts and repulsion of free bodies in a fluid, applied after each coupled solve.
 
@@ -405,7 +412,11 @@ class FluidContacts:
         :meth:`sub_steps` over its own pairs and walls, and the bodies within reach of nothing take one
         (no stiff force acts on them; the held acceleration integrates exactly).  So the one pair of a
         thousand bodies inside the repulsion's range sets the sub-steps of its cluster, not of every body.
-        Groups of the same sub-steps are merged (they cannot reach each other either).
+        Clusters of the same sub-steps form one group (they cannot reach each other either), and a group
+        joins the next stiffer one where its bodies' extra sub-steps cost less than its own sub-steps'
+        fixed work (:data:`GROUP_OVERHEAD`): a few bodies do not take their own tens of sub-steps beside a
+        pile that takes a hundred.  A group's floor is the least of its clusters' (none for the bodies near
+        nothing: ``inf``).
 
         ``seen`` (N,) the closest gap each body's group met in an earlier pass of the step (``inf``: none).
 
@@ -445,16 +456,24 @@ class FluidContacts:
         in_comp = np.full(label.max() + 1, -1)
         in_comp[comps] = np.arange(len(comps))
         body_run = in_comp[label]  # each body's run (-1: within reach of nothing)
-        groups = []
-        for n in np.unique(n_c)[::-1]:  # one group a number of sub-steps (a few)
+        levels = []
+        for n in np.unique(n_c)[::-1]:  # one level a number of sub-steps (a few), the stiffest first
             runs = np.flatnonzero(n_c == n)
             r = runs[np.argmin(req["floor"][runs])]
             words = f"{self._set_by(req, r)}; {len(runs)} cluster{'s' if len(runs) > 1 else ''} of at most " \
                     f"{int(size[runs].max())} bodies"
-            groups.append((np.flatnonzero(np.isin(body_run, runs)), int(n), float(req["floor"][runs].min()), words))
+            levels.append((np.flatnonzero(np.isin(body_run, runs)), int(n), float(req["floor"][runs].min()), words))
         alone = np.flatnonzero(~reached)
-        if len(alone):
-            groups.append((alone, 1, -np.inf, "no gap within the short-range models' reach"))
+        if len(alone):  # nothing to check against: no floor
+            levels.append((alone, 1, np.inf, "no gap within the short-range models' reach"))
+        groups = []
+        for bodies, n, floor, words in levels:
+            if groups and len(bodies) * (groups[-1][1] - n) < GROUP_OVERHEAD * n:
+                # cheaper at the stiffer level's sub-steps than on its own (a group's sub-step has a fixed cost)
+                b0, n0, f0, w0 = groups[-1]
+                groups[-1] = (np.union1d(b0, bodies), n0, min(f0, floor), w0)
+            else:
+                groups.append((bodies, n, floor, words))
         return groups
 
     def _reach(self, dt: float, poses: np.ndarray, velocities: np.ndarray, V_c: np.ndarray):

@@ -195,15 +195,19 @@ def _three_groups():
     return c, poses, vel
 
 
-def test_each_group_of_bodies_takes_the_sub_steps_of_its_own_stiffness():
+def test_each_group_of_bodies_takes_the_sub_steps_of_its_own_stiffness(monkeypatch):
     """Of three groups out of each other's reach (:func:`_three_groups`) only the pair inside the repulsion's
     range takes the sub-steps of its stiffness; the pair in the film takes those that follow its gap, the lone
     disk one.  Against the same pass with every body at the stiff pair's sub-steps (as before groups): the stiff
     pair's load is the same (measured to 3.7e-16 of its largest component), the lone disk feels nothing in both,
     and the film pair's load is that of its own coarser sub-steps, 1st order in them (the dissipative forces,
-    :mod:`fluidem.dem.system`): measured 1.1 % of its largest component apart."""
+    :mod:`fluidem.dem.system`): measured 1.1 % of its largest component apart.  With the default
+    ``GROUP_OVERHEAD`` three bodies do not pay for groups of their own: all five take the stiff pair's."""
     c, poses, vel = _three_groups()
     dt = 0.01
+    merged = c.sub_step_groups(dt, poses, vel, vel)
+    assert len(merged) == 1 and merged[0][0].tolist() == [0, 1, 2, 3, 4]    # 2 × (15 − 1) and 1 × 14 < 50
+    monkeypatch.setattr(fluid_contacts, "GROUP_OVERHEAD", 0)  # every group on its own
     groups = c.sub_step_groups(dt, poses, vel, vel)
     sizes = {tuple(b.tolist()): n for b, n, _, _ in groups}
     assert set(sizes) == {(0, 1), (2, 3), (4,)}
@@ -225,12 +229,13 @@ def test_each_group_of_bodies_takes_the_sub_steps_of_its_own_stiffness():
     assert film > 0 and np.abs(load[2:4] - whole[2:4]).max() < 0.03 * film     # measured 1.1 %
 
 
-def test_a_group_that_meets_a_stiffer_force_is_taken_again_from_its_start_alone():
+def test_a_group_that_meets_a_stiffer_force_is_taken_again_from_its_start_alone(monkeypatch):
     """The stiff pair of :func:`_three_groups` given too few sub-steps (2) for the floor it claims: its pass
     meets a gap below that floor and is taken again at the repulsion's stiffness there, from the step's start
     (poses, velocities and springs restored for its bodies only).  Its load is then that of a pass taken at
     those sub-steps from the outset, bit for bit, and the other groups' loads those of the pass without the
     redo, bit for bit."""
+    monkeypatch.setattr(fluid_contacts, "GROUP_OVERHEAD", 0)  # every group on its own
     c, poses, vel = _three_groups()
     dt = 0.01
     groups = c.sub_step_groups(dt, poses, vel, vel)
