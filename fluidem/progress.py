@@ -71,9 +71,10 @@ def verbose_line(info: dict, n_steps: int, cost: CostSplit | None = None) -> str
     """One line for a step: ``step k/N  t = ...  linear <method> it <n> res <r>  CFL <c>  <health>  <cost split>``
     (``<health>``: ``cond1 <κ₁> (x<growth since the first LU>)`` at a new LU, ``noise <n> %`` at a
     re-triangulation, ``osc <k> nodes``; :mod:`fluidem.diagnostics`);
-    with contacts in a fluid also ``DEM <n> sub-steps in <p> passes (<what set the last pass's>)``
-    (the sub-stepped passes over the step, each of at most ``ceil(dt / dt_max)`` sub-steps:
-    :meth:`fluidem.coupling.contacts.FluidContacts.sub_steps`;
+    with contacts in a fluid also ``DEM <n> sub-steps in <p> passes (<what set the last pass's>), <b> body
+    sub-steps`` (the sub-stepped passes over the step, each of at most ``ceil(dt / dt_max)`` sub-steps for
+    the group of bodies that takes the most, and the sub-steps summed over the bodies:
+    :meth:`fluidem.coupling.contacts.FluidContacts.sub_step_groups`;
     :meth:`fluidem.simulation.Simulation.dem_limit` says what sets ``dt_max``).
 
     ``info`` as from :func:`step_info`; fields it lacks are left out."""
