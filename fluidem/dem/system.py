@@ -709,7 +709,7 @@ class DEM:
         idx = np.asarray(bodies)
         if idx.ndim != 1 or (idx.size and (idx.dtype.kind not in "iu" or idx.min() < 0 or idx.max() >= self.n)):
             raise validate.fail(key, _Shown(bodies), f"a sequence of body indices in [0, {self.n})")
-        return idx
+        return idx.astype(np.int64)
 
     def _closest_gap(self, W, gaps) -> float:
         """Smallest gap of the pairs measured (``gaps`` of :func:`pair_gaps`, or None) and of the movable
