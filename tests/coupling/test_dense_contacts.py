@@ -254,3 +254,42 @@ def test_a_group_that_meets_a_stiffer_force_is_taken_again_from_its_start_alone(
     assert c3.redone == 0
     assert np.array_equal(load[:2], at_once[:2])
     assert np.array_equal(load[2:], plain[2:])
+
+
+def test_the_first_pass_of_a_step_takes_its_sub_steps_from_the_gap_the_step_before_met():
+    """The two polygons of the test above, a step later: the first pass of the next step (from where the first
+    step's last pass ended) takes the repulsion's stiffness at half the gap the step before met, not the DEM's
+    bound (in a settling pile of 100 polygons the bound was 119 of a step's 160–190 sub-steps); a step out of
+    reach forgets it, and it goes through a checkpoint (``get_state``)."""
+    from fluidem.coupling.contacts import FluidContacts
+    from fluidem.dem.bodies import random_convex_vertices
+    from fluidem.scene import Scene
+
+    va = random_convex_vertices(0.1, 6, 1.3, rng=np.random.default_rng(1))
+    vb = random_convex_vertices(0.1, 5, 1.5, rng=np.random.default_rng(2))
+    sc = Scene.from_dict({
+        "gravity": [0.0, 0.0], "fluid": {"density": 1.0, "viscosity": 0.01}, "domain": {"box": [0.0, 2.0, 0.0, 1.0]},
+        "bodies": [{"name": "a", "shape": "polygon", "vertices": va.tolist(), "position": [1.0, 0.5], "density": 1.2},
+                   {"name": "b", "shape": "polygon", "vertices": vb.tolist(), "position": [0.928, 0.52],
+                    "density": 1.2}],
+        "contact": {"E": 1e4, "mu": 0.0, "repulsion_force": 0.01, "repulsion_range": 0.01},
+        "mesh": {"h": 0.04}, "time": {"dt": 0.01, "t_end": 0.1}})
+    c = FluidContacts(sc.bodies, np.array([0, 1]), [va, vb], [None, None], domain=sc.domain, fluid=sc.fluid,
+                      contact=sc.contact, gravity=sc.gravity, h=sc.mesh.h)
+    poses = np.array([[1.0, 0.5, 0.3], [0.928, 0.52, -0.2]])
+    vel = np.array([[-0.3, 0.1, 2.0], [0.2, 0.0, -1.0]])
+    dt = 0.01
+    c.load_function(0.0, dt, poses, vel)(vel, np.zeros((2, 3)))
+    assert c.substeps == 35                                                          # the DEM's bound
+    met = c.seen_last_step.copy()
+    assert 0.0 < met.min() < c.repulsion.range
+    d = c.dem
+    poses1, vel1 = np.column_stack([d.positions, d.angles]), np.column_stack([d.velocities, d.omegas])
+    c.load_function(dt, dt, poses1, vel1)(vel1, np.zeros((2, 3)))
+    assert c.substeps - 35 < 35 and "half the closest gap" in c.last_set_by                # measured 21
+    state = c.get_state()
+    assert np.array_equal(state["seen_last_step"], c.seen_last_step)
+    far = poses1 + np.array([[0.3, 0.0, 0.0], [-0.3, 0.0, 0.0]])                      # out of each other's reach
+    assert c.load_function(2 * dt, dt, far, vel1) is None and c.seen_last_step is None
+    c.set_state(state)
+    assert np.array_equal(c.seen_last_step, state["seen_last_step"])
