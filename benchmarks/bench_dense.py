@@ -21,6 +21,7 @@ Run (tens of minutes)::
     python benchmarks/bench_dense.py --log OUT_DIR RUN.LOG [PEAK_MIB]   # a long `fluidem run -v` summarised
     python benchmarks/bench_dense.py --narrow N [--before PATH]   # the short-range models' gaps of N bodies
     python benchmarks/bench_dense.py --groups N   # one DEM pass of N bodies: grouped sub-steps against one group
+    python benchmarks/bench_dense.py --continue OUT_DIR SCENE.toml STEP K --before PATH   # a run continued twice
 
 writes ``benchmarks/results/dense.{md,json}`` (``--lu``: ``dense_lu.{md,json}``; the ``pardiso`` extra
 installed, MKL pinned to one thread).  ``--before PATH`` also runs every case, side by side,
@@ -40,6 +41,11 @@ speed) that bring some pairs within the repulsion's range: each group of bodies 
 at its own sub-steps (:meth:`~fluidem.coupling.contacts.FluidContacts.sub_step_groups`) against every body at
 the sub-steps of the stiffest (as before groups), median of 5, alternating in one process; the groups, body
 sub-steps and how far the loads differ; writes ``dense_groups.{md,json}``.
+
+``--continue`` continues the run in ``OUT_DIR`` (of ``SCENE.toml``, with a checkpoint of step ``STEP``) by ``K``
+steps twice at once, in two copies of ``OUT_DIR``: with this version and with the package at ``PATH``
+(``fluidem run --restart -v``); medians of the ordinary steps, the DEM's time and share, its sub-steps and
+passes, and how far the bodies of the two ended apart (``history.csv``); writes ``dense_continue.{md,json}``.
 
 ``--log`` reads a run of such a scene too long for a benchmark session (``fluidem run FILE.toml -v
 > RUN.LOG``, continued with ``--restart`` as often as needed): the verbose lines of ``RUN.LOG`` (each
@@ -159,6 +165,10 @@ def main(argv: list[str]) -> None:
         return
     if argv[:1] == ["--groups"]:
         grouped_pass(int(argv[1]))
+        return
+    if argv[:1] == ["--continue"]:
+        before = argv[argv.index("--before") + 1] if "--before" in argv else None
+        continue_side_by_side(argv[1], argv[2], int(argv[3]), int(argv[4]), before)
         return
     if argv[:1] == ["--log"]:
         summarise_run_log(argv[1], argv[2], float(argv[3]) if len(argv) > 3 else None)
@@ -312,6 +322,7 @@ def dense_against_apart(n: int, steps: int = 12) -> None:
 _STEP = re.compile(r"^step (\d+)/\d+ .*?  ((?:\w+ [\d.]+ \+ )*\w+ [\d.]+) = ([\d.]+) ms$")
 _DEM = re.compile(r" DEM (\d+) sub-steps in (\d+) pass")
 _LU = re.compile(r" LU (\d+) ")
+_BODY = re.compile(r", (\d+) body sub-steps")
 _RETRI = re.compile(r"^step=(\d+) .*retriangulation reason=(\w+).*?(?:force change ([\d.]+) %)?$")
 
 
@@ -325,9 +336,10 @@ def parse_run_log(log_text: str, events_text: str) -> dict:
         if not m:
             continue
         parts = {k: float(v) / 1e3 for k, v in (p.rsplit(" ", 1) for p in m.group(2).split(" + "))}
-        lu, dem = _LU.search(line), _DEM.search(line)
+        lu, dem, body = _LU.search(line), _DEM.search(line), _BODY.search(line)
         steps[int(m.group(1))] = dict(parts, total=float(m.group(3)) / 1e3, substeps=int(dem.group(1)) if dem else 0,
-                                      passes=int(dem.group(2)) if dem else 0, lu=int(lu.group(1)) if lu else -1)
+                                      passes=int(dem.group(2)) if dem else 0, lu=int(lu.group(1)) if lu else -1,
+                                      body_substeps=int(body.group(1)) if body else None)
     retri, dofs = {}, 0
     for line in events_text.splitlines():
         m = _RETRI.match(line)
@@ -352,7 +364,7 @@ def summarise_run_log(out_dir: str, log_path: str, peak_mib: float | None = None
         raise SystemExit(f"{log_path}: fewer than two verbose step lines")
     at = [k for k in keep if k in run["retri"]]
     ordinary = [k for k in keep if k not in run["retri"]]
-    parts = [p for p in steps[keep[0]] if p not in ("total", "substeps", "passes", "lu")]
+    parts = [p for p in steps[keep[0]] if p not in ("total", "substeps", "passes", "lu", "body_substeps")]
     total = sum(steps[k]["total"] for k in keep)
 
     def med(ks, p):
@@ -516,6 +528,86 @@ def grouped_pass(n: int, repeats: int = 5) -> None:
                    "group moves as in one group; the others take the sub-steps their own gaps need, and their film "
                    "(implicit, first order in the sub-step) differs from that at the stiffest group's sub-steps by "
                    "what the rows with more sub-steps show."])
+
+
+def continue_side_by_side(out_dir: str, scene: str, step: int, k: int, before: str | None) -> None:
+    """``--continue``: the run in ``out_dir`` continued from step ``step`` by ``k`` steps, this version and
+    ``before`` at once (module docstring); ``dense_continue.{md,json}``."""
+    import csv
+    import pathlib
+    import shutil
+    import tempfile
+
+    from fluidem.scene import Scene
+
+    sc = Scene.from_toml(scene)
+    d = sc.to_dict()
+    d["time"]["t_end"] = (step + k) * sc.time.dt
+    work = pathlib.Path(tempfile.mkdtemp(prefix="dense_continue_"))
+    path = work / "scene.toml"
+    Scene.from_dict(d).to_toml(str(path))
+    versions = [("this version", None)] + ([("before", before)] if before else [])
+    procs = []
+    for name, where in versions:
+        copy = work / name.replace(" ", "_")
+        shutil.copytree(out_dir, copy)
+        env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1",
+                   **({"PYTHONPATH": where} if where else {}))
+        log = open(copy / "continue.log", "w")
+        procs.append((name, copy, log, subprocess.Popen(
+            [sys.executable, "-m", "fluidem", "run", str(path), "--out", str(copy), "--restart",
+             str(copy / "checkpoints" / f"ckpt_{step:07d}.npz"), "-v"], stdout=log, stderr=subprocess.STDOUT,
+            env=env, cwd=where or None)))
+    for _, _, log, proc in procs:
+        proc.wait()
+        log.close()
+
+    def final(copy, at):
+        rows = sorted((r for r in csv.DictReader(open(copy / "history.csv")) if int(r["step"]) == at),
+                      key=lambda r: int(r["id"]) if r["id"].isdigit() else r["id"])
+        return np.array([[float(r[c]) for c in ("x", "y", "vx", "vy")] for r in rows])
+
+    rows = []
+    for name, copy, _, proc in procs:
+        run = parse_run_log((copy / "continue.log").read_text(errors="replace"), (copy / "events.log").read_text())
+        st = {j: v for j, v in run["steps"].items() if j > step}
+        ks = sorted(st)
+        ordinary = [j for j in ks if j not in run["retri"]]
+        wall = sum(st[j]["total"] for j in ks)
+        dem = sum(st[j].get("dem", 0.0) for j in ks)
+        rows.append({"version": name, "steps": [ks[0], ks[-1]] if ks else None, "exit": proc.returncode,
+                     "ordinary_s": float(np.median([st[j]["total"] for j in ordinary])) if ordinary else None,
+                     "dem_s": dem, "wall_s": wall, "dem_share": dem / wall if wall else None,
+                     "substeps_per_step": float(np.mean([st[j]["substeps"] for j in ks])) if ks else None,
+                     "passes_per_step": float(np.mean([st[j]["passes"] for j in ks])) if ks else None,
+                     "body_substeps_per_step": (float(np.mean([st[j]["body_substeps"] for j in ks]))
+                                                if ks and all(st[j]["body_substeps"] is not None for j in ks)
+                                                else None),
+                     "retriangulations": sum(j in run["retri"] for j in ks)})
+    notes = []
+    if len(procs) == 2 and all(r["exit"] == 0 for r in rows):
+        a, b = (final(copy, step + k) for _, copy, _, _ in procs)
+        start = final(procs[0][1], step)
+        moved = np.median(np.linalg.norm(a[:, :2] - start[:, :2], axis=1))
+        speed = np.median(np.linalg.norm(a[:, 2:], axis=1))
+        notes = ["", f"At step {step + k} the bodies of the two are {np.abs(a[:, :2] - b[:, :2]).max():.3g} apart at "
+                 f"most (median displacement over the {k} steps {moved:.3g}), their velocities "
+                 f"{np.abs(a[:, 2:] - b[:, 2:]).max():.3g} (median speed {speed:.3g})."]
+    shutil.rmtree(work)
+
+    def cell(v, f):
+        return "" if v is None else format(v, f)
+
+    write_results("dense_continue", rows, f"`{sc.name}` continued from step {step} by {k} steps, two versions at once",
+                  f"The two runs at the same time on the two cores, one BLAS and one MKL thread each; medians over the "
+                  f"ordinary steps (re-triangulations left out), totals over all {k}.",
+                  ["version", "steps", "ordinary step, median s", "DEM s (share)", "DEM sub-steps a step",
+                   "passes a step", "body sub-steps a step", "re-triangulations"],
+                  [[r["version"], f"{r['steps'][0]}–{r['steps'][1]}" if r["steps"] else "",
+                    cell(r["ordinary_s"], ".3f"),
+                    f"{r['dem_s']:.1f} ({cell(r['dem_share'], '.1%')})", cell(r["substeps_per_step"], ".0f"),
+                    cell(r["passes_per_step"], ".2f"), cell(r["body_substeps_per_step"], ".0f"),
+                    str(r["retriangulations"])] for r in rows], notes)
 
 
 if __name__ == "__main__":
