@@ -90,12 +90,9 @@ def test_history_counts_the_contacts_of_bodies_in_a_fluid(tmp_path):
     assert sim.flow.contacts.contact_counts(poses).tolist() == [0]
 
 
-def test_the_next_pass_of_a_step_takes_its_sub_steps_from_the_gap_the_last_one_met():
-    """Two polygons 5.7e-3 apart inside the repulsion's range 0.01, turning and closing fast enough that
-    the gap may close in the step by the kinematic bound: the first pass takes the DEM's bound (35 sub-steps).
-    It meets a closest gap of 5.64e-3, so the next pass of the same step (the same start, the contact load of
-    the first in its solve) takes the repulsion's stiffness at half that gap: 21 sub-steps, no pass redone.
-    Its load is that of the same pass at the DEM's bound to 2.0e-4 (relative to the largest component)."""
+def _two_polygons():
+    """A hexagon and a pentagon 5.7e-3 apart at :data:`TWO_POSES`, inside the repulsion's range 0.01 (no gravity),
+    as :class:`~fluidem.coupling.contacts.FluidContacts`."""
     from fluidem.coupling.contacts import FluidContacts
     from fluidem.dem.bodies import random_convex_vertices
     from fluidem.scene import Scene
@@ -109,13 +106,23 @@ def test_the_next_pass_of_a_step_takes_its_sub_steps_from_the_gap_the_last_one_m
                     "density": 1.2}],
         "contact": {"E": 1e4, "mu": 0.0, "repulsion_force": 0.01, "repulsion_range": 0.01},
         "mesh": {"h": 0.04}, "time": {"dt": 0.01, "t_end": 0.1}})
+    return FluidContacts(sc.bodies, np.array([0, 1]), [va, vb], [None, None], domain=sc.domain, fluid=sc.fluid,
+                         contact=sc.contact, gravity=sc.gravity, h=sc.mesh.h)
 
-    def contacts():
-        return FluidContacts(sc.bodies, np.array([0, 1]), [va, vb], [None, None], domain=sc.domain, fluid=sc.fluid,
-                             contact=sc.contact, gravity=sc.gravity, h=sc.mesh.h)
 
-    poses = np.array([[1.0, 0.5, 0.3], [0.928, 0.52, -0.2]])
-    vel = np.array([[-0.3, 0.1, 2.0], [0.2, 0.0, -1.0]])
+#: their poses and velocities: turning and closing fast enough that the gap may close in a step of 0.01
+TWO_POSES = np.array([[1.0, 0.5, 0.3], [0.928, 0.52, -0.2]])
+TWO_VELOCITIES = np.array([[-0.3, 0.1, 2.0], [0.2, 0.0, -1.0]])
+
+
+def test_the_next_pass_of_a_step_takes_its_sub_steps_from_the_gap_the_last_one_met():
+    """Two polygons 5.7e-3 apart inside the repulsion's range 0.01, turning and closing fast enough that
+    the gap may close in the step by the kinematic bound: the first pass takes the DEM's bound (35 sub-steps).
+    It meets a closest gap of 5.64e-3, so the next pass of the same step (the same start, the contact load of
+    the first in its solve) takes the repulsion's stiffness at half that gap: 21 sub-steps, no pass redone.
+    Its load is that of the same pass at the DEM's bound to 2.0e-4 (relative to the largest component)."""
+    contacts = _two_polygons
+    poses, vel = TWO_POSES, TWO_VELOCITIES
     dt = 0.01
     c = contacts()
     load = c.load_function(0.0, dt, poses, vel)
@@ -261,23 +268,8 @@ def test_the_first_pass_of_a_step_takes_its_sub_steps_from_the_gap_the_step_befo
     step's last pass ended) takes the repulsion's stiffness at half the gap the step before met, not the DEM's
     bound (in a settling pile of 100 polygons the bound was 119 of a step's 160–190 sub-steps); a step out of
     reach forgets it, and it goes through a checkpoint (``get_state``)."""
-    from fluidem.coupling.contacts import FluidContacts
-    from fluidem.dem.bodies import random_convex_vertices
-    from fluidem.scene import Scene
-
-    va = random_convex_vertices(0.1, 6, 1.3, rng=np.random.default_rng(1))
-    vb = random_convex_vertices(0.1, 5, 1.5, rng=np.random.default_rng(2))
-    sc = Scene.from_dict({
-        "gravity": [0.0, 0.0], "fluid": {"density": 1.0, "viscosity": 0.01}, "domain": {"box": [0.0, 2.0, 0.0, 1.0]},
-        "bodies": [{"name": "a", "shape": "polygon", "vertices": va.tolist(), "position": [1.0, 0.5], "density": 1.2},
-                   {"name": "b", "shape": "polygon", "vertices": vb.tolist(), "position": [0.928, 0.52],
-                    "density": 1.2}],
-        "contact": {"E": 1e4, "mu": 0.0, "repulsion_force": 0.01, "repulsion_range": 0.01},
-        "mesh": {"h": 0.04}, "time": {"dt": 0.01, "t_end": 0.1}})
-    c = FluidContacts(sc.bodies, np.array([0, 1]), [va, vb], [None, None], domain=sc.domain, fluid=sc.fluid,
-                      contact=sc.contact, gravity=sc.gravity, h=sc.mesh.h)
-    poses = np.array([[1.0, 0.5, 0.3], [0.928, 0.52, -0.2]])
-    vel = np.array([[-0.3, 0.1, 2.0], [0.2, 0.0, -1.0]])
+    c = _two_polygons()
+    poses, vel = TWO_POSES, TWO_VELOCITIES
     dt = 0.01
     c.load_function(0.0, dt, poses, vel)(vel, np.zeros((2, 3)))
     assert c.substeps == 35                                                          # the DEM's bound
