@@ -77,8 +77,7 @@ def transfer_change(basis_old, u_old: np.ndarray, basis_new, u_new: np.ndarray) 
 
     x = np.asarray(basis_new.global_coordinates())  # (2, n_elements, n_qp)
     pts = x.reshape(2, -1)
-    P = transfer.probe_matrix(basis_old, pts)  # rows component-major
-    old = (P @ u_old).reshape(2, *x.shape[1:])
+    old = transfer.values_at(basis_old, u_old, pts).reshape(2, *x.shape[1:])
     new = np.asarray(basis_new.interpolate(u_new))
     dx = basis_new.dx
     den = float(np.sqrt((dx * (old ** 2).sum(axis=0)).sum()))
