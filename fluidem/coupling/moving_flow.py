@@ -76,8 +76,8 @@ def transfer_change(basis_old, u_old: np.ndarray, basis_new, u_new: np.ndarray) 
     from ..mesh import transfer
 
     x = np.asarray(basis_new.global_coordinates())  # (2, n_elements, n_qp)
-    pts = x.reshape(2, -1)
-    old = transfer.values_at(basis_old, u_old, pts).reshape(2, *x.shape[1:])
+    where = transfer.locate_clustered(basis_old.mesh, x)  # an element's points share their candidate cells
+    old = transfer.values_at(basis_old, u_old, x.reshape(2, -1), where).reshape(2, *x.shape[1:])
     new = np.asarray(basis_new.interpolate(u_new))
     dx = basis_new.dx
     den = float(np.sqrt((dx * (old ** 2).sum(axis=0)).sum()))

@@ -6,7 +6,8 @@ from skfem import (Basis, ElementTriMini, ElementTriP1, ElementTriP1DG, ElementT
                    Functional, MeshTri)
 
 from fluidem.mesh.background import friedrichs_keller_grid
-from fluidem.mesh.transfer import interpolate, probe_matrix, project_l2, supermesh, values_at
+from fluidem.mesh.transfer import (interpolate, locate, locate_clustered, probe_matrix, project_l2, supermesh,
+                                   values_at)
 from fluidem.mesh.triangulate import to_skfem, triangulate_box
 
 
@@ -150,4 +151,20 @@ def test_values_at_points_are_those_of_the_probe_matrix(elem):
     scale = np.abs(ref).max()
     assert np.abs(both - ref).max() <= 4e-16 * scale                                   # measured 1.4e-16
     assert np.abs(one - ref[..., 1]).max() <= 4e-16 * scale
+
+
+def test_points_located_by_cluster_are_located_as_one_by_one():
+    """``locate_clustered`` (each cluster's nearest cells tried by all its points) gives the cells and barycentric
+    coordinates ``locate`` gives, bit for bit: the quadrature points of a Delaunay mesh (16 an element) in a
+    Friedrichs–Keller grid, and the same points shifted by 0.02 so that clusters at the sides lie partly
+    outside (those points go to ``locate``, clamped onto the nearest cell)."""
+    old, new = two_meshes(0.05)
+    x = np.asarray(Basis(new, ElementTriP2B(), intorder=8).global_coordinates())  # (2, n_elements, 16)
+    for shift in (0.0, 0.02):
+        pts = x + shift
+        cells, bary = locate_clustered(old, pts, chunk=1000)  # several chunks
+        ref_cells, ref_bary = locate(old, pts.reshape(2, -1))
+        assert np.array_equal(cells, ref_cells) and np.array_equal(bary, ref_bary)
+    outside = (x + 0.02).reshape(2, -1).max(axis=0) > 1.0
+    assert outside.sum() > 100                                                         # points outside the mesh
 
