@@ -18,7 +18,7 @@ Run (tens of minutes)::
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py --apart [N]   # a dense step against the same bodies apart
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_dense.py --lu [N ...]   # SuperLU against PARDISO, at once
 
-    python benchmarks/bench_dense.py --log OUT_DIR RUN.LOG [PEAK_MIB]   # a long `fluidem run -v` summarised
+    python benchmarks/bench_dense.py --log OUT_DIR RUN.LOG [PEAK_MIB] [--steps A B] [--name NAME]   # a long run
     python benchmarks/bench_dense.py --narrow N [--before PATH]   # the short-range models' gaps of N bodies
     python benchmarks/bench_dense.py --groups N   # one DEM pass of N bodies: grouped sub-steps against one group
     python benchmarks/bench_dense.py --continue OUT_DIR SCENE.toml STEP K --before PATH   # a run continued twice
@@ -50,7 +50,8 @@ passes, and how far the bodies of the two ended apart (``history.csv``); writes 
 ``--log`` reads a run of such a scene too long for a benchmark session (``fluidem run FILE.toml -v
 > RUN.LOG``, continued with ``--restart`` as often as needed): the verbose lines of ``RUN.LOG`` (each
 step's cost split) and the re-triangulations of ``OUT_DIR/events.log``, and writes
-``dense_run.{md,json}``: medians of ordinary and re-triangulation steps, each part's share of the
+``dense_run.{md,json}`` (``--name``: ``NAME.{md,json}``; ``--steps A B``: steps A to B only): medians of
+ordinary and re-triangulation steps, each part's share of the
 wall time, the DEM's sub-steps and passes, LUs, the re-triangulation cadence and the force change
 at them.  ``PEAK_MIB``: the run process's peak resident memory, if measured (``VmHWM`` in
 ``/proc/PID/status`` on Linux).
@@ -171,7 +172,11 @@ def main(argv: list[str]) -> None:
         continue_side_by_side(argv[1], argv[2], int(argv[3]), int(argv[4]), before)
         return
     if argv[:1] == ["--log"]:
-        summarise_run_log(argv[1], argv[2], float(argv[3]) if len(argv) > 3 else None)
+        steps = tuple(int(a) for a in argv[argv.index("--steps") + 1:argv.index("--steps") + 3]) \
+            if "--steps" in argv else None
+        name = argv[argv.index("--name") + 1] if "--name" in argv else "dense_run"
+        peak = argv[3] if len(argv) > 3 and not argv[3].startswith("--") else None
+        summarise_run_log(argv[1], argv[2], float(peak) if peak else None, steps=steps, name=name)
         return
     if argv[:1] == ["--lu"]:
         lu_side_by_side([int(a) for a in argv[1:]] or [100])
@@ -351,13 +356,19 @@ def parse_run_log(log_text: str, events_text: str) -> dict:
     return {"steps": steps, "retri": retri, "dofs": dofs}
 
 
-def summarise_run_log(out_dir: str, log_path: str, peak_mib: float | None = None) -> dict:
-    """Write ``dense_run.{md,json}`` from a long run's verbose log and events.log (module docstring)."""
+def summarise_run_log(out_dir: str, log_path: str, peak_mib: float | None = None, steps: tuple | None = None,
+                      name: str = "dense_run") -> dict:
+    """Write ``NAME.{md,json}`` (``dense_run`` by default) from a long run's verbose log and events.log (module
+    docstring); ``steps`` (first, last): only those."""
     import pathlib
 
     out = pathlib.Path(out_dir)
     run = parse_run_log(pathlib.Path(log_path).read_text(errors="replace"), (out / "events.log").read_text())
-    steps = run["steps"]
+    steps_of_run, window = run["steps"], steps
+    steps = {k: v for k, v in steps_of_run.items() if window is None or window[0] <= k <= window[1]}
+    if not steps:
+        where = f" in steps {window[0]}–{window[1]}" if window else ""
+        raise SystemExit(f"{log_path}: no verbose step lines{where}")
     first = min(steps)
     keep = sorted(k for k in steps if k > first)  # the first step of a (re)start holds a fresh analysis and LU
     if not keep:
@@ -390,7 +401,7 @@ def summarise_run_log(out_dir: str, log_path: str, peak_mib: float | None = None
            "force_change_median_pct": float(np.nanmedian(forces)) if len(forces) else None,
            "force_change_max_pct": float(np.nanmax(forces)) if len(forces) else None,
            "peak_mib": peak_mib, "machine": machine_description()}
-    write_json("dense_run", row["machine"], [row])
+    write_json(name, row["machine"], [row])
     head = ["part", "ordinary step, median s", "re-triangulation step, median s", "share of the wall time"]
     table = [[p, f"{row['ordinary'][p]:.2f}", f"{row['at_retri'][p]:.2f}", f"{row['share'][p]:.1%}"] for p in parts]
     table.append(["total", f"{row['ordinary']['total']:.2f}", f"{row['at_retri']['total']:.2f}", "100 %"])
@@ -411,7 +422,7 @@ def summarise_run_log(out_dir: str, log_path: str, peak_mib: float | None = None
              "step (median).",
              f"- Peak resident memory of the run process: {peak_mib:.0f} MiB." if peak_mib else
              "- Peak resident memory: not measured."]
-    (RESULTS / "dense_run.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
     return row
 
 
