@@ -86,14 +86,21 @@ def main(argv: list) -> None:
         for version, found in runs.items():
             rows.append(dict(found[0], version=version, noise_s=float(np.median([r["noise_s"] for r in found])),
                              interpolate_s=float(np.median([r["interpolate_s"] for r in found]))))
+    write(rows)
+
+
+def write(rows: list) -> None:
+    """``transfer.{md,json}`` from the rows of :func:`main` (``version`` "before" present: the ratios too)."""
     notes = []
-    if before:
+    if any(r["version"] == "before" for r in rows):
         mine = {r["h"]: r for r in rows if r["version"] == "this version"}
         old = [r for r in rows if r["version"] == "before"]
         ratios = ", ".join(f"{r['noise_s'] / mine[r['h']]['noise_s']:.2f} at {r['points']:,} points" for r in old)
         agree = max(abs(r["noise"] / mine[r["h"]]["noise"] - 1) for r in old)
+        control = ", ".join(f"{r['interpolate_s'] / mine[r['h']]['interpolate_s']:.2f}" for r in old)
         notes = ["", f"Ratio before / this version, noise figure: {ratios}; the noise figures agree to {agree:.1g} "
-                 "(relative)."]
+                 f"(relative). Ratio of the interpolation: {control} (where the two versions share its code, as "
+                 "since the noise figure's change, this is how much the machine's load moved the timings)."]
     write_results("transfer", rows, "The field transfer of a re-triangulation: interpolation and noise figure",
                   "One BLAS thread. The flow's velocity space (P2+bubble) on a Friedrichs–Keller grid (old) and a "
                   "Delaunay mesh (new) of the unit square; median of 3 calls in each of 3 processes a version, the "
