@@ -47,11 +47,15 @@ def _candidates(mesh, x, k: int):
 
 
 def _reference_coordinates(mesh, x, cand):
-    """Reference coordinates ``l1, l2`` (n, k) of points ``x`` (2, n) in their candidate triangles ``cand`` (n, k)."""
+    """Reference coordinates ``l1, l2`` (n, k) of points ``x`` (2, n) in their candidate triangles ``cand`` (n, k),
+    or (n, m, k) of clusters of points ``x`` (2, n, m) whose points share their cluster's candidates."""
     p, t = mesh.p, mesh.t
     a, b, d = p[:, t[0, cand]], p[:, t[1, cand]], p[:, t[2, cand]]  # (2, n, k)
+    x = np.asarray(x)
+    if x.ndim == 3:  # each cluster's cells broadcast over its points
+        a, b, d = a[:, :, None, :], b[:, :, None, :], d[:, :, None, :]
     e1, e2 = b - a, d - a
-    r = np.asarray(x)[:, :, None] - a
+    r = x[..., None] - a
     det = e1[0] * e2[1] - e1[1] * e2[0]
     with np.errstate(divide="ignore", invalid="ignore"):  # a collapsed cell scores -inf below
         l1 = (r[0] * e2[1] - r[1] * e2[0]) / det
@@ -114,8 +118,8 @@ def locate_clustered(mesh, x, k: int = 8, chunk: int = 1 << 18) -> tuple[np.ndar
 
     Every point tries the ``k`` cells whose centroids are nearest its cluster's mean (one tree search a
     cluster, not a point), with the arithmetic of :func:`locate`; the points none of them contains go to
-    :func:`locate`.  The 16 quadrature points of each element of a 1 000-polygon mesh (2.9M points): a third
-    of the time of :func:`locate` (the tree search was most of it).
+    :func:`locate`.  The 16 quadrature points of each element of a mesh the size of a 1 000-polygon one (2.9M
+    points): 0.9 s against 1.8–4.2 s for :func:`locate`, whose tree search was most of its time.
 
     Parameters
     ----------
@@ -147,14 +151,7 @@ def locate_clustered(mesh, x, k: int = 8, chunk: int = 1 << 18) -> tuple[np.ndar
         c = xs.shape[1]
         _, cand = tree.query(xs.mean(axis=2).T, k=k)
         cand = cand.reshape(c, -1)
-        # the arithmetic of _reference_coordinates, each cluster's cells broadcast over its points
-        a, b, d = p[:, t[0, cand]], p[:, t[1, cand]], p[:, t[2, cand]]  # (2, c, k)
-        e1, e2 = (b - a)[:, :, None, :], (d - a)[:, :, None, :]
-        r = xs[:, :, :, None] - a[:, :, None, :]  # (2, c, m, k)
-        det = e1[0] * e2[1] - e1[1] * e2[0]
-        with np.errstate(divide="ignore", invalid="ignore"):  # a collapsed cell scores -inf
-            l1 = ((r[0] * e2[1] - r[1] * e2[0]) / det).reshape(c * m, -1)
-            l2 = ((e1[0] * r[1] - e1[1] * r[0]) / det).reshape(c * m, -1)
+        l1, l2 = (v.reshape(c * m, -1) for v in _reference_coordinates(mesh, xs, cand))
         rows = slice(start * m, (start + c) * m)
         cells[rows], bary[rows], score[rows] = _best_of(np.repeat(cand, m, axis=0), l1, l2)
     miss = np.flatnonzero(score < -1e-12)
@@ -338,8 +335,8 @@ def values_at(basis, u: np.ndarray, x: np.ndarray, location: tuple | None = None
     The scalar basis functions are evaluated once per point and summed with the coefficients of the point's
     cell; the probe matrix of a vector basis would hold every scalar value once per component, and its
     assembly (sorting ``2 · 14`` entries a point for P2+bubble) costs several times the evaluation: at the
-    16 quadrature points of every element of a 1 000-polygon mesh (2.9M points) that assembly took most of
-    the 12 s of :func:`fluidem.coupling.moving_flow.transfer_change`.
+    16 quadrature points of every element of a mesh the size of a 1 000-polygon one (2.9M points) it was
+    about half the time of :func:`fluidem.coupling.moving_flow.transfer_change`.
 
     Parameters
     ----------
