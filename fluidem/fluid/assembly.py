@@ -145,8 +145,9 @@ class VectorAssembler:
         nel · ns² element entries instead of nel · (2 ns)²; each scalar entry (k, l) becomes the 2 × 2
         block (2k + c, 2l + d), and the CSR order is the one of the general construction.  Both the
         pattern and the grouping of element entries by scalar entry are counting sorts (scipy's COO to
-        CSR conversion), not comparison sorts of all the keys: 1.6x faster at 149k velocity DOFs, the
-        same arrays bit for bit.
+        CSR conversion), not comparison sorts of all the keys: 1.5x and 1.7x faster on the systems of
+        100 and 300 settling polygons (149k and 447k DOFs), the same arrays bit for bit
+        (``benchmarks/bench_rebuild_setup.py``).
         """
         sd = (dofs[0::2] // 2).T  # (nel, ns) scalar DOFs
         nel, ns = sd.shape
@@ -157,8 +158,7 @@ class VectorAssembler:
         # counting sort over rows, each short row sorted alone: what np.unique of the keys row·m + column
         # gives, without sorting all nel·ns² keys), and the position of every element entry in it (a
         # search within its row)
-        S = sp.csr_matrix((np.ones(len(rows), np.int32), (rows, cols)), shape=(m, m))  # duplicates summed
-        S.sort_indices()
+        S = sp.csr_matrix((np.ones(len(rows), np.int32), (rows, cols)), shape=(m, m))  # summed, sorted
         sptr = S.indptr.astype(np.int64)
         n_uniq = S.nnz
         r = np.repeat(np.arange(m, dtype=np.int64), np.diff(sptr))
