@@ -8,7 +8,8 @@ run under load: the pattern ~10 s, the fluid–body system ~24 s).  The fluid–
 code in the versions compared so far: its ratio shows how much the load moved between them.
 
 Case: the settling suspension of ``bench_dense.py`` after its first step (N = 100 → 149k DOFs, 300 → ~450k);
-both built again ``REPEATS`` times in one process, the medians; a SHA-1 of their arrays (the structures and
+both built again ``REPEATS`` times in one process (the velocity assembler as a whole: its pattern and its
+element geometry), the medians; a SHA-1 of their arrays (the structures and
 maps) to compare versions bit for bit.  With ``--before PATH`` the same with the fluidem package found at
 ``PATH`` (an earlier checkout), each version in its own process, the two alternating ``ROUNDS`` times; the
 median over the processes.  One BLAS thread.
@@ -112,16 +113,16 @@ def main() -> None:
         pairs = [(b, t) for b in rows if b["version"] == "before" for t in rows
                  if t["version"] == "this version" and t["bodies"] == b["bodies"]]
         notes = ["", "This version against before (time ratio): " + "; ".join(
-            f"{t['bodies']} bodies: pattern {t['pattern_s'] / b['pattern_s']:.2f}, system "
+            f"{t['bodies']} bodies: assembler {t['pattern_s'] / b['pattern_s']:.2f}, system "
             f"{t['system_s'] / b['system_s']:.2f}; the arrays "
             f"{'the same bit for bit' if _same(b, t) else '**different**'}"
             for b, t in pairs) + "."]
-    write_results("rebuild_setup", rows, "Two parts of a re-triangulation's set-up: the velocity pattern and the "
+    write_results("rebuild_setup", rows, "Two parts of a re-triangulation's set-up: the velocity assembler and the "
                   "fluid–body system",
                   f"One BLAS thread. The settling suspension of `bench_dense.py` after its first step; each built "
                   f"again {REPEATS} times in a process, the median; each version in its own process, the versions "
                   f"alternating, the median over {ROUNDS} processes a version.",
-                  ["bodies", "version", "unknowns", "entries", "velocity pattern, s", "fluid–body system, s"],
+                  ["bodies", "version", "unknowns", "entries", "velocity assembler, s", "fluid–body system, s"],
                   [[str(r["bodies"]), r["version"], f"{r['unknowns']:,}", f"{r['entries']:,}",
                     f"{r['pattern_s']:.3f}", f"{r['system_s']:.2f}"] for r in rows], notes)
 

@@ -145,9 +145,9 @@ class VectorAssembler:
         nel · ns² element entries instead of nel · (2 ns)²; each scalar entry (k, l) becomes the 2 × 2
         block (2k + c, 2l + d), and the CSR order is the one of the general construction.  Both the
         pattern and the grouping of element entries by scalar entry are counting sorts (scipy's COO to
-        CSR conversion), not comparison sorts of all the keys: 1.5x and 1.7x faster on the systems of
-        100 and 300 settling polygons (149k and 447k DOFs), the same arrays bit for bit
-        (``benchmarks/bench_rebuild_setup.py``).
+        CSR conversion), not comparison sorts of all the keys: the whole assembler (pattern and element
+        geometry) is built 1.5x and 1.7x faster on the systems of 100 and 300 settling polygons (149k and
+        447k DOFs), the same arrays bit for bit (``benchmarks/bench_rebuild_setup.py``).
         """
         sd = (dofs[0::2] // 2).T  # (nel, ns) scalar DOFs
         nel, ns = sd.shape

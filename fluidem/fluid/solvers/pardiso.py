@@ -207,7 +207,6 @@ class PardisoLU:
             from pypardiso.pardiso_wrapper import PyPardisoError
 
             raise RuntimeError(str(PyPardisoError(error.value)))
-        ps.phase = phase
         return np.ascontiguousarray(x)
 
     def free(self) -> None:
