@@ -308,6 +308,9 @@ class StepHealth:
     gap_elements : int
         Triangles of the step's moving mesh that span a gap with one element: their three vertices on
         the outlines of at least two bodies, or of a body and a wall (:func:`gap_elements`).
+    repaired : int
+        Mesh nodes moved this step to bring elements past the angle bounds back within them instead of
+        re-triangulating (:mod:`fluidem.mesh.repair`).
     """
 
     step: int
@@ -325,6 +328,7 @@ class StepHealth:
     swing: float | None = None
     pockets: int = 0
     gap_elements: int = 0
+    repaired: int = 0
 
     def text(self) -> str:
         """The compact health part of a ``--verbose`` line: ``cond1 <κ> (x<growth>)`` at an LU,
@@ -397,7 +401,7 @@ class RunDiagnostics:
         self._iter_per_step: list[float] = []
         self._counts = {"factorizations": 0, "estimates": 0, "solves": 0, "krylov_solves": 0,
                         "krylov_iterations": 0, "retriangulations": 0, "oscillation_steps": 0,
-                        "pocket_steps": 0}
+                        "pocket_steps": 0, "repair_steps": 0, "repaired_nodes": 0}
         self._pocket_text = ""
         self._element = None  # the element pair of the last step's problem (the gap warning's condition)
 
@@ -473,6 +477,7 @@ class RunDiagnostics:
         if event is not None:
             if getattr(event, "retriangulated", False) and getattr(event, "transfer_change", None) is not None:
                 h.noise = float(event.transfer_change)
+            h.repaired = int(getattr(event, "n_repaired", 0) or 0)
             osc = np.asarray(getattr(event, "oscillating", ()), dtype=np.int64)
             h.oscillating = int(osc.size)
             if osc.size and mesh is not None:
@@ -503,6 +508,8 @@ class RunDiagnostics:
         self._noise_total += h.noise or 0.0
         c["oscillation_steps"] += h.oscillating > 0
         c["pocket_steps"] += h.pockets > 0
+        c["repair_steps"] += h.repaired > 0
+        c["repaired_nodes"] += h.repaired
         for key, value in (("condition", h.condition), ("iterations", h.iterations if h.solves else None),
                            ("residual", h.residual), ("noise", h.noise),
                            ("oscillating", h.oscillating or None), ("swing", h.swing),
@@ -600,7 +607,9 @@ class RunDiagnostics:
                     "relative residual of a step's solves; noise: relative L2 change of u by the field transfer at a "
                     "re-triangulation; oscillating: mesh nodes flipping between two positions in the relaxation, "
                     "swing_max their largest move over the local h; gap_elements: triangles spanning a gap "
-                    "between two bodies (or a body and a wall) with one element; series: "
+                    "between two bodies (or a body and a wall) with one element; mesh_repairs: steps in which "
+                    "mesh nodes were moved to bring elements past the angle bounds back within them instead of "
+                    "re-triangulating, and the nodes moved; series: "
                     + ("every step" if self._stride == 1 else f"one step in {self._stride}") + " of this run",
             "seconds": self.seconds, "steps": self._steps,
             "condition": cond,
@@ -609,6 +618,7 @@ class RunDiagnostics:
                        "residual": ext("residual")},
             "interpolation_noise": noise,
             "oscillation": osc,
+            "mesh_repairs": {"steps": c["repair_steps"], "nodes": c["repaired_nodes"]},
             "pockets": None if "pockets" not in e else {"max": int(e["pockets"][0]), "max_step": e["pockets"][1],
                                                         "steps": c["pocket_steps"]},
             "gap_elements": ext("gap_elements"),

@@ -333,7 +333,8 @@ def check_owner(sim, out_dir) -> None:
 
 def log_mesh_event(sim, writer, ev_mesh) -> None:
     """Event-log lines of this step's mesh update: re-triangulation (reason, size, field
-    transfer, interpolation noise and force change) and oscillating nodes.
+    transfer, interpolation noise and force change), a repair of the elements past the angle
+    bounds by moving nodes (:mod:`fluidem.mesh.repair`) and oscillating nodes.
 
     Parameters
     ----------
@@ -362,6 +363,11 @@ def log_mesh_event(sim, writer, ev_mesh) -> None:
                           "30: up to 1.5 times the drag at U dt = h/5, against 0.28 % with bent sides, seams "
                           "'bend'; docs: moving-mesh, bodies across periodic sides); Stokes flow across the sides "
                           "is accurate", RunWarning, stacklevel=4)
+    if getattr(ev_mesh, "n_repaired", 0):
+        writer.event(sim.step_index, sim.t, "mesh repair",
+                     f"{ev_mesh.n_repaired} node{'' if ev_mesh.n_repaired == 1 else 's'} moved to bring elements past "
+                     "the angle bounds back within them, no re-triangulation (docs: moving-mesh, repair before "
+                     "re-triangulation)")
     if len(ev_mesh.oscillating):
         h = sim.diagnostics.last
         swing = h.swing if h is not None and h.step == sim.step_index else None

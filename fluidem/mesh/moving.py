@@ -139,6 +139,9 @@ class MeshEvent:
         Nodes that flipped between two positions in the last steps (Sec. 3.3).
     n_blocked : int
         Relaxation moves dropped because they would have inverted an element.
+    n_repaired : int
+        Nodes moved to repair elements that fired the quality trigger instead of
+        re-triangulating (:mod:`fluidem.mesh.repair`); 0 if none.
     contacts : (k, 2) int
         Body pairs closer than ``min_gap`` (meshed as one outline).
     walls : (k, 2) int
@@ -176,6 +179,7 @@ class MeshEvent:
     n_junctions: int = 0
     oscillating: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     n_blocked: int = 0
+    n_repaired: int = 0
     contacts: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     pore_areas: np.ndarray = field(default_factory=lambda: np.zeros(0))
     walls: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))

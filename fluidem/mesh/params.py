@@ -85,6 +85,11 @@ class MeshParams:
         the smallest angle stays at least ``min_angle_trigger`` between re-triangulations (the
         hard cases assert 15°); a margin of 3° halved the re-triangulations of some dense scenes
         but let elements of 12° stand.
+    repair_sweeps : int
+        Before a ``"quality"`` re-triangulation, sweeps of the node repair
+        (:mod:`fluidem.mesh.repair`): the nodes around the elements that fired are moved to
+        bring them back within their thresholds, and the mesh is re-triangulated only if that
+        fails; 0: no repair, >= 0.
     degenerate_area : float
         An element that shrank below this fraction of its area at the last triangulation
         triggers a re-triangulation (``"degenerate"``).
@@ -194,6 +199,7 @@ class MeshParams:
     max_angle_trigger: float = 135.0
     angle_margin: float = 10.0
     min_angle_margin: float = 0.0
+    repair_sweeps: int = 2
     degenerate_area: float = 0.1
     clearance: float = 0.5
     purge_clearance: float = 0.3
@@ -231,7 +237,8 @@ class MeshParams:
         s(self, "retriangulate_every", _count("retriangulate_every", self.retriangulate_every, 1))
         if self.relax_iterations is not None:
             s(self, "relax_iterations", _count("relax_iterations", self.relax_iterations, 0))
-        for name in ("initial_iterations", "retriangulate_iterations", "cleanup_passes", "drag_halvings"):
+        for name in ("initial_iterations", "retriangulate_iterations", "cleanup_passes", "drag_halvings",
+                     "repair_sweeps"):
             s(self, name, _count(name, getattr(self, name), 0))
         s(self, "min_angle_trigger", v.number(_key("min_angle_trigger"), self.min_angle_trigger,
                                               "a number in [0, 60)", lo=0.0, hi=60.0, hi_open=True))
