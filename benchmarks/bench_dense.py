@@ -21,7 +21,7 @@ Run (tens of minutes)::
     python benchmarks/bench_dense.py --log OUT_DIR RUN.LOG [PEAK_MIB] [--steps A B] [--name NAME]   # a long run
     python benchmarks/bench_dense.py --narrow N [--before PATH]   # the short-range models' gaps of N bodies
     python benchmarks/bench_dense.py --groups N   # one DEM pass of N bodies: grouped sub-steps against one group
-    python benchmarks/bench_dense.py --continue OUT_DIR SCENE.toml STEP K --before PATH   # a run continued twice
+    python benchmarks/bench_dense.py --continue OUT_DIR SCENE.toml STEP K --before PATH [--name NAME]   # twice
 
 writes ``benchmarks/results/dense.{md,json}`` (``--lu``: ``dense_lu.{md,json}``; the ``pardiso`` extra
 installed, MKL pinned to one thread).  ``--before PATH`` also runs every case, side by side,
@@ -44,8 +44,9 @@ sub-steps and how far the loads differ; writes ``dense_groups.{md,json}``.
 
 ``--continue`` continues the run in ``OUT_DIR`` (of ``SCENE.toml``, with a checkpoint of step ``STEP``) by ``K``
 steps twice at once, in two copies of ``OUT_DIR``: with this version and with the package at ``PATH``
-(``fluidem run --restart -v``); medians of the ordinary steps, the DEM's time and share, its sub-steps and
-passes, and how far the bodies of the two ended apart (``history.csv``); writes ``dense_continue.{md,json}``.
+(``fluidem run --restart -v``); medians of the ordinary steps, the mean step, the DEM's time and share, its
+sub-steps and passes, the re-triangulations, and how far the bodies of the two ended apart (``history.csv``);
+writes ``dense_continue.{md,json}`` (``--name``: ``NAME.{md,json}``).
 
 ``--log`` reads a run of such a scene too long for a benchmark session (``fluidem run FILE.toml -v
 > RUN.LOG``, continued with ``--restart`` as often as needed): the verbose lines of ``RUN.LOG`` (each
@@ -169,7 +170,8 @@ def main(argv: list[str]) -> None:
         return
     if argv[:1] == ["--continue"]:
         before = argv[argv.index("--before") + 1] if "--before" in argv else None
-        continue_side_by_side(argv[1], argv[2], int(argv[3]), int(argv[4]), before)
+        name = argv[argv.index("--name") + 1] if "--name" in argv else "dense_continue"
+        continue_side_by_side(argv[1], argv[2], int(argv[3]), int(argv[4]), before, results=name)
         return
     if argv[:1] == ["--log"]:
         steps = tuple(int(a) for a in argv[argv.index("--steps") + 1:argv.index("--steps") + 3]) \
@@ -541,9 +543,10 @@ def grouped_pass(n: int, repeats: int = 5) -> None:
                    "what the rows with more sub-steps show."])
 
 
-def continue_side_by_side(out_dir: str, scene: str, step: int, k: int, before: str | None) -> None:
+def continue_side_by_side(out_dir: str, scene: str, step: int, k: int, before: str | None,
+                          results: str = "dense_continue") -> None:
     """``--continue``: the run in ``out_dir`` continued from step ``step`` by ``k`` steps, this version and
-    ``before`` at once (module docstring); ``dense_continue.{md,json}``."""
+    ``before`` at once (module docstring); ``{results}.{md,json}``."""
     import csv
     import pathlib
     import shutil
@@ -609,13 +612,13 @@ def continue_side_by_side(out_dir: str, scene: str, step: int, k: int, before: s
     def cell(v, f):
         return "" if v is None else format(v, f)
 
-    write_results("dense_continue", rows, f"`{sc.name}` continued from step {step} by {k} steps, two versions at once",
+    write_results(results, rows, f"`{sc.name}` continued from step {step} by {k} steps, two versions at once",
                   f"The two runs at the same time on the two cores, one BLAS and one MKL thread each; medians over the "
                   f"ordinary steps (re-triangulations left out), totals over all {k}.",
-                  ["version", "steps", "ordinary step, median s", "DEM s (share)", "DEM sub-steps a step",
-                   "passes a step", "body sub-steps a step", "re-triangulations"],
+                  ["version", "steps", "ordinary step, median s", "mean step s", "DEM s (share)",
+                   "DEM sub-steps a step", "passes a step", "body sub-steps a step", "re-triangulations"],
                   [[r["version"], f"{r['steps'][0]}–{r['steps'][1]}" if r["steps"] else "",
-                    cell(r["ordinary_s"], ".3f"),
+                    cell(r["ordinary_s"], ".3f"), f"{r['wall_s'] / k:.3f}",
                     f"{r['dem_s']:.1f} ({cell(r['dem_share'], '.1%')})", cell(r["substeps_per_step"], ".0f"),
                     cell(r["passes_per_step"], ".2f"), cell(r["body_substeps_per_step"], ".0f"),
                     str(r["retriangulations"])] for r in rows], notes)
