@@ -61,13 +61,11 @@ def test_on_coarse_meshes_the_graded_one_is_the_closer():
 def test_coarse_mesh_retriangulates_every_step_without_a_smallest_angle_margin():
     """h = 0.05 at the disk, 5 times the 64-gon's edge, graded (growth 1.2): the first mesh has
     elements below 15° next to the outline and, with no margin on the smallest-angle trigger (the
-    default), re-triangulates at every step (41 triangulations in 40 steps; error −1.10e-2; 39 and
-    −1.01e-2 since elements past the angle bounds are first repaired by moving nodes,
-    ``fluidem.mesh.repair``).  A 3° margin leaves 2 triangulations and an error of −8.1e-3 (about 7 s
-    both)."""
+    default), re-triangulates at every step (41 triangulations in 40 steps; error −1.10e-2).  A 3°
+    margin leaves 2 triangulations and an error of −8.1e-3 (about 7 s both)."""
     default = sedimentation_run(0.05, GRADING, t_star=0.8, dt=0.02)
     margin = sedimentation_run(0.05, GRADING, t_star=0.8, dt=0.02, min_angle_margin=3.0)
-    assert default["triangulations"] >= default["steps"] - 3  # measured 39 in 40 steps (41 before the repair)
+    assert default["triangulations"] == default["steps"] + 1
     assert margin["triangulations"] <= 3
     e_default, e_margin = default["u_star"] / U_REF - 1.0, margin["u_star"] / U_REF - 1.0
     assert e_default < e_margin < 0.0

@@ -34,9 +34,7 @@ def test_translating_plate_retriangulates_at_the_configured_cadence():
 
 
 def test_the_ramp_is_still_available():
-    # the ramp shears the band around the plate past the angle bounds within a few steps (the repair of
-    # elements past the bounds, off here, would move those nodes back instead)
-    _, events = _plate_events(n_steps=12, drag_field="ramp", repair_sweeps=0)
+    _, events = _plate_events(n_steps=12, drag_field="ramp")
     assert events and events[0][1] == "quality" and events[0][0] < 12, events
     assert np.all([r in ("quality", "periodic") for _, r in events])
 

@@ -1,4 +1,5 @@
-"""The repair of elements that fire the quality trigger by moving nodes (fluidem.mesh.repair).
+"""The repair of elements that fire the quality trigger by moving nodes (fluidem.mesh.repair), off by
+default and switched on here with ``repair_sweeps = 2``.
 
 Measured (h = 0.03, 16 disks of radius 0.06 on a 4 × 4 lattice in the unit box, sheared back and
 forth, x += 0.2 sin(2π k/100) (y − 0.5), and turned by the same angle, 200 steps): 15
@@ -17,14 +18,14 @@ from fluidem.mesh.repair import repair_nodes
 from fluidem.mesh.triggers import element_shape
 
 
-def _sheared_lattice(n_steps=200, **params):
+def _sheared_lattice(n_steps=200, repair_sweeps=2, **params):
     t = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
     disk = 0.06 * np.column_stack([np.cos(t), np.sin(t)])
     xs = np.linspace(0.2, 0.8, 4)
     X, Y = np.meshgrid(xs, xs)
     p0 = np.column_stack([X.ravel(), Y.ravel()])
     mm = MovingMesh((0.0, 1.0, 0.0, 1.0), [disk] * len(p0), np.column_stack([p0, np.zeros(len(p0))]), h=0.03,
-                    **params)
+                    repair_sweeps=repair_sweeps, **params)
     events, repaired, worst = [], 0, 180.0
     for k in range(1, n_steps + 1):
         amp = 0.1 * np.sin(2.0 * np.pi * k / 100)
@@ -58,7 +59,7 @@ def test_a_stretched_mesh_is_retriangulated_instead():
     stretches more than 2 % of its elements past refine_area whenever its quality trigger fires:
     it re-triangulates as without the repair (the adaptation holds its node count; repairing it
     instead let the count grow by 8 %).  Measured: 13 re-triangulations either way, no repair."""
-    mm = MovingMesh((0.0, 3.0, 0.0, 1.0), [rectangle(0.3, 0.1)], [[0.8, 0.5, 0.0]], h=0.04)
+    mm = MovingMesh((0.0, 3.0, 0.0, 1.0), [rectangle(0.3, 0.1)], [[0.8, 0.5, 0.0]], h=0.04, repair_sweeps=2)
     repaired, events = 0, []
     for k in range(1, 301):
         ev = mm.update([[0.8 + 0.01 * (k if k <= 150 else 300 - k), 0.5, 0.005 * k]])
@@ -120,3 +121,8 @@ def test_repair_sweeps_must_be_a_count(bad):
 
     with pytest.raises(InputError, match="repair_sweeps"):
         MovingMesh((0.0, 1.0, 0.0, 1.0), [rectangle(0.2, 0.1)], [[0.5, 0.5, 0.0]], h=0.1, repair_sweeps=bad)
+
+
+def test_the_repair_is_off_by_default():
+    mm = MovingMesh((0.0, 1.0, 0.0, 1.0), [rectangle(0.2, 0.1)], [[0.5, 0.5, 0.0]], h=0.1)
+    assert mm.params.repair_sweeps == 0
