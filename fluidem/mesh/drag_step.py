@@ -67,7 +67,7 @@ from .relax import relax
 from .repair import nodes_to_repair, repair_nodes
 from .seam import SEAM_CODE
 from .triggers import contacts_changed as body_contacts_changed
-from .triggers import ElementShape, element_shape, quality_dropped, retriangulation_reason
+from .triggers import ElementShape, element_shape, outside_opened_gap_bounds, quality_dropped, retriangulation_reason
 
 if TYPE_CHECKING:
     from .moving import MeshEvent, MovingMesh
@@ -164,9 +164,7 @@ def repair_step(mesh: MovingMesh, shape: ElementShape, ev: MeshEvent) -> bool:
         return False
     # an element born in a narrow gap whose gap has opened, outside the bounds but no worse than it
     # was born, does not fire; a re-triangulation would replace it, so a repair must not keep it
-    lo_b = base.cos_bound_lo if np.isnan(base.cos_trigger_lo) else base.cos_trigger_lo
-    hi_b = base.cos_bound_hi if np.isnan(base.cos_trigger_hi) else base.cos_trigger_hi
-    stale = np.flatnonzero(base.narrow & ((after.cos_max > lo_b) | (after.cos_min < hi_b)))
+    stale = np.flatnonzero(outside_opened_gap_bounds(after, base))
     if len(stale) and (~mesh._anchored_across_gap(stale)).any():
         return False
     mesh.points = x

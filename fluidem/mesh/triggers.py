@@ -37,7 +37,7 @@ import numpy as np
 import shapely
 
 __all__ = ["ElementShape", "QualityBaseline", "element_shape", "quality_baseline", "quality_dropped",
-           "contacts_changed", "retriangulation_reason"]
+           "outside_opened_gap_bounds", "contacts_changed", "retriangulation_reason"]
 
 
 @dataclass(frozen=True)
@@ -171,15 +171,21 @@ def quality_dropped(shape: ElementShape, base: QualityBaseline, anchored_across_
     cmax, cmin = shape.cos_max, shape.cos_min
     if ((cmax > base.cos_lo) | (cmin < base.cos_hi)).any():
         return True
-    lo = base.cos_bound_lo if np.isnan(base.cos_trigger_lo) else base.cos_trigger_lo
-    hi = base.cos_bound_hi if np.isnan(base.cos_trigger_hi) else base.cos_trigger_hi
-    looks_bad = base.narrow & ((cmax > lo) | (cmin < hi))
+    looks_bad = outside_opened_gap_bounds(shape, base)
     # ... and got worse since the triangulation (the gap of an unchanged element did not open)
     looks_bad &= (cmax > base.cos_max + 1e-3) | (cmin < base.cos_min - 1e-3)
     idx = np.flatnonzero(looks_bad)
     if not len(idx):
         return False
     return bool((~anchored_across_gap(idx)).any())
+
+
+def outside_opened_gap_bounds(shape: ElementShape, base: QualityBaseline) -> np.ndarray:
+    """``(n_triangles,) bool``: narrow-gap elements of the last triangulation now outside the angle
+    bounds widened by the margins (the bounds a narrow-gap element whose gap opened must keep)."""
+    lo = base.cos_bound_lo if np.isnan(base.cos_trigger_lo) else base.cos_trigger_lo
+    hi = base.cos_bound_hi if np.isnan(base.cos_trigger_hi) else base.cos_trigger_hi
+    return base.narrow & ((shape.cos_max > lo) | (shape.cos_min < hi))
 
 
 def contacts_changed(polys, near_pairs, contacts, min_gap: float, points, body_of) -> bool:
