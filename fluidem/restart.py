@@ -21,7 +21,7 @@ from .build import dem_from_kinematic
 from .coupling.bodies import DEMBodies, KinematicBodies
 from .errors import InputError, RunWarning, one_line
 
-__all__ = ["RESTART_MAY_CHANGE", "SCENE_RTOL", "changes_text", "scene_changes", "scene_key",
+__all__ = ["RESTART_MAY_CHANGE", "SCENE_RTOL", "ADDED_KEYS", "changes_text", "scene_changes", "scene_key",
            "restore", "apply_checkpoint", "set_state",
            "check_restored"]
 
@@ -80,9 +80,15 @@ def _same_value(a, b) -> bool:
     return bool(np.all(np.abs(x[fin] - y[fin]) <= SCENE_RTOL * scale))
 
 
+#: scene keys added after runs had been written, with the value an older scene (without the key)
+#: ran with: such a key at that value is left out of :func:`scene_changes` and :func:`scene_key`, so
+#: the checkpoints and output directories of earlier versions continue
+ADDED_KEYS = {"mesh.repair": False}
+
+
 def _fixed(flat: dict) -> dict:
     return {k: v for k, v in flat.items() if k not in RESTART_MAY_CHANGE and k != "output" and
-            not k.startswith("output.")}
+            not k.startswith("output.") and not (k in ADDED_KEYS and v == ADDED_KEYS[k])}
 
 
 def scene_changes(old: dict, new: dict) -> list:

@@ -278,6 +278,19 @@ def test_restart_with_a_changed_dt_or_body_is_refused_with_the_list_of_changes(t
     assert "a restart may change only time.t_end and [output]" in msg and "t_end" not in msg.split(";")[0]
 
 
+def test_a_key_added_since_a_run_was_written_does_not_count_as_a_change_at_its_old_value():
+    """``[mesh] repair`` was added after runs had been written: a scene without it ran with
+    ``false``, so an older checkpoint (or run.json digest) continues with ``false`` and is refused with
+    ``true`` (``fluidem.restart.ADDED_KEYS``)."""
+    from fluidem.restart import scene_changes, scene_key
+
+    old = {"fluid": {"viscosity": 0.01}, "mesh": {"h": 0.05}}
+    same = {"fluid": {"viscosity": 0.01}, "mesh": {"h": 0.05, "repair": False}}
+    on = {"fluid": {"viscosity": 0.01}, "mesh": {"h": 0.05, "repair": True}}
+    assert scene_changes(old, same) == [] and scene_key(old) == scene_key(same)
+    assert scene_changes(old, on) == ["mesh.repair (absent) -> True"] and scene_key(old) != scene_key(on)
+
+
 def _off_centre_polygons():
     """Ten pentagons and hexagons given off their centroid: loading shifts each onto it, leaving
     coordinates such as 1e-20 that a second load shifts again in the last digit."""

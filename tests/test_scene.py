@@ -299,6 +299,15 @@ def test_conservative_ale_form_with_another_convection_is_refused_naming_both():
                          "domain": {"box": [0, 1, 0, 1]}})
 
 
+@pytest.mark.parametrize("bad", [2, "yes", 1])
+def test_mesh_repair_is_true_or_false(bad):
+    from fluidem.errors import SceneError
+
+    with pytest.raises(SceneError, match=r"^mesh.repair = .*: expected true or false"):
+        Scene.from_dict({"fluid": {}, "domain": {"box": [0, 1, 0, 1]}, "mesh": {"repair": bad}})
+    assert Scene.from_dict({"fluid": {}, "domain": {"box": [0, 1, 0, 1]}, "mesh": {"repair": True}}).mesh.repair
+
+
 def test_bodies_overlapping_through_a_periodic_side_are_refused_in_one_line():
     """A body across a periodic side is also where its image is: an overlap with a body at the other side
     (or, doubly periodic, at the opposite corner) is refused like one inside the box."""

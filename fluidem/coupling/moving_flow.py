@@ -32,6 +32,7 @@ from ..fluid.solvers.ordering import OrderingChoice
 from ..geometry import barycentric, transform
 from .bodies import LinearPath
 from ..mesh.moving_images import periodic_copies
+from ..mesh.params import REPAIR_SWEEPS
 from ..mesh.periodic import bends_seams
 from ..mesh.seam import period_of
 from .boundary import periodic_axes_of, velocity_bcs, viscous_form_of
@@ -163,7 +164,7 @@ class MovingMeshFlow(FlowLoads):
             grading = {"region": region, "growth": g["growth"], "h_max": g["h_max"]}
         self.mm = MovingMesh(domain.box, mesh_outlines, self._poses(0.0), ms.h, grading=grading,
                              strategy=ms.strategy, retriangulate_every=ms.retriangulate_every,
-                             periodic=periodic_axes_of(domain))
+                             repair_sweeps=REPAIR_SWEEPS if ms.repair else 0, periodic=periodic_axes_of(domain))
         sim.counters["triangulations"] += 1
         self.sim = sim
         self.mesh_time = time.perf_counter() - t0
@@ -364,6 +365,10 @@ class MovingMeshFlow(FlowLoads):
             u_n, u_p = st.state.u, st.previous_velocity
             if st.conservative and rebuilt:  # a new problem on the same DOFs: the history stands
                 history, outline = st.mass_history, self._outline_dofs()
+            if len(ev.repaired_nodes):  # the repair moved nodes: their fields move with them
+                u_n, u_p, history = self._transfer_repaired(ev, u_n, u_p)
+                cost.add("rebuild", time.perf_counter() - t0)
+                t0 = time.perf_counter()
         # BDF2 derivative of the node trajectories at t + dt (second order; BDF1 on the first step)
         w_nodes = self.mm.node_velocity(dt, order=2)
         t1 = time.perf_counter()
@@ -372,6 +377,34 @@ class MovingMeshFlow(FlowLoads):
         cost.add("rebuild", time.perf_counter() - t1)
         st.take_over(self.problem, u_n, u_p, mesh_velocity=w, renumbered=rebuilt, mass_history=history,
                      no_flux_dofs=outline)
+
+    def _transfer_repaired(self, ev, u_n, u_p):
+        """u^n, u^{n−1} (and the conservative form's M u history) after the repair moved a few
+        nodes (``ev.repaired_nodes``, :mod:`fluidem.mesh.repair`): the old functions on the mesh
+        before the repair, evaluated at the moved DOFs (:func:`fluidem.mesh.transfer.move_with_nodes`;
+        the nodes' trajectories were pulled back alike, so the jump is not mesh velocity).  The
+        history changes by M (u_new − u_old), shifted by a uniform velocity per component to keep
+        each level's momentum ∫ u dA (as :meth:`_transfer_mass_history`)."""
+        from ..mesh.transfer import move_with_nodes
+
+        st = self.stepper
+        fields = u_n if u_p is None else np.column_stack([u_n, u_p])
+        ub = self.space.ub
+        new = move_with_nodes(ub.elem, ub.element_dofs, self.mm.triangles, ev.repaired_from, self.mm.points,
+                              ev.repaired_nodes, fields)
+        new_n, new_p = (new, None) if u_p is None else (new[:, 0].copy(), new[:, 1].copy())
+        history = None
+        if st.conservative and st.mass_history is not None:
+            M = self.problem.M
+            e = self._constant_fields(self.space)
+            Me = M @ e.T  # (n_u, 2)
+            area = np.einsum("cn,nc->c", e, Me)
+            history = []
+            for m_old, a, b in zip(st.mass_history, (u_n, u_p), (new_n, new_p)):
+                m = m_old + M @ (b - a)
+                history.append(m + Me @ ((e @ m_old - e @ m) / area))
+        self.sim.counters["repair_transfers"] = self.sim.counters.get("repair_transfers", 0) + 1
+        return new_n, new_p, history
 
     def _transfer(self, ev, old_space, u_n, u_p):
         """u^n, u^{n−1} on the new DOFs after a re-triangulation (``ev.history``, :meth:`MovingMesh.node_history`).

@@ -167,6 +167,7 @@ def repair_step(mesh: MovingMesh, shape: ElementShape, ev: MeshEvent) -> bool:
     stale = np.flatnonzero(outside_opened_gap_bounds(after, base))
     if len(stale) and (~mesh._anchored_across_gap(stale)).any():
         return False
+    ev.repaired_from, ev.repaired_nodes = mesh.points, np.flatnonzero((x != mesh.points).any(axis=1))
     mesh.points = x
     ev.n_repaired = moved
     return True

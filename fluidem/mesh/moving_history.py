@@ -28,7 +28,7 @@ from .periodic import bends_seams
 if TYPE_CHECKING:
     from .moving import MeshEvent, MovingMesh
 
-__all__ = ["carry_history", "velocity_from_history", "velocity_from_last_step"]
+__all__ = ["carry_history", "pull_back_moved", "velocity_from_history", "velocity_from_last_step"]
 
 
 def carry_history(mesh: MovingMesh, ev: MeshEvent, x_n: np.ndarray, x_nm1: np.ndarray | None) -> None:
@@ -45,6 +45,8 @@ def carry_history(mesh: MovingMesh, ev: MeshEvent, x_n: np.ndarray, x_nm1: np.nd
     step (Eulerian).
     """
     if not ev.retriangulated:
+        if len(ev.repaired_nodes):
+            x_n, x_nm1 = pull_back_moved(mesh.triangles, ev.repaired_from, mesh.points, ev.repaired_nodes, x_n, x_nm1)
         mesh._trajectory = (x_n, x_nm1)
         return
     if ev.reason in ("inverted", "regenerate") or ev.old_points is None:
@@ -79,6 +81,31 @@ def carry_history(mesh: MovingMesh, ev: MeshEvent, x_n: np.ndarray, x_nm1: np.nd
     mesh._trajectory = (pull(x_n), pull(x_nm1))
     if mesh.periodic:
         rigid_history(mesh)
+
+
+def pull_back_moved(triangles, x_before, x_after, moved, x_n, x_nm1):
+    """Trajectories after a few nodes ``moved`` (k,) jumped from ``x_before`` to ``x_after`` (n, 2)
+    with the connectivity ``triangles`` (m, 3) unchanged (the repair, :mod:`fluidem.mesh.repair`):
+    a moved node continues the mesh motion of the point it jumped to, x^n(y) = Σ λ_k x_k^n with
+    λ its barycentric coordinates in the mesh before the jump (as :func:`carry_history` does
+    through a re-triangulation), so the jump is a transfer, not mesh velocity.  Returns new
+    ``(x_n, x_nm1)`` (the inputs are not changed; None stays None)."""
+    from .transfer import elements_around, locate, submesh
+
+    if x_n is None:
+        return x_n, x_nm1
+    sub, nodes = submesh(x_before, np.asarray(triangles)[elements_around(triangles, moved, 3)])
+    cells, bary = locate(sub, np.asarray(x_after)[moved].T)
+    tri = nodes[sub.t[:, cells].T]  # (k, 3) in the located cells' vertex order
+
+    def pull(x):
+        if x is None:
+            return None
+        x = x.copy()
+        x[moved] = np.einsum("nk,nkd->nd", bary, x[tri])
+        return x
+
+    return pull(x_n), pull(x_nm1)
 
 
 def velocity_from_history(points, x_n, x_nm1, dt: float) -> np.ndarray:

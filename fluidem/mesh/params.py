@@ -27,10 +27,12 @@ from .. import validate as v
 from ..errors import InputError
 from .relax import RelaxParams
 
-__all__ = ["MeshParams", "STRATEGIES", "PARAM_NAMES", "check_strategy", "mesh_params"]
+__all__ = ["MeshParams", "STRATEGIES", "PARAM_NAMES", "REPAIR_SWEEPS", "check_strategy", "mesh_params"]
 
 #: mesh strategies by name (:data:`fluidem.names.REGISTRY` ``"strategy"``)
 STRATEGIES = names.choices("strategy")
+#: Gauss–Seidel sweeps of the node repair when a scene asks for it (``[mesh] repair = true``)
+REPAIR_SWEEPS = 2
 
 
 def _key(name: str) -> str:
@@ -89,9 +91,10 @@ class MeshParams:
         Before a ``"quality"`` re-triangulation, sweeps of the node repair
         (:mod:`fluidem.mesh.repair`): the nodes around the elements that fired are moved to
         bring them back within their thresholds, and the mesh is re-triangulated only if that
-        fails; 0 (the default): no repair, >= 0; 2 is the measured setting.  Off by default:
-        its node moves cost force accuracy in the ALE step (a translating, turning disk in a
-        periodic channel: lab and body frame 0.58 % apart between mesh changes against 0.19 %).
+        fails; 0 (the default): no repair, >= 0; :data:`REPAIR_SWEEPS` (2) is the measured
+        setting, the scene key ``[mesh] repair = true``.  The moved nodes' fields are transferred
+        from the mesh before the move (:func:`fluidem.mesh.transfer.move_with_nodes`), like a
+        re-triangulation on a few elements.
     degenerate_area : float
         An element that shrank below this fraction of its area at the last triangulation
         triggers a re-triangulation (``"degenerate"``).
@@ -201,7 +204,7 @@ class MeshParams:
     max_angle_trigger: float = 135.0
     angle_margin: float = 10.0
     min_angle_margin: float = 0.0
-    repair_sweeps: int = 0
+    repair_sweeps: int = 0  # REPAIR_SWEEPS with [mesh] repair = true
     degenerate_area: float = 0.1
     clearance: float = 0.5
     purge_clearance: float = 0.3

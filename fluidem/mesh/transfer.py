@@ -18,6 +18,11 @@ transfer happens.  At a re-triangulation the fields are carried over in one of t
     vectorised intersections and fan-triangulated; its quadrature comes from
     :func:`skfem.supermeshing.elementwise_quadrature`.
 
+:func:`move_with_nodes`
+    A few nodes moved without a change of connectivity (the repair of
+    :mod:`fluidem.mesh.repair`): the DOFs of the elements around them are interpolated from
+    the mesh before the move, the rest keep their values.
+
 Both take scikit-fem bases (any scalar element, or :class:`skfem.ElementVector` of one)
 and work for the fluid element pairs (P2+bubble / P1-discontinuous, Taylor–Hood, P3/P2,
 MINI).  Points of the new mesh outside the old one (regions a body has left) take the value
@@ -33,7 +38,8 @@ from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 __all__ = ["locate", "locate_clustered", "locate_near", "locate_all", "probe_matrix", "basis_values_matrix",
-           "values_at", "interpolate", "supermesh", "project_l2"]
+           "values_at", "interpolate", "supermesh", "project_l2", "elements_around", "submesh",
+           "move_with_nodes"]
 
 
 def _candidates(mesh, x, k: int):
@@ -431,6 +437,92 @@ def interpolate(basis_old, u_old, basis_new) -> np.ndarray:
                                     zip(basis_new.split_bases(), basis_new.split_indices())):
         u[inew] = _interpolate_scalar(bo, u_old[io], bn, probes)
     return u
+
+
+def elements_around(triangles: np.ndarray, nodes: np.ndarray, rings: int = 1) -> np.ndarray:
+    """Indices of the elements of ``triangles`` (m, 3) within ``rings`` node rings of ``nodes`` (k,):
+    ``rings = 1`` the elements that have one of ``nodes`` as a vertex, each further ring adds the
+    elements touching the vertices of the last.
+
+    >>> elements_around(np.array([[0, 1, 2], [1, 3, 2], [3, 4, 2]]), np.array([0]), rings=2).tolist()
+    [0, 1, 2]
+    """
+    triangles = np.asarray(triangles)
+    mark = np.zeros(int(triangles.max(initial=-1)) + 1, dtype=bool)
+    mark[np.asarray(nodes, dtype=np.int64)] = True
+    for _ in range(rings - 1):
+        mark[triangles[mark[triangles].any(axis=1)]] = True
+    return np.flatnonzero(mark[triangles].any(axis=1))
+
+
+def submesh(points: np.ndarray, triangles: np.ndarray):
+    """A :class:`skfem.MeshTri` of ``triangles`` (m, 3) on ``points`` (n, 2), and its nodes (k,) in
+    the whole mesh's numbering: renumbered in increasing order, so each element keeps the vertex
+    order (and local DOFs) it has in the whole mesh."""
+    from skfem import MeshTri
+
+    nodes, local = np.unique(triangles, return_inverse=True)
+    return MeshTri(np.asarray(points, float)[nodes].T.copy(), local.reshape(triangles.shape).T.copy()), nodes
+
+
+def move_with_nodes(element, element_dofs: np.ndarray, triangles: np.ndarray, x_before: np.ndarray,
+                    x_after: np.ndarray, moved: np.ndarray, fields: np.ndarray, rings: int = 3) -> np.ndarray:
+    """Fields after a few nodes moved without a change of connectivity: the finite element
+    functions on the mesh before the move, evaluated at the DOFs of the elements around the moved
+    nodes (:func:`interpolate` on a patch), so the move is a transfer, not mesh motion.
+
+    Parameters
+    ----------
+    element : skfem.Element
+        The element of ``fields`` (e.g. ``ElementVector(ElementTriP2())``).
+    element_dofs : (n_local, m) int
+        Global DOFs of every element of the whole mesh (``Basis.element_dofs``), the numbering
+        of ``fields``.
+    triangles : (m, 3) int
+        The connectivity, the same before and after.
+    x_before, x_after : (n, 2) float
+        Node positions before and after the move (length).
+    moved : (k,) int
+        The nodes that moved; every other row of ``x_before`` and ``x_after`` is equal.
+    fields : (N,) or (N, j) float
+        Finite element functions on the mesh before the move.
+    rings : int
+        Node rings around ``moved`` searched for the new DOF locations (a node moves by a
+        fraction of the local mesh size).
+
+    Returns
+    -------
+    (N,) or (N, j) float
+        The functions on the mesh after the move: DOFs of elements not touching a moved node
+        unchanged.
+
+    Examples
+    --------
+    A quadratic field on P2 is reproduced where a node moved:
+
+    >>> from skfem import Basis, ElementTriP2, MeshTri
+    >>> m = MeshTri().refined(2)
+    >>> b = Basis(m, ElementTriP2())
+    >>> u = b.project(lambda x: x[0] ** 2 - x[0] * x[1])
+    >>> x0 = m.p.T.copy(); x1 = x0.copy(); k = 12; x1[k] += [0.03, -0.02]
+    >>> v = move_with_nodes(ElementTriP2(), b.element_dofs, m.t.T, x0, x1, np.array([k]), u)
+    >>> b1 = Basis(MeshTri(x1.T, m.t), ElementTriP2())
+    >>> bool(np.allclose(v, b1.project(lambda x: x[0] ** 2 - x[0] * x[1])))
+    True
+    """
+    from skfem import Basis
+
+    triangles = np.asarray(triangles)
+    fields = np.asarray(fields, dtype=float)
+    near = elements_around(triangles, moved, 1)  # the elements whose DOFs move
+    patch = elements_around(triangles, moved, rings)  # where the moved DOFs are found
+    old = Basis(submesh(x_before, triangles[patch])[0], element)
+    new = Basis(submesh(x_after, triangles[near])[0], element)
+    f_old = np.zeros((old.N,) + fields.shape[1:])
+    f_old[old.element_dofs] = fields[element_dofs[:, patch]]
+    out = fields.copy()
+    out[element_dofs[:, near]] = interpolate(old, f_old, new)[new.element_dofs]
+    return out
 
 
 def supermesh(mesh_a, mesh_b, rel_tol: float = 1e-12):

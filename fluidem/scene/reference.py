@@ -187,6 +187,9 @@ KEY_DOCS = {
     "mesh.grading": ("table", "—", "finer mesh in a region, growing away from it (below)", "absent (uniform h)"),
     "mesh.strategy": ("name", "—", "moving mesh: how it follows the bodies"),
     "mesh.retriangulate_every": ("integer ≥ 1", "steps", "moving mesh `drag`: re-triangulate at least this often"),
+    "mesh.repair": ("true or false", "—", "moving mesh `drag`: before re-triangulating for element quality, move the "
+                    "nodes around the few degraded elements (fields transferred there); fewer re-triangulations in "
+                    "dense settling suspensions", "`false`"),
     "mesh.curved": ("true or false", "—", "mesh disks as curved circles (isoparametric outline)"),
     "mesh.grading.region": ('"bodies" or [xmin, xmax, ymin, ymax]', "length", "where the size is h", '`"bodies"`'),
     "mesh.grading.growth": ("number ≥ 1", "—", "size ratio of neighbouring cells away from the region", "`1.2`"),

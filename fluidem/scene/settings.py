@@ -30,17 +30,20 @@ class MeshSpec:
     ``grading = {region = [xmin, xmax, ymin, ymax] | "bodies", growth = g, h_max = H}``: size
     ``h`` in the region, growing by ``g`` per cell away from it up to ``H`` (default 8h).
     ``strategy`` (``"drag"``, ``"regenerate"`` or ``"fixed"``, see ``names.meaning("strategy",
-    ...)``) and ``retriangulate_every`` (steps) apply to a moving mesh; ``curved`` meshes disks
-    as circles.
+    ...)``) and ``retriangulate_every`` (steps) apply to a moving mesh, and ``repair``: before a
+    re-triangulation for element quality, move the few nodes around the degraded elements
+    instead (:mod:`fluidem.mesh.repair`, fields transferred at the moved nodes); ``curved``
+    meshes disks as circles.
     """
 
     h: float | None = None
     grading: dict | None = None
     strategy: str = "drag"
     retriangulate_every: int = 30
+    repair: bool = False
     curved: bool = True
 
-    KEYS = ("h", "grading", "strategy", "retriangulate_every", "curved")
+    KEYS = ("h", "grading", "strategy", "retriangulate_every", "repair", "curved")
     #: keys of the ``grading`` table
     GRADING_KEYS = ("region", "growth", "h_max")
 
@@ -63,6 +66,7 @@ class MeshSpec:
             self.grading = {"region": region, "growth": growth, "h_max": h_max}
         self.strategy = names.lookup("strategy", self.strategy, f"{where}.strategy", SceneError)
         self.retriangulate_every = integer(f"{where}.retriangulate_every", self.retriangulate_every, error=SceneError)
+        self.repair = boolean(f"{where}.repair", self.repair, error=SceneError)
         self.curved = boolean(f"{where}.curved", self.curved, error=SceneError)
 
 

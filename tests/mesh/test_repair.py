@@ -1,5 +1,6 @@
 """The repair of elements that fire the quality trigger by moving nodes (fluidem.mesh.repair), off by
-default and switched on here with ``repair_sweeps = 2``.
+default (the scene key ``[mesh] repair = true``) and switched on here with ``repair_sweeps = 2``; the
+moved nodes' trajectories and fields are carried over like a re-triangulation's on a few elements.
 
 Measured (h = 0.03, 16 disks of radius 0.06 on a 4 × 4 lattice in the unit box, sheared back and
 forth, x += 0.2 sin(2π k/100) (y − 0.5), and turned by the same angle, 200 steps): 15
@@ -35,8 +36,10 @@ def _sheared_lattice(n_steps=200, repair_sweeps=2, **params):
             events.append(ev.reason)
         if ev.n_repaired:
             repaired += 1
-            # the connectivity is the same: a node motion of the ALE step, no transfer
-            assert np.array_equal(before, mm.triangles)
+            # the connectivity is the same; the moved nodes are named for the field transfer
+            assert np.array_equal(before, mm.triangles) and len(ev.repaired_nodes) == ev.n_repaired
+            moved = (mm.points != ev.repaired_from).any(axis=1)
+            assert np.array_equal(np.flatnonzero(moved), ev.repaired_nodes)
         worst = min(worst, mm.quality().min_angle)
     return events, repaired, worst, mm
 
@@ -126,3 +129,55 @@ def test_repair_sweeps_must_be_a_count(bad):
 def test_the_repair_is_off_by_default():
     mm = MovingMesh((0.0, 1.0, 0.0, 1.0), [rectangle(0.2, 0.1)], [[0.5, 0.5, 0.0]], h=0.1)
     assert mm.params.repair_sweeps == 0
+
+
+def test_a_moved_node_continues_the_motion_of_the_point_it_jumped_to():
+    """Under an affine mesh motion the pulled-back trajectory of a moved node (``pull_back_moved``)
+    is the motion's own at its new position, so its BDF2 mesh velocity is the affine velocity there
+    to round-off; taken as mesh motion, the jump of 0.3 h in a step of 0.01 would add 1.5 · 0.3 h / dt
+    = 2.8 length units per time unit."""
+    from skfem import MeshTri
+
+    from fluidem.mesh.moving_history import pull_back_moved, velocity_from_history
+
+    m = MeshTri().refined(3)  # h = 1/8
+    x, tri, dt = m.p.T.copy(), m.t.T.copy(), 0.01
+    G, c = np.array([[0.3, -1.2], [0.7, 0.1]]), np.array([0.5, -0.2])
+    v = x @ G.T + c  # an affine velocity field at the nodes' positions now
+    x_n, x_nm1 = x - dt * v, x - 2 * dt * v
+    k = int(np.argmin(np.linalg.norm(x - [0.5, 0.5], axis=1)))
+    after = x.copy()
+    after[k] += [0.3 / 8, 0.1 / 8]
+    moved = np.array([k])
+    pn, pnm1 = pull_back_moved(tri, x, after, moved, x_n, x_nm1)
+    w = velocity_from_history(after, pn, pnm1, dt)
+    assert np.abs(w - (after @ G.T + c)).max() < 1e-12
+    assert np.array_equal(np.delete(pn, k, 0), np.delete(x_n, k, 0))  # the other nodes keep theirs
+    assert np.abs(velocity_from_history(after, x_n, x_nm1, dt)[k] - w[k]).max() > 2.0  # jump as motion
+
+
+def test_fields_are_transferred_to_the_moved_nodes():
+    """``move_with_nodes``: a quadratic velocity field on P2+bubble is carried to the moved DOFs exactly
+    (interpolation reproduces P2; the bubble matches the centroid value), and the DOFs of elements
+    away from the moved nodes keep their values bit for bit."""
+    from skfem import Basis, ElementTriP2B, ElementVector, MeshTri
+
+    from fluidem.mesh.transfer import move_with_nodes
+
+    m = MeshTri().refined(3)
+    e = ElementVector(ElementTriP2B())
+    b = Basis(m, e)
+    field = lambda p: np.stack([p[0] ** 2 - p[0] * p[1], 0.5 + p[1] ** 2])  # noqa: E731
+    u = b.project(field)
+    x = m.p.T.copy()
+    moved = np.flatnonzero(np.linalg.norm(x - [0.5, 0.5], axis=1) < 0.13)  # the centre node and its 4 neighbours
+    after = x.copy()
+    after[moved] += [0.02, -0.03]
+    v = move_with_nodes(e, b.element_dofs, m.t.T, x, after, moved, np.column_stack([u, 2 * u]))
+    b1 = Basis(MeshTri(after.T.copy(), m.t), e)
+    exact = b1.project(field)
+    assert np.abs(v[:, 0] - exact).max() < 1e-12 and np.abs(v[:, 1] - 2 * exact).max() < 1e-12
+    near = np.isin(m.t.T, moved).any(axis=1)
+    away = np.setdiff1d(b.element_dofs[:, ~near], b.element_dofs[:, near])
+    assert len(away) and np.array_equal(v[away, 0], u[away])
+    assert np.abs(v[:, 0] - u).max() > 1e-3  # the moved DOFs did change
