@@ -22,6 +22,7 @@ Run (tens of minutes)::
     python benchmarks/bench_dense.py --narrow N [--before PATH]   # the short-range models' gaps of N bodies
     python benchmarks/bench_dense.py --groups N   # one DEM pass of N bodies: grouped sub-steps against one group
     python benchmarks/bench_dense.py --continue OUT_DIR SCENE.toml STEP K --before PATH [--name NAME]   # twice
+    python benchmarks/bench_dense.py --continue OUT_DIR SCENE.toml STEP K --repair [--name NAME]   # repair on/off
 
 writes ``benchmarks/results/dense.{md,json}`` (``--lu``: ``dense_lu.{md,json}``; the ``pardiso`` extra
 installed, MKL pinned to one thread).  ``--before PATH`` also runs every case, side by side,
@@ -46,7 +47,11 @@ sub-steps and how far the loads differ; writes ``dense_groups.{md,json}``.
 steps twice at once, in two copies of ``OUT_DIR``: with this version and with the package at ``PATH``
 (``fluidem run --restart -v``); medians of the ordinary steps, the mean step, the DEM's time and share, its
 sub-steps and passes, the re-triangulations, and how far the bodies of the two ended apart (``history.csv``);
-writes ``dense_continue.{md,json}`` (``--name``: ``NAME.{md,json}``).
+writes ``dense_continue.{md,json}`` (``--name``: ``NAME.{md,json}``).  With ``--repair`` instead of
+``--before``: this version twice, the second with the node repair of ``[mesh] repair = true``
+switched on from the checkpoint on (a restart refuses a changed scene, so the moving mesh's
+``repair_sweeps`` is set on the restored mesh, ``--continue-repaired``), and the drag change of each
+kind of step (ordinary, repaired, re-triangulated): Σ|ΔF_y| / Σ|F_y| over the bodies.
 
 ``--log`` reads a run of such a scene too long for a benchmark session (``fluidem run FILE.toml -v
 > RUN.LOG``, continued with ``--restart`` as often as needed): the verbose lines of ``RUN.LOG`` (each
@@ -171,7 +176,11 @@ def main(argv: list[str]) -> None:
     if argv[:1] == ["--continue"]:
         before = argv[argv.index("--before") + 1] if "--before" in argv else None
         name = argv[argv.index("--name") + 1] if "--name" in argv else "dense_continue"
-        continue_side_by_side(argv[1], argv[2], int(argv[3]), int(argv[4]), before, results=name)
+        continue_side_by_side(argv[1], argv[2], int(argv[3]), int(argv[4]), before, results=name,
+                              repair="--repair" in argv)
+        return
+    if argv[:1] == ["--continue-repaired"]:
+        continue_repaired(argv[1:])
         return
     if argv[:1] == ["--log"]:
         steps = tuple(int(a) for a in argv[argv.index("--steps") + 1:argv.index("--steps") + 3]) \
@@ -543,10 +552,54 @@ def grouped_pass(n: int, repeats: int = 5) -> None:
                    "what the rows with more sub-steps show."])
 
 
+def continue_repaired(argv: list[str]) -> None:
+    """``fluidem run`` with ``argv``, the moving mesh's node repair switched on whatever the checkpoint
+    it continues holds (``--continue --repair``)."""
+    import dataclasses
+
+    import fluidem.mesh.moving as moving
+    from fluidem.cli import main as cli
+    from fluidem.mesh.params import REPAIR_SWEEPS
+
+    drag = moving.drag_step
+
+    def repaired_drag_step(mesh, new, ev):
+        if mesh.params.repair_sweeps != REPAIR_SWEEPS:
+            mesh.params = dataclasses.replace(mesh.params, repair_sweeps=REPAIR_SWEEPS)
+        return drag(mesh, new, ev)
+
+    moving.drag_step = repaired_drag_step
+    sys.exit(cli(argv))
+
+
+def force_changes(out_dir, step: int) -> dict:
+    """Median and largest Σ|ΔF_y| / Σ|F_y| over the bodies, per kind of step after ``step`` (``history.csv``,
+    ``events.log``): ``ordinary``, ``repaired``, ``retriangulated``."""
+    import csv
+    import pathlib
+
+    rows = [r for r in csv.DictReader(open(pathlib.Path(out_dir) / "history.csv")) if int(r["step"]) >= step]
+    steps = sorted({int(r["step"]) for r in rows})
+    ids = sorted({r["id"] for r in rows})
+    F = np.zeros((len(steps), len(ids)))
+    for r in rows:
+        F[steps.index(int(r["step"])), ids.index(r["id"])] = float(r["fy"])
+    change = np.abs(np.diff(F, axis=0)).sum(axis=1) / np.abs(F[:-1]).sum(axis=1)
+    ev = (pathlib.Path(out_dir) / "events.log").read_text()
+    repaired = {int(m) for m in re.findall(r"step=(\d+) \S+ mesh repair", ev)}
+    retri = {int(m) for m in re.findall(r"step=(\d+) \S+ retriangulation", ev)}
+    kind = np.array(["retriangulated" if j in retri else "repaired" if j in repaired else "ordinary"
+                     for j in steps[1:]])
+    return {kd: {"steps": int((kind == kd).sum()), "median": float(np.median(change[kind == kd])),
+                 "max": float(change[kind == kd].max())}
+            for kd in ("ordinary", "repaired", "retriangulated") if (kind == kd).any()}
+
+
 def continue_side_by_side(out_dir: str, scene: str, step: int, k: int, before: str | None,
-                          results: str = "dense_continue") -> None:
+                          results: str = "dense_continue", repair: bool = False) -> None:
     """``--continue``: the run in ``out_dir`` continued from step ``step`` by ``k`` steps, this version and
-    ``before`` at once (module docstring); ``{results}.{md,json}``."""
+    ``before`` (or, ``repair``, this version with the node repair) at once (module docstring);
+    ``{results}.{md,json}``."""
     import csv
     import pathlib
     import shutil
@@ -561,6 +614,8 @@ def continue_side_by_side(out_dir: str, scene: str, step: int, k: int, before: s
     path = work / "scene.toml"
     Scene.from_dict(d).to_toml(str(path))
     versions = [("this version", None)] + ([("before", before)] if before else [])
+    if repair:
+        versions = [("this version", None), ("with the repair", None)]
     procs = []
     for name, where in versions:
         copy = work / name.replace(" ", "_")
@@ -568,10 +623,12 @@ def continue_side_by_side(out_dir: str, scene: str, step: int, k: int, before: s
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1",
                    **({"PYTHONPATH": where} if where else {}))
         log = open(copy / "continue.log", "w")
-        procs.append((name, copy, log, subprocess.Popen(
-            [sys.executable, "-m", "fluidem", "run", str(path), "--out", str(copy), "--restart",
-             str(copy / "checkpoints" / f"ckpt_{step:07d}.npz"), "-v"], stdout=log, stderr=subprocess.STDOUT,
-            env=env, cwd=where or None)))
+        run = ["run", str(path), "--out", str(copy), "--restart", str(copy / "checkpoints" / f"ckpt_{step:07d}.npz"),
+               "-v"]
+        cmd = [sys.executable, __file__, "--continue-repaired"] if name == "with the repair" else \
+            [sys.executable, "-m", "fluidem"]
+        procs.append((name, copy, log, subprocess.Popen(cmd + run, stdout=log, stderr=subprocess.STDOUT, env=env,
+                                                        cwd=where or None)))
     for _, _, log, proc in procs:
         proc.wait()
         log.close()
@@ -597,7 +654,8 @@ def continue_side_by_side(out_dir: str, scene: str, step: int, k: int, before: s
                      "body_substeps_per_step": (float(np.mean([st[j]["body_substeps"] for j in ks]))
                                                 if ks and all(st[j]["body_substeps"] is not None for j in ks)
                                                 else None),
-                     "retriangulations": sum(j in run["retri"] for j in ks)})
+                     "retriangulations": sum(j in run["retri"] for j in ks),
+                     "force_change": force_changes(copy, step) if proc.returncode == 0 else None})
     notes = []
     if len(procs) == 2 and all(r["exit"] == 0 for r in rows):
         a, b = (final(copy, step + k) for _, copy, _, _ in procs)
@@ -607,6 +665,10 @@ def continue_side_by_side(out_dir: str, scene: str, step: int, k: int, before: s
         notes = ["", f"At step {step + k} the bodies of the two are {np.abs(a[:, :2] - b[:, :2]).max():.3g} apart at "
                  f"most (median displacement over the {k} steps {moved:.3g}), their velocities "
                  f"{np.abs(a[:, 2:] - b[:, 2:]).max():.3g} (median speed {speed:.3g})."]
+    for r in rows:
+        if r["force_change"]:
+            notes.append(f"{r['version']}: drag change Σ|ΔF_y| / Σ|F_y| a step, median (largest): " + ", ".join(
+                f"{kd} {v['median']:.2%} ({v['max']:.2%}, {v['steps']} steps)" for kd, v in r["force_change"].items()))
     shutil.rmtree(work)
 
     def cell(v, f):
