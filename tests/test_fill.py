@@ -305,6 +305,7 @@ def test_suspension_example_is_a_settling_suspension():
     r = np.array([b.radius if b.shape == "disk" else math.sqrt(shapely.area(shapely.Polygon(v)) / math.pi)
                   for b, v in zip(scene.bodies, scene.world_outlines())])
     assert r.min() >= 0.025 and r.max() <= 0.04 and scene.mesh.h == pytest.approx(r.mean() / 3, rel=0.1)
+    assert scene.mesh.repair  # docs/suspensions.md: 7 re-triangulations in its first 60 steps against 9
 
 
 def test_sheared_suspension_body_table_is_the_documented_command(tmp_path, capsys):

@@ -401,6 +401,9 @@ class MovingMeshFlow(FlowLoads):
             area = np.einsum("cn,nc->c", e, Me)
             history = []
             for m_old, a, b in zip(st.mass_history, (u_n, u_p), (new_n, new_p)):
+                if a is None:  # no u^{n−1} (BDF1 next): its history is not used
+                    history.append(m_old)
+                    continue
                 m = m_old + M @ (b - a)
                 history.append(m + Me @ ((e @ m_old - e @ m) / area))
         self.sim.counters["repair_transfers"] = self.sim.counters.get("repair_transfers", 0) + 1
