@@ -311,6 +311,8 @@ class StepHealth:
     repaired : int
         Mesh nodes moved this step to bring elements past the angle bounds back within them instead of
         re-triangulating (:mod:`fluidem.mesh.repair`).
+    repair_declined : str
+        Why the repair did not avert this step's quality re-triangulation (``""``: not tried).
     """
 
     step: int
@@ -329,6 +331,7 @@ class StepHealth:
     pockets: int = 0
     gap_elements: int = 0
     repaired: int = 0
+    repair_declined: str = ""
 
     def text(self) -> str:
         """The compact health part of a ``--verbose`` line: ``cond1 <κ> (x<growth>)`` at an LU,
@@ -403,6 +406,7 @@ class RunDiagnostics:
                         "krylov_iterations": 0, "retriangulations": 0, "oscillation_steps": 0,
                         "pocket_steps": 0, "repair_steps": 0, "repaired_nodes": 0}
         self._pocket_text = ""
+        self._declined: dict[str, int] = {}  # quality re-triangulations the repair did not avert, by why
         self._element = None  # the element pair of the last step's problem (the gap warning's condition)
 
     # -- the solvers' reports ------------------------------------------------------------------
@@ -478,6 +482,7 @@ class RunDiagnostics:
             if getattr(event, "retriangulated", False) and getattr(event, "transfer_change", None) is not None:
                 h.noise = float(event.transfer_change)
             h.repaired = int(getattr(event, "n_repaired", 0) or 0)
+            h.repair_declined = str(getattr(event, "repair_declined", "") or "")
             osc = np.asarray(getattr(event, "oscillating", ()), dtype=np.int64)
             h.oscillating = int(osc.size)
             if osc.size and mesh is not None:
@@ -510,6 +515,8 @@ class RunDiagnostics:
         c["pocket_steps"] += h.pockets > 0
         c["repair_steps"] += h.repaired > 0
         c["repaired_nodes"] += h.repaired
+        if h.repair_declined:
+            self._declined[h.repair_declined] = self._declined.get(h.repair_declined, 0) + 1
         for key, value in (("condition", h.condition), ("iterations", h.iterations if h.solves else None),
                            ("residual", h.residual), ("noise", h.noise),
                            ("oscillating", h.oscillating or None), ("swing", h.swing),
@@ -609,7 +616,8 @@ class RunDiagnostics:
                     "swing_max their largest move over the local h; gap_elements: triangles spanning a gap "
                     "between two bodies (or a body and a wall) with one element; mesh_repairs: steps in which "
                     "mesh nodes were moved to bring elements past the angle bounds back within them instead of "
-                    "re-triangulating, and the nodes moved; series: "
+                    "re-triangulating, the nodes moved, and the quality re-triangulations it did not avert by "
+                    "why (declined); series: "
                     + ("every step" if self._stride == 1 else f"one step in {self._stride}") + " of this run",
             "seconds": self.seconds, "steps": self._steps,
             "condition": cond,
@@ -618,7 +626,8 @@ class RunDiagnostics:
                        "residual": ext("residual")},
             "interpolation_noise": noise,
             "oscillation": osc,
-            "mesh_repairs": {"steps": c["repair_steps"], "nodes": c["repaired_nodes"]},
+            "mesh_repairs": {"steps": c["repair_steps"], "nodes": c["repaired_nodes"],
+                             "declined": dict(self._declined)},
             "pockets": None if "pockets" not in e else {"max": int(e["pockets"][0]), "max_step": e["pockets"][1],
                                                         "steps": c["pocket_steps"]},
             "gap_elements": ext("gap_elements"),

@@ -345,6 +345,8 @@ def log_mesh_event(sim, writer, ev_mesh) -> None:
     """
     if ev_mesh.retriangulated:
         msg = f"reason={ev_mesh.reason} nodes={ev_mesh.n_nodes} triangles={ev_mesh.n_triangles}"
+        if getattr(ev_mesh, "repair_declined", ""):
+            msg += f" (not repaired: {ev_mesh.repair_declined})"
         if sim.scene.fluid.model != "stokes":
             how = ("ALE interpolation through the old mesh motion" if ev_mesh.history == "ale" else
                    "interpolation, Eulerian step (old mesh not valid at the new positions)"

@@ -136,41 +136,53 @@ def drag_step(mesh: MovingMesh, new, ev: MeshEvent) -> None:
 def repair_step(mesh: MovingMesh, shape: ElementShape, ev: MeshEvent) -> bool:
     """Move the nodes around the elements that fired the quality trigger (``shape``: the
     elements at ``mesh.points``) until none does (:mod:`fluidem.mesh.repair`).  True: repaired,
-    ``mesh.points`` moved and ``ev.n_repaired`` set; False: nothing changed (re-triangulate)."""
+    ``mesh.points`` moved and ``ev.n_repaired`` set; False: nothing changed (re-triangulate), and
+    ``ev.repair_declined`` says why."""
     base = mesh.baseline
     fired = np.flatnonzero((shape.cos_max > base.cos_lo) | (shape.cos_min < base.cos_hi))
-    if not len(fired) or len(fired) > MAX_REPAIR_ELEMENTS:
-        return False  # a narrow-gap element fired (not repaired here), or too many
+    if not len(fired):
+        return _declined(ev, "only narrow-gap elements fired")  # not repaired here
+    if len(fired) > MAX_REPAIR_ELEMENTS:
+        return _declined(ev, f"more than {MAX_REPAIR_ELEMENTS} elements fired")
     topo, h = mesh.topo, mesh.h_node
     target_area = (np.sqrt(3.0) / 36.0) * (h[topo.t0] + h[topo.t1] + h[topo.t2]) ** 2  # √3/4 of the mean h²
     if np.count_nonzero(shape.area > mesh.params.refine_area * target_area) > MAX_STRETCHED_SHARE * len(shape.area):
-        return False  # sizes drifted: the adaptation of a re-triangulation restores them
+        # sizes drifted: the adaptation of a re-triangulation restores them
+        return _declined(ev, f"more than {MAX_STRETCHED_SHARE:.0%} of the elements grown past refine_area")
     movable = mesh._mobility.any(axis=1)
     pairs = mesh.__dict__.get("_side_pairs")
     if pairs is not None and len(pairs):
         movable[np.asarray(pairs).ravel()] = False  # periodic side nodes move in pairs
     nodes = nodes_to_repair(mesh.triangles, fired, movable, base.narrow)
     if not len(nodes):
-        return False
+        return _declined(ev, "no movable node around the fired elements")
     lo = np.degrees(np.arccos(np.clip(base.cos_lo, -1.0, 1.0)))
     hi = np.degrees(np.arccos(np.clip(base.cos_hi, -1.0, 1.0)))
     floor = mesh.params.degenerate_area * base.area
     x, moved = repair_nodes(mesh.points, mesh.triangles, mesh._mobility, nodes, lo, hi, floor, mesh.h_node,
                             mesh.params.repair_sweeps)
     if not moved:
-        return False
+        return _declined(ev, "no move met the bounds")
     after = element_shape(x, mesh.topo)
     if (after.area <= 0).any() or quality_dropped(after, base, mesh._anchored_across_gap):
-        return False
+        still = (after.cos_max > base.cos_lo) | (after.cos_min < base.cos_hi)
+        return _declined(ev, "elements still outside the bounds after the moves" if still.any() else
+                         "a narrow-gap element fired too")
     # an element born in a narrow gap whose gap has opened, outside the bounds but no worse than it
     # was born, does not fire; a re-triangulation would replace it, so a repair must not keep it
     stale = np.flatnonzero(outside_opened_gap_bounds(after, base))
     if len(stale) and (~mesh._anchored_across_gap(stale)).any():
-        return False
+        return _declined(ev, "a narrow-gap element whose gap opened would stay outside the bounds")
     ev.repaired_from, ev.repaired_nodes = mesh.points, np.flatnonzero((x != mesh.points).any(axis=1))
     mesh.points = x
     ev.n_repaired = moved
     return True
+
+
+def _declined(ev: MeshEvent, why: str) -> bool:
+    """False, with ``why`` the repair did not avert the re-triangulation in ``ev.repair_declined``."""
+    ev.repair_declined = why
+    return False
 
 
 def _retriangulate_now(mesh: MovingMesh, xd, ev: MeshEvent, reason: str) -> None:

@@ -142,6 +142,9 @@ class MeshEvent:
     n_repaired : int
         Nodes moved to repair elements that fired the quality trigger instead of
         re-triangulating (:mod:`fluidem.mesh.repair`); 0 if none.
+    repair_declined : str
+        Why the repair did not avert this ``"quality"`` re-triangulation (e.g. ``"a narrow-gap
+        element fired too"``); ``""`` if it was not tried.
     repaired_nodes : (k,) int
         Those nodes; their jump from ``repaired_from`` (n_nodes, 2), the positions before the
         repair, is a transfer (:func:`fluidem.mesh.transfer.move_with_nodes`), not mesh motion.
@@ -183,6 +186,7 @@ class MeshEvent:
     oscillating: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     n_blocked: int = 0
     n_repaired: int = 0
+    repair_declined: str = ""
     repaired_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     repaired_from: np.ndarray | None = field(default=None, repr=False)
     contacts: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))

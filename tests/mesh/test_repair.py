@@ -34,6 +34,8 @@ def _sheared_lattice(n_steps=200, repair_sweeps=2, **params):
         ev = mm.update(np.column_stack([p0[:, 0] + 2.0 * amp * (p0[:, 1] - 0.5), p0[:, 1], np.full(len(p0), amp)]))
         if ev.retriangulated:
             events.append(ev.reason)
+            # a quality re-triangulation says why the repair did not avert it; nothing else does
+            assert bool(ev.repair_declined) == (ev.reason == "quality" and repair_sweeps > 0), ev
         if ev.n_repaired:
             repaired += 1
             # the connectivity is the same; the moved nodes are named for the field transfer
@@ -69,6 +71,9 @@ def test_a_stretched_mesh_is_retriangulated_instead():
         repaired += ev.n_repaired > 0
         if ev.retriangulated:
             events.append(ev.reason)
+            # declined for the stretched elements, each time the quality trigger fired
+            assert ev.reason != "quality" or ev.repair_declined == "more than 2% of the elements grown past " \
+                "refine_area", ev.repair_declined
     assert repaired <= 2 and events.count("quality") >= 6, (repaired, events)  # measured 0 and 9 of 13
 
 
