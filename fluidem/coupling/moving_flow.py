@@ -269,16 +269,17 @@ class MovingMeshFlow(FlowLoads):
         DOFs, shifted by a uniform velocity per component so that the momentum ∫ u dA of each
         level equals the old one (the transfer conserves it only to interpolation error)."""
         M = self.problem.M
+        return self._with_momentum_of(old_space, old_history, [M @ u for u in new_fields])
+
+    def _with_momentum_of(self, old_space, old_history, levels):
+        """``levels`` (M u of each time level on the current DOFs) shifted by a uniform velocity per
+        component so that each level's momentum ∫ u dA equals that of ``old_history`` (on
+        ``old_space``)."""
         e_old = self._constant_fields(old_space)
         e_new = self._constant_fields(self.space)
-        Me = M @ e_new.T  # (n_u, 2)
+        Me = self.problem.M @ e_new.T  # (n_u, 2)
         area = np.einsum("cn,nc->c", e_new, Me)
-        out = []
-        for m_old, u in zip(old_history, new_fields):
-            m = M @ u
-            shift = (e_old @ m_old - e_new @ m) / area  # (2,)
-            out.append(m + Me @ shift)
-        return out
+        return [m + Me @ ((e_old @ m_old - e_new @ m) / area) for m_old, m in zip(old_history, levels)]
 
     def _refit(self, t) -> bool:
         """Move space, problem and rigid modes to the current node positions; False if the triangles changed."""
@@ -383,8 +384,8 @@ class MovingMeshFlow(FlowLoads):
         nodes (``ev.repaired_nodes``, :mod:`fluidem.mesh.repair`): the old functions on the mesh
         before the repair, evaluated at the moved DOFs (:func:`fluidem.mesh.transfer.move_with_nodes`;
         the nodes' trajectories were pulled back alike, so the jump is not mesh velocity).  The
-        history changes by M (u_new − u_old), shifted by a uniform velocity per component to keep
-        each level's momentum ∫ u dA (as :meth:`_transfer_mass_history`)."""
+        history changes by M (u_new − u_old), shifted back to each level's momentum ∫ u dA
+        (:meth:`_with_momentum_of`)."""
         from ..mesh.transfer import move_with_nodes
 
         st = self.stepper
@@ -396,16 +397,9 @@ class MovingMeshFlow(FlowLoads):
         history = None
         if st.conservative and st.mass_history is not None:
             M = self.problem.M
-            e = self._constant_fields(self.space)
-            Me = M @ e.T  # (n_u, 2)
-            area = np.einsum("cn,nc->c", e, Me)
-            history = []
-            for m_old, a, b in zip(st.mass_history, (u_n, u_p), (new_n, new_p)):
-                if a is None:  # no u^{n−1} (BDF1 next): its history is not used
-                    history.append(m_old)
-                    continue
-                m = m_old + M @ (b - a)
-                history.append(m + Me @ ((e @ m_old - e @ m) / area))
+            levels = [m if a is None else m + M @ (b - a)  # no u^{n−1} (BDF1 next): its history stands
+                      for m, a, b in zip(st.mass_history, (u_n, u_p), (new_n, new_p))]
+            history = self._with_momentum_of(self.space, st.mass_history, levels)
         self.sim.counters["repair_transfers"] = self.sim.counters.get("repair_transfers", 0) + 1
         return new_n, new_p, history
 
