@@ -275,8 +275,8 @@ class MovingMeshFlow(FlowLoads):
         """``levels`` (M u of each time level on the current DOFs) shifted by a uniform velocity per
         component so that each level's momentum ∫ u dA equals that of ``old_history`` (on
         ``old_space``)."""
-        e_old = self._constant_fields(old_space)
         e_new = self._constant_fields(self.space)
+        e_old = e_new if old_space is self.space else self._constant_fields(old_space)
         Me = self.problem.M @ e_new.T  # (n_u, 2)
         area = np.einsum("cn,nc->c", e_new, Me)
         return [m + Me @ ((e_old @ m_old - e_new @ m) / area) for m_old, m in zip(old_history, levels)]
