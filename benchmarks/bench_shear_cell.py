@@ -23,7 +23,9 @@ Two parts (``--part``):
   which no body comes within the moving mesh's image margin of a side (checked: the run records
   the images it meshed); seeds 1…``--cost-seeds``.  Time per step in the same 2 × 1 box: (i)
   against (iii) the disks filled into the band x ∈ [0.4, 1.6] (local fraction 0.17) and run for
-  10 steps, too few for a rate of re-triangulations.
+  10 steps, too few for a rate of re-triangulations.  And within each run (i): where its
+  re-triangulations fired (``MeshEvent.fired_at``), near the seam against away from it, in bands
+  of equal width across the period (the shear flow is the same at every x).
 * ``resolution``: φ = 0.1 and 0.3 (seed 1) again at h = 0.025.  Per step: wall time
   (median over steps 2…), re-triangulations per 100 steps and their reasons; run one after the
   other in one session (the load is in the machine line).
@@ -56,6 +58,9 @@ BAND = (0.4, 1.6)
 #: of a box this long (no disk reaches a side in 5 strain units: the fastest moves about 2)
 LONG = 8.0
 BOX = (0.0, 2.0, -0.5, 0.5)
+#: bands across the period in which the cost part places the re-triangulations of a 2 × 1 run (the
+#: first centred on the seam, half a band ≈ the image margin)
+N_BANDS = 6
 SHEAR_RATE = 2.0
 #: Bystricky et al. (2D boundary integrals, Taylor–Couette), the issue's reference values
 BYSTRICKY = {0.05: 1.12, 0.10: 1.22, 0.15: 1.42}
@@ -105,6 +110,8 @@ def scene_dict(phi: float, seed: int, t_end: float, band=None, h=None, length=No
 
 def worker(spec: dict) -> dict:
     """Run one cell; per-step wall time, re-triangulations and images; the run's rheology."""
+    import numpy as np
+
     import fluidem
     from fluidem.scene import Scene
 
@@ -114,14 +121,23 @@ def worker(spec: dict) -> dict:
     sc = scene_dict(spec["phi"], spec["seed"], spec["t_end"], spec.get("band"), spec.get("h"),
                     spec.get("length"))
     sim = fluidem.Simulation(Scene.from_dict(sc))
-    rows, progress = step_recorder(sim, lambda sim, cost: {"images": int(sim.flow.mm.n_bodies - sim.flow.mm.n_real)})
+    period = sc["domain"]["box"][1] - sc["domain"]["box"][0]
+
+    def extra(sim, cost):
+        ev = sim.flow.last_event
+        row = {"images": int(sim.flow.mm.n_bodies - sim.flow.mm.n_real)}
+        if ev is not None and ev.retriangulated:  # where it fired, x in [0, period)
+            row["fired_x"] = sorted({round(float(x), 4) for x in np.mod(ev.fired_at[:, 0], period)})
+        return row
+
+    rows, progress = step_recorder(sim, extra)
 
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
         sim.run(out, overwrite=True, progress=progress)
         wall = time.perf_counter() - t0
         run = json.loads((pathlib.Path(out) / "run.json").read_text())
-    return {"rows": rows, "wall_s": wall, "rheology": run.get("rheology"), "h": sc["mesh"]["h"],
+    return {"rows": rows, "wall_s": wall, "rheology": run.get("rheology"), "h": sc["mesh"]["h"], "period": period,
             "radius": radius_of(spec["phi"])}
 
 
@@ -152,8 +168,62 @@ def step_summary(res: dict) -> dict:
         if r["retriangulated"]:
             reasons[r["reason"]] = reasons.get(r["reason"], 0) + 1
     n = max(len(rows), 1)
-    return {"steps": len(rows), "median_step_s": float(np.median(sec)), "per_100": 100.0 * sum(reasons.values()) / n,
-            "reasons": reasons, "max_images": max((r["images"] for r in rows), default=0)}
+    out = {"steps": len(rows), "median_step_s": float(np.median(sec)), "per_100": 100.0 * sum(reasons.values()) / n,
+           "reasons": reasons, "max_images": max((r["images"] for r in rows), default=0)}
+    if any("fired_x" in r for r in rows):
+        out["bands"] = band_counts(rows, res.get("period", BOX[1] - BOX[0]))
+    return out
+
+
+def band_counts(rows: list, period: float = BOX[1] - BOX[0], n_bands: int = N_BANDS) -> dict:
+    """Where one run's re-triangulations fired, across the period: the period cut into ``n_bands``
+    bands of equal width, band 0 centred on the seam (x = 0 ≡ ``period``); per band the
+    re-triangulations with a fired element in it (one may count in several bands), a ``"seam"``
+    one (an outline left its seam) in band 0; those that name no element (the schedule, a contact)
+    counted apart."""
+    width = period / n_bands
+    per_band, unplaced = [0] * n_bands, 0
+    for r in rows:
+        if not r["retriangulated"]:
+            continue
+        bands = {int(((x + 0.5 * width) % period) // width) for x in r.get("fired_x", [])}
+        if r["reason"] == "seam":
+            bands.add(0)
+        if not bands:
+            unplaced += 1
+        for b in bands:
+            per_band[b] += 1
+    return {"per_band": per_band, "unplaced": unplaced}
+
+
+def band_lines(spread: dict) -> list:
+    """The within-run comparison: re-triangulations fired near the seam (band 0) against the mean
+    of the other bands, summed over the seeds of ``spread`` (seed -> row with ``bands``)."""
+    from results_io import markdown_table
+
+    seeds = [s for s in sorted(spread) if "bands" in spread[s]]
+    if not seeds:
+        return []
+    total = [sum(spread[s]["bands"]["per_band"][b] for s in seeds) for b in range(N_BANDS)]
+    steps = sum(spread[s]["steps"] for s in seeds)
+    away = sum(total[1:]) / (N_BANDS - 1)
+    rows = [[str(s), str(spread[s]["steps"]), *map(str, spread[s]["bands"]["per_band"]),
+             str(spread[s]["bands"]["unplaced"])] for s in seeds]
+    rows.append(["all", str(steps), *map(str, total), str(sum(spread[s]["bands"]["unplaced"] for s in seeds))])
+    width = (BOX[1] - BOX[0]) / N_BANDS
+    heads = [f"x ≈ {b * width:.2g}" + (" (seam)" if b == 0 else "") for b in range(N_BANDS)]
+    ratio = total[0] / away if away else float("inf")
+    return ["", "Within each 2 × 1 run, where the re-triangulations fired: the period cut into "
+            f"{N_BANDS} bands {width:.3g} wide (half a band ≈ the image margin, (drag_reach + 1) h = 0.16: the "
+            "strip in which a body near the seam is meshed with its image), the first centred on the seam.  "
+            "A re-triangulation counts in each band holding one of its fired elements (`MeshEvent.fired_at`), "
+            "one for an outline leaving its seam (`seam`) in the seam's band; scheduled and contact ones name "
+            "no element (last column).  The shear flow is the same at every x, so away from numerical "
+            "effects each band would see the same number.", "",
+            *markdown_table(["seed", "steps", *heads, "no element"], rows), "",
+            f"Re-triangulations per 100 steps fired near the seam: {100 * total[0] / steps:.1f} against "
+            f"{100 * away / steps:.1f} in a band away from it (mean of the other {N_BANDS - 1}; "
+            f"from {min(total[1:])} to {max(total[1:])} in {steps} steps): {ratio:.2f}× (target ≤ 2)."]
 
 
 def cost_lines(runs: list) -> list:
@@ -190,6 +260,7 @@ def cost_lines(runs: list) -> list:
            f"({n_events['spread']} in {n_steps['spread']} steps) against {rate['long']:.1f} without "
            f"({n_events['long']} in {n_steps['long']}): {rate['spread'] / max(rate['long'], 1e-9):.2f}× "
            f"(target ≤ 2; per seed {per_seed})."]
+    out += band_lines(spread)
     band = next((r for r in ok if r["kind"] == "band"), None)
     if band is not None and 1 in spread:
         s = spread[1]

@@ -332,7 +332,7 @@ def check_owner(sim, out_dir) -> None:
 
 
 def log_mesh_event(sim, writer, ev_mesh) -> None:
-    """Event-log lines of this step's mesh update: re-triangulation (reason, size, field
+    """Event-log lines of this step's mesh update: re-triangulation (reason, where it fired, size, field
     transfer, interpolation noise and force change), a repair of the elements past the angle
     bounds by moving nodes (:mod:`fluidem.mesh.repair`) and oscillating nodes.
 
@@ -347,6 +347,11 @@ def log_mesh_event(sim, writer, ev_mesh) -> None:
         msg = f"reason={ev_mesh.reason} nodes={ev_mesh.n_nodes} triangles={ev_mesh.n_triangles}"
         if getattr(ev_mesh, "repair_declined", ""):
             msg += f" (not repaired: {ev_mesh.repair_declined})"
+        fired = getattr(ev_mesh, "fired_at", ())
+        if len(fired):
+            x, y = fired[0]
+            msg += (f"; {len(fired)} element{'' if len(fired) == 1 else 's'} fired, "
+                    f"{'at' if len(fired) == 1 else 'the first at'} ({x:.4g}, {y:.4g})")
         if sim.scene.fluid.model != "stokes":
             how = ("ALE interpolation through the old mesh motion" if ev_mesh.history == "ale" else
                    "interpolation, Eulerian step (old mesh not valid at the new positions)"

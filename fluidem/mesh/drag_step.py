@@ -67,7 +67,8 @@ from .relax import relax
 from .repair import nodes_to_repair, repair_nodes
 from .seam import SEAM_CODE
 from .triggers import contacts_changed as body_contacts_changed
-from .triggers import ElementShape, element_shape, outside_opened_gap_bounds, quality_dropped, retriangulation_reason
+from .triggers import (ElementShape, element_shape, fired_elements, outside_opened_gap_bounds, quality_dropped,
+                       retriangulation_reason)
 
 if TYPE_CHECKING:
     from .moving import MeshEvent, MovingMesh
@@ -118,7 +119,9 @@ def drag_step(mesh: MovingMesh, new, ev: MeshEvent) -> None:
         shape = element_shape(xd, mesh.topo)
         reason = retriangulation_reason(shape, mesh.baseline, p.degenerate_area, 0, p.retriangulate_every,
                                         lambda: False, lambda: False)
-        _retriangulate_now(mesh, xd, ev, reason if reason in ("inverted", "degenerate") else "contact")
+        reason = reason if reason in ("inverted", "degenerate") else "contact"
+        _record_fired(mesh, ev, shape, xd, reason)
+        _retriangulate_now(mesh, xd, ev, reason)
         return
     xr = relax_dragged(mesh, xd, ev)
     mesh._steps_since += 1
@@ -130,7 +133,15 @@ def drag_step(mesh: MovingMesh, new, ev: MeshEvent) -> None:
     if reason == "quality" and p.repair_sweeps and repair_step(mesh, shape, ev):
         reason = ""
     if reason:
+        _record_fired(mesh, ev, shape, xr, reason)
         retriangulate_step(mesh, ev, reason)
+
+
+def _record_fired(mesh: MovingMesh, ev: MeshEvent, shape: ElementShape, x, reason: str) -> None:
+    """``ev.fired_at``: the centroids at ``x (n, 2)`` of the elements that fired ``reason``
+    (:func:`fluidem.mesh.triggers.fired_elements`)."""
+    idx = fired_elements(shape, mesh.baseline, reason, mesh.params.degenerate_area, mesh._anchored_across_gap)
+    ev.fired_at = x[mesh.triangles[idx]].mean(axis=1)
 
 
 def repair_step(mesh: MovingMesh, shape: ElementShape, ev: MeshEvent) -> bool:

@@ -145,6 +145,11 @@ class MeshEvent:
     repair_declined : str
         Why the repair did not avert this ``"quality"`` re-triangulation (e.g. ``"a narrow-gap
         element fired too"``); ``""`` if it was not tried.
+    fired_at : (k, 2) float
+        Where the trigger fired: the centroids of the elements that did (length units, at the
+        node positions of this step before a re-triangulation; reasons ``"inverted"``,
+        ``"degenerate"`` and ``"quality"``, :func:`fluidem.mesh.triggers.fired_elements`);
+        empty for the others and without re-triangulation.
     repaired_nodes : (k,) int
         Those nodes; their jump from ``repaired_from`` (n_nodes, 2), the positions before the
         repair, is a transfer (:func:`fluidem.mesh.transfer.move_with_nodes`), not mesh motion.
@@ -187,6 +192,7 @@ class MeshEvent:
     n_blocked: int = 0
     n_repaired: int = 0
     repair_declined: str = ""
+    fired_at: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     repaired_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     repaired_from: np.ndarray | None = field(default=None, repr=False)
     contacts: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))

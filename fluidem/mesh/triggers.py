@@ -37,7 +37,7 @@ import numpy as np
 import shapely
 
 __all__ = ["ElementShape", "QualityBaseline", "element_shape", "quality_baseline", "quality_dropped",
-           "outside_opened_gap_bounds", "contacts_changed", "retriangulation_reason"]
+           "outside_opened_gap_bounds", "fired_elements", "contacts_changed", "retriangulation_reason"]
 
 
 @dataclass(frozen=True)
@@ -171,13 +171,47 @@ def quality_dropped(shape: ElementShape, base: QualityBaseline, anchored_across_
     cmax, cmin = shape.cos_max, shape.cos_min
     if ((cmax > base.cos_lo) | (cmin < base.cos_hi)).any():
         return True
-    looks_bad = outside_opened_gap_bounds(shape, base)
-    # ... and got worse since the triangulation (the gap of an unchanged element did not open)
-    looks_bad &= (cmax > base.cos_max + 1e-3) | (cmin < base.cos_min - 1e-3)
-    idx = np.flatnonzero(looks_bad)
+    idx = np.flatnonzero(_opened_and_worse(shape, base))
     if not len(idx):
         return False
     return bool((~anchored_across_gap(idx)).any())
+
+
+def fired_elements(shape: ElementShape, base: QualityBaseline, reason: str, degenerate_area: float,
+                   anchored_across_gap) -> np.ndarray:
+    """``(k,) int``: the elements that fired the trigger ``reason`` (module docstring): area <= 0
+    (``"inverted"``), below ``degenerate_area`` of the area at the last triangulation
+    (``"degenerate"``), or past their thresholds (``"quality"``: :func:`quality_dropped`'s
+    elements, narrow-gap ones whose gap opened included); empty for any other reason (a contact,
+    the schedule, a seam: no element fired).  ``anchored_across_gap(tri_idx) -> (k,) bool``.
+
+    >>> import numpy as np
+    >>> from fluidem.mesh.relax import mesh_topology
+    >>> tri = mesh_topology(np.array([[0, 1, 2], [1, 3, 2]]))
+    >>> pts = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    >>> base = quality_baseline(element_shape(pts, tri), np.zeros(2, dtype=bool), 15.0, 135.0, 10.0)
+    >>> pts[3] = [0.1, 0.1]          # the second element turns over
+    >>> fired_elements(element_shape(pts, tri), base, "inverted", 0.1, None).tolist()
+    [1]
+    """
+    if reason == "inverted":
+        return np.flatnonzero(shape.area <= 0)
+    if reason == "degenerate":
+        return np.flatnonzero(shape.area < degenerate_area * base.area)
+    if reason != "quality":
+        return np.zeros(0, dtype=np.int64)
+    past = (shape.cos_max > base.cos_lo) | (shape.cos_min < base.cos_hi)
+    idx = np.flatnonzero(_opened_and_worse(shape, base))
+    if len(idx):
+        past[idx[~anchored_across_gap(idx)]] = True
+    return np.flatnonzero(past)
+
+
+def _opened_and_worse(shape: ElementShape, base: QualityBaseline) -> np.ndarray:
+    """``(n_triangles,) bool``: :func:`outside_opened_gap_bounds` and worse since the triangulation
+    (the gap of an unchanged element did not open)."""
+    worse = (shape.cos_max > base.cos_max + 1e-3) | (shape.cos_min < base.cos_min - 1e-3)
+    return outside_opened_gap_bounds(shape, base) & worse
 
 
 def outside_opened_gap_bounds(shape: ElementShape, base: QualityBaseline) -> np.ndarray:

@@ -36,6 +36,7 @@ def _sheared_lattice(n_steps=200, repair_sweeps=2, **params):
             events.append(ev.reason)
             # a quality re-triangulation says why the repair did not avert it; nothing else does
             assert bool(ev.repair_declined) == (ev.reason == "quality" and repair_sweeps > 0), ev
+            _check_fired(ev)
         if ev.n_repaired:
             repaired += 1
             # the connectivity is the same; the moved nodes are named for the field transfer
@@ -44,6 +45,31 @@ def _sheared_lattice(n_steps=200, repair_sweeps=2, **params):
             assert np.array_equal(np.flatnonzero(moved), ev.repaired_nodes)
         worst = min(worst, mm.quality().min_angle)
     return events, repaired, worst, mm
+
+
+def _check_fired(ev):
+    """The elements a re-triangulation names as fired (``ev.fired_at``, their centroids) did: an angle
+    past the trigger's bounds (below 15° or above 135° + 10°; an element born outside fires only
+    farther out) for ``"quality"``, area <= 0 for ``"inverted"``."""
+    if ev.reason not in ("quality", "inverted", "degenerate"):
+        assert not len(ev.fired_at), ev
+        return
+    assert len(ev.fired_at), ev
+    tri = ev.old_triangles
+    centroids = ev.old_points[tri].mean(axis=1)
+    which = np.argmin(((centroids[None] - ev.fired_at[:, None]) ** 2).sum(axis=2), axis=1)
+    assert np.allclose(centroids[which], ev.fired_at, atol=1e-12, rtol=0)
+    p = ev.old_points[tri[which]]
+    e = [p[:, 1] - p[:, 0], p[:, 2] - p[:, 1], p[:, 0] - p[:, 2]]
+    area = 0.5 * (e[0][:, 0] * (-e[2][:, 1]) - e[0][:, 1] * (-e[2][:, 0]))
+    if ev.reason == "inverted":
+        assert (area <= 0).all(), area
+        return
+    if ev.reason == "quality":
+        cos = [-(a * b).sum(axis=1) / np.linalg.norm(a, axis=1) / np.linalg.norm(b, axis=1)
+               for a, b in ((e[0], e[2]), (e[1], e[0]), (e[2], e[1]))]
+        angles = np.degrees(np.arccos(np.clip(np.column_stack(cos), -1.0, 1.0)))
+        assert ((angles.min(axis=1) < 15.0 + 1e-9) | (angles.max(axis=1) > 145.0 - 1e-9)).all(), angles
 
 
 def test_the_repair_replaces_quality_retriangulations_of_a_sheared_lattice():
