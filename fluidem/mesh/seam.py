@@ -24,7 +24,8 @@ the box:
   may so lie beyond a periodic side, and an outline node passing the side line changes
   nothing; the usual triggers (quality, contacts, every K steps) re-triangulate.  Then the
   nodes beyond a side are put back in the box by the period and the side nodes back on their
-  lines (:func:`fluidem.mesh.moving_images.unbend_seams`); node trajectories and fields are
+  lines (:func:`fluidem.mesh.moving_images.unbend_seams`), where a body that has passed took side
+  nodes away new ones are put (:func:`fluidem.mesh.periodic.fill_sides`); node trajectories and fields are
   found in the old mesh or its copies a period away.  With ``seams="clip"`` (and on a doubly
   periodic box) the sides stay straight: a seam node slides along its side at the crossing of
   its segment, whose ends move rigidly with their bodies (:func:`seam_positions`), and a
