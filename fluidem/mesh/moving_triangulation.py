@@ -260,8 +260,9 @@ def set_quality_baseline(mesh: MovingMesh, shape=None):
                                                       p.angle_margin, p.min_angle_margin)
     if bends_seams(mesh):
         # an element at a seam node moves with its body (seam and outline nodes fixed on it, the
-        # free node dragged with it): one born with a small angle (a body vertex by the side
-        # line) is watched with ``angle_margin`` past that angle, not fired by its first change
+        # free node dragged with it): its smallest angle fires ``angle_margin`` below the smaller of
+        # its birth angle and ``min_angle_trigger`` (a body vertex by the side line gives slivers),
+        # not at its first change; its largest angle as any element's
         base = mesh.baseline
         seam = np.zeros(len(mesh.points), dtype=bool)
         seam[mesh._contact_idx[mesh._contact_wall >= SEAM_CODE]] = True
