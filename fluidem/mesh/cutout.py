@@ -46,7 +46,7 @@ from .nodes import (
     box_ring,
     to_body,
 )
-from .periodic import partner_places
+from .periodic import on_periodic_sides, partner_places
 from .relax import MeshTopology, signed_areas
 from .seam import SEAM_CODE, clip_at_seams, covered_side_nodes, pair_seam_nodes
 
@@ -147,18 +147,6 @@ def cut_out(cand, cand_kind, h_cand, table, purge: float, gap_purge: float, box)
     movable = (cand_kind == FREE) | box_nodes
     n_purged = int((~keep & (cand_kind == FREE)).sum())
     return CutOut(keep=keep & movable, n_purged=n_purged)
-
-
-def _on_periodic_sides(points, box, axes) -> np.ndarray:
-    """Mask ``(k,)``: ``points (k, 2)`` on a side of the periodic ``axes``."""
-    xmin, xmax, ymin, ymax = box
-    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
-    on = np.zeros(len(points), dtype=bool)
-    if "x" in axes:
-        on |= (np.abs(points[:, 0] - xmin) < tol) | (np.abs(points[:, 0] - xmax) < tol)
-    if "y" in axes:
-        on |= (np.abs(points[:, 1] - ymin) < tol) | (np.abs(points[:, 1] - ymax) < tol)
-    return on
 
 
 def _hole_points(solids, box, nodes) -> np.ndarray:
@@ -389,7 +377,7 @@ def _clip_at_seams(oc: _OutlineNodes, points, kind, uid, contact: ContactOutline
     oc.take(keep)
     oc.n_outline = int((oc.row >= 0).sum())
     ends = np.vstack([seam_points, partner_places(seam_points, clip.seam_side, box)])
-    on_periodic = _on_periodic_sides(points, box, axes) & ((kind == SIDE) | (kind == CORNER))
+    on_periodic = on_periodic_sides(points, box, axes) & ((kind == SIDE) | (kind == CORNER))
     if on_periodic.any():
         drop = np.zeros(len(points), dtype=bool)
         # a corner goes only under a body: dropped for a seam node near it, the chord between the two
@@ -415,7 +403,7 @@ def _box_segments(nodes, kind, box, wall_nodes, contact: ContactOutline, seam_ax
         # the seam under a body is no boundary: ring segments lying wholly on a body
         mid = 0.5 * (nodes[ring_seg[:, 0]] + nodes[ring_seg[:, 1]])
         under = np.zeros(len(ring_seg), dtype=bool)
-        on_periodic = np.flatnonzero(_on_periodic_sides(mid, box, seam_axes))
+        on_periodic = np.flatnonzero(on_periodic_sides(mid, box, seam_axes))
         if len(on_periodic) and len(contact.solids):
             u = shapely.buffer(shapely.union_all(np.asarray(contact.solids, dtype=object)), tol)
             lines = shapely.linestrings(np.stack([nodes[ring_seg[on_periodic, 0]], nodes[ring_seg[on_periodic, 1]]],

@@ -65,7 +65,7 @@ from .drag import DragAssociation, drag_association
 from .gaps import NOT_ON_BOUNDARY, anchored_across_gap, boundary_owner, structural_narrow
 from .moving_images import image_set, set_images, wrap_into_box
 from .nodes import CONTACT, CORNER, FREE, JUNCTION, SIDE, mobility, to_body
-from .periodic import bends_seams, fill_sides, match_side_nodes, side_partners, slide_in_pairs
+from .periodic import bends_seams, fill_sides, match_side_nodes, on_periodic_sides, side_partners, slide_in_pairs
 from .relax import relax, signed_areas
 from .seam import SEAM_CODE, SEAM_MERGE
 from .triggers import QualityBaseline, element_shape, quality_baseline
@@ -234,14 +234,7 @@ def _anchored_apart_from_seams(mesh: MovingMesh, tri_idx) -> np.ndarray:
     and a wall (:func:`fluidem.mesh.gaps.anchored_across_gap` with the periodic sides' nodes on no
     boundary: a body crossing the side has no gap to it)."""
     owner = boundary_owner(mesh.kind, mesh.body_of)
-    xmin, xmax, ymin, ymax = mesh.box
-    tol = 1e-9 * max(xmax - xmin, ymax - ymin)
-    on_side = np.zeros(len(owner), dtype=bool)
-    if "x" in mesh.periodic:
-        on_side |= (np.abs(mesh.points[:, 0] - xmin) < tol) | (np.abs(mesh.points[:, 0] - xmax) < tol)
-    if "y" in mesh.periodic:
-        on_side |= (np.abs(mesh.points[:, 1] - ymin) < tol) | (np.abs(mesh.points[:, 1] - ymax) < tol)
-    owner[on_side & (mesh.kind == SIDE)] = NOT_ON_BOUNDARY
+    owner[on_periodic_sides(mesh.points, mesh.box, mesh.periodic) & (mesh.kind == SIDE)] = NOT_ON_BOUNDARY
     return anchored_across_gap(tri_idx, mesh.triangles, mesh.points, owner, mesh.h_node, mesh._bodies_table(),
                                mesh.box)
 

@@ -36,9 +36,9 @@ import numpy as np
 from ..errors import InputError, MeshError
 from .kinds import CONTACT, CORNER, SIDE
 
-__all__ = ["AXES", "SIDE_PAIRS", "periodic_axes", "axes_of_sides", "match_side_nodes", "fill_sides", "side_partners",
-           "slide_in_pairs", "bends_seams", "move_in_pairs", "partner_places", "check_matched",
-           "check_side_pairs"]
+__all__ = ["AXES", "SIDE_PAIRS", "periodic_axes", "axes_of_sides", "on_periodic_sides", "match_side_nodes",
+           "fill_sides", "side_partners", "slide_in_pairs", "bends_seams", "move_in_pairs", "partner_places",
+           "check_matched", "check_side_pairs"]
 
 #: the periodic directions: ``"x"`` pairs left/right, ``"y"`` bottom/top
 AXES = ("x", "y")
@@ -84,6 +84,23 @@ def axes_of_sides(side_types: dict) -> tuple:
 def _tolerance(box) -> float:
     xmin, xmax, ymin, ymax = box
     return 1e-9 * max(xmax - xmin, ymax - ymin)
+
+
+def on_periodic_sides(points, box, axes) -> np.ndarray:
+    """Mask ``(k,)``: ``points (k, 2)`` on a side of the periodic ``axes`` of ``box`` (to the
+    matching tolerance, 1e-9 of the box).
+
+    >>> on_periodic_sides(np.array([[0.0, 0.5], [0.5, 0.0], [1.0, 0.2]]), (0, 1, 0, 1), ("x",)).tolist()
+    [True, False, True]
+    """
+    xmin, xmax, ymin, ymax = box
+    tol = _tolerance(box)
+    on = np.zeros(len(points), dtype=bool)
+    if "x" in axes:
+        on |= (np.abs(points[:, 0] - xmin) < tol) | (np.abs(points[:, 0] - xmax) < tol)
+    if "y" in axes:
+        on |= (np.abs(points[:, 1] - ymin) < tol) | (np.abs(points[:, 1] - ymax) < tol)
+    return on
 
 
 def match_side_nodes(points, kind, uid, box, axes, uids, merge: float = 0.0):
