@@ -229,6 +229,7 @@ def install(mesh: MovingMesh, tri: Triangulation, outline_world):
     mesh._osc.reset()
     mesh._damping = None
 
+
 def _anchored_apart_from_seams(mesh: MovingMesh, tri_idx) -> np.ndarray:
     """Mask ``(len(tri_idx),)``: elements anchored across a narrow gap between two bodies, or a body
     and a wall (:func:`fluidem.mesh.gaps.anchored_across_gap` with the periodic sides' nodes on no
