@@ -229,13 +229,11 @@ def fill_sides(points, kind, uid, box, axes, size, uids, max_gap: float = FILL_G
     points = np.asarray(points, dtype=float)
     kind, uid = np.asarray(kind), np.asarray(uid)
     xmin, xmax, ymin, ymax = box
-    tol = _tolerance(box)
     for a in axes:
         c = 0 if a == "x" else 1  # the coordinate fixed on the side
-        lo, hi = (xmin, xmax) if a == "x" else (ymin, ymax)
+        lo = xmin if a == "x" else ymin
         start, end = (ymin, ymax) if a == "x" else (xmin, xmax)
-        box_node = (kind == SIDE) | (kind == CORNER)
-        on = box_node & ((np.abs(points[:, c] - lo) < tol) | (np.abs(points[:, c] - hi) < tol))
+        on = ((kind == SIDE) | (kind == CORNER)) & on_periodic_sides(points, box, (a,))
         places = np.unique(np.concatenate([[start, end], np.clip(points[on, 1 - c], start, end)]))
         span = np.diff(places)
         mid = np.zeros((len(span), 2))
