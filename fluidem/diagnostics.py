@@ -309,10 +309,11 @@ class StepHealth:
         Triangles of the step's moving mesh that span a gap with one element: their three vertices on
         the outlines of at least two bodies, or of a body and a wall (:func:`gap_elements`).
     repaired : int
-        Mesh nodes moved this step to bring elements past the angle bounds back within them instead of
-        re-triangulating (:mod:`fluidem.mesh.repair`).
+        Mesh nodes moved this step to bring elements past the angle bounds or the area floor back
+        within them instead of re-triangulating (:mod:`fluidem.mesh.repair`).
     repair_declined : str
-        Why the repair did not avert this step's quality re-triangulation (``""``: not tried).
+        Why the repair did not avert this step's quality or degenerate re-triangulation (``""``:
+        not tried).
     """
 
     step: int
@@ -615,9 +616,9 @@ class RunDiagnostics:
                     "re-triangulation; oscillating: mesh nodes flipping between two positions in the relaxation, "
                     "swing_max their largest move over the local h; gap_elements: triangles spanning a gap "
                     "between two bodies (or a body and a wall) with one element; mesh_repairs: steps in which "
-                    "mesh nodes were moved to bring elements past the angle bounds back within them instead of "
-                    "re-triangulating, the nodes moved, and the quality re-triangulations it did not avert by "
-                    "why (declined); series: "
+                    "mesh nodes were moved to bring elements past the angle bounds or the area floor back within "
+                    "them instead of re-triangulating, the nodes moved, and the quality and degenerate "
+                    "re-triangulations it did not avert by why (declined); series: "
                     + ("every step" if self._stride == 1 else f"one step in {self._stride}") + " of this run",
             "seconds": self.seconds, "steps": self._steps,
             "condition": cond,

@@ -373,8 +373,8 @@ def log_mesh_event(sim, writer, ev_mesh) -> None:
     if getattr(ev_mesh, "n_repaired", 0):
         writer.event(sim.step_index, sim.t, "mesh repair",
                      f"{ev_mesh.n_repaired} node{'' if ev_mesh.n_repaired == 1 else 's'} moved to bring elements past "
-                     "the angle bounds back within them, no re-triangulation (docs: moving-mesh, repair before "
-                     "re-triangulation)")
+                     "the angle bounds or the area floor back within them, no re-triangulation (docs: moving-mesh, "
+                     "repair before re-triangulation)")
     if len(ev_mesh.oscillating):
         h = sim.diagnostics.last
         swing = h.swing if h is not None and h.step == sim.step_index else None

@@ -31,11 +31,13 @@ and then, in this order:
      as far past its own angles after the last triangulation if it was born outside them (``"quality"``, with
      hysteresis: an element born near a bound does not fire as soon as it crosses it,
      :func:`fluidem.mesh.triggers.quality_baseline`);
-5. before a ``"quality"`` re-triangulation, the repair (:func:`repair_step`,
-   :mod:`fluidem.mesh.repair`): the nodes around the fired elements move to bring them back
-   within their thresholds, and the mesh is re-triangulated only if that fails (or a
-   narrow-gap element fired, more than :data:`MAX_REPAIR_ELEMENTS` did, or more than
-   :data:`MAX_STRETCHED_SHARE` of the elements have grown past ``refine_area``).
+5. before a ``"quality"`` or ``"degenerate"`` re-triangulation (:data:`REPAIRED_REASONS`), the
+   repair (:func:`repair_step`, :mod:`fluidem.mesh.repair`): the nodes around the fired elements
+   move to bring them back within their thresholds and above ``degenerate_area``, and the mesh is
+   re-triangulated only if that fails (or a narrow-gap element fired or collapsed, more than
+   :data:`MAX_REPAIR_ELEMENTS` fired, more than :data:`MAX_STRETCHED_SHARE` of the elements have
+   grown past ``refine_area``, or, for ``"degenerate"``, a contact changed or the scheduled
+   re-triangulation is due).
 
 Oscillating nodes (Sec. 3.3) are detected from the relaxation displacements
 (:class:`fluidem.mesh.quality.OscillationDetector`), reported, and their relaxation step is
@@ -74,7 +76,7 @@ if TYPE_CHECKING:
     from .moving import MeshEvent, MovingMesh
 
 __all__ = ["drag_step", "put_back_in_box", "relax_dragged", "repair_step", "retriangulate_step", "harmonic_drag_of",
-           "contacts_changed", "contact_slack", "MAX_REPAIR_ELEMENTS", "MAX_STRETCHED_SHARE"]
+           "contacts_changed", "contact_slack", "MAX_REPAIR_ELEMENTS", "MAX_STRETCHED_SHARE", "REPAIRED_REASONS"]
 
 #: the quality trigger's elements repaired by moving nodes at most (more: a storm of shear the
 #: node positions cannot undo, re-triangulate)
@@ -85,6 +87,10 @@ MAX_REPAIR_ELEMENTS = 16
 #: going there and back: +8 % nodes in 300 steps when only the scheduled re-triangulations
 #: remained, +3 % with this rule; a settling pile of 100 polygons has 0.3–0.6 % of such elements)
 MAX_STRETCHED_SHARE = 0.02
+
+#: the re-triangulation reasons a repair may avert: elements past their angle thresholds, or
+#: shrunk below ``degenerate_area`` (not inverted: no node move is small for an element turned over)
+REPAIRED_REASONS = ("quality", "degenerate")
 
 _NO_PAIRS = np.zeros((0, 2), dtype=np.int64)
 
@@ -130,7 +136,7 @@ def drag_step(mesh: MovingMesh, new, ev: MeshEvent) -> None:
     reason = retriangulation_reason(
         shape, mesh.baseline, p.degenerate_area, mesh._steps_since, p.retriangulate_every,
         lambda: contacts_changed(mesh), lambda: quality_dropped(shape, mesh.baseline, mesh._anchored_across_gap))
-    if reason == "quality" and p.repair_sweeps and repair_step(mesh, shape, ev):
+    if reason in REPAIRED_REASONS and p.repair_sweeps and repair_step(mesh, shape, ev):
         reason = ""
     if reason:
         _record_fired(mesh, ev, shape, xr, reason)
@@ -145,19 +151,28 @@ def _record_fired(mesh: MovingMesh, ev: MeshEvent, shape: ElementShape, x, reaso
 
 
 def repair_step(mesh: MovingMesh, shape: ElementShape, ev: MeshEvent) -> bool:
-    """Move the nodes around the elements that fired the quality trigger (``shape``: the
-    elements at ``mesh.points``) until none does (:mod:`fluidem.mesh.repair`).  True: repaired,
-    ``mesh.points`` moved and ``ev.n_repaired`` set; False: nothing changed (re-triangulate), and
+    """Move the nodes around the elements that fired the quality trigger or shrank below
+    ``degenerate_area`` of their area (``shape``: the elements at ``mesh.points``) until none
+    does (:mod:`fluidem.mesh.repair`).  True: repaired,
+    ``mesh.points`` moved and ``ev.repaired_nodes`` set; False: nothing changed (re-triangulate), and
     ``ev.repair_declined`` says why."""
-    base = mesh.baseline
-    fired = np.flatnonzero((shape.cos_max > base.cos_lo) | (shape.cos_min < base.cos_hi))
+    base, p = mesh.baseline, mesh.params
+    shrunk = shape.area < p.degenerate_area * base.area
+    if shrunk.any():
+        # "degenerate": the reasons after it in retriangulation_reason were not evaluated, and a
+        # repair averts none of them
+        if contacts_changed(mesh) or mesh._steps_since >= p.retriangulate_every:
+            return _declined(ev, "a contact changed or the scheduled re-triangulation is due")
+        if (shrunk & base.narrow).any():
+            return _declined(ev, "a narrow-gap element collapsed")  # its vertices are on outlines
+    fired = np.flatnonzero((shape.cos_max > base.cos_lo) | (shape.cos_min < base.cos_hi) | shrunk)
     if not len(fired):
         return _declined(ev, "only narrow-gap elements fired")  # not repaired here
     if len(fired) > MAX_REPAIR_ELEMENTS:
         return _declined(ev, f"more than {MAX_REPAIR_ELEMENTS} elements fired")
     topo, h = mesh.topo, mesh.h_node
     target_area = (np.sqrt(3.0) / 36.0) * (h[topo.t0] + h[topo.t1] + h[topo.t2]) ** 2  # √3/4 of the mean h²
-    if np.count_nonzero(shape.area > mesh.params.refine_area * target_area) > MAX_STRETCHED_SHARE * len(shape.area):
+    if np.count_nonzero(shape.area > p.refine_area * target_area) > MAX_STRETCHED_SHARE * len(shape.area):
         # sizes drifted: the adaptation of a re-triangulation restores them
         return _declined(ev, f"more than {MAX_STRETCHED_SHARE:.0%} of the elements grown past refine_area")
     movable = mesh._mobility.any(axis=1)
@@ -169,14 +184,16 @@ def repair_step(mesh: MovingMesh, shape: ElementShape, ev: MeshEvent) -> bool:
         return _declined(ev, "no movable node around the fired elements")
     lo = np.degrees(np.arccos(np.clip(base.cos_lo, -1.0, 1.0)))
     hi = np.degrees(np.arccos(np.clip(base.cos_hi, -1.0, 1.0)))
-    floor = mesh.params.degenerate_area * base.area
+    floor = p.degenerate_area * base.area
     x, moved = repair_nodes(mesh.points, mesh.triangles, mesh._mobility, nodes, lo, hi, floor, mesh.h_node,
-                            mesh.params.repair_sweeps)
+                            p.repair_sweeps)
     if not moved:
         return _declined(ev, "no move met the bounds")
     after = element_shape(x, mesh.topo)
-    if (after.area <= 0).any() or quality_dropped(after, base, mesh._anchored_across_gap):
-        still = (after.cos_max > base.cos_lo) | (after.cos_min < base.cos_hi)
+    if (after.area < p.degenerate_area * base.area).any() or quality_dropped(after, base,
+                                                                             mesh._anchored_across_gap):
+        still = ((after.cos_max > base.cos_lo) | (after.cos_min < base.cos_hi)
+                 | (after.area < p.degenerate_area * base.area))
         return _declined(ev, "elements still outside the bounds after the moves" if still.any() else
                          "a narrow-gap element fired too")
     # an element born in a narrow gap whose gap has opened, outside the bounds but no worse than it
@@ -186,7 +203,6 @@ def repair_step(mesh: MovingMesh, shape: ElementShape, ev: MeshEvent) -> bool:
         return _declined(ev, "a narrow-gap element whose gap opened would stay outside the bounds")
     ev.repaired_from, ev.repaired_nodes = mesh.points, np.flatnonzero((x != mesh.points).any(axis=1))
     mesh.points = x
-    ev.n_repaired = moved
     return True
 
 

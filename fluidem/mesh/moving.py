@@ -140,11 +140,12 @@ class MeshEvent:
     n_blocked : int
         Relaxation moves dropped because they would have inverted an element.
     n_repaired : int
-        Nodes moved to repair elements that fired the quality trigger instead of
-        re-triangulating (:mod:`fluidem.mesh.repair`); 0 if none.
+        Nodes moved to repair elements that fired the quality trigger or shrank below
+        ``degenerate_area`` instead of re-triangulating (:mod:`fluidem.mesh.repair`); 0 if
+        none.  ``len(repaired_nodes)`` (read only).
     repair_declined : str
-        Why the repair did not avert this ``"quality"`` re-triangulation (e.g. ``"a narrow-gap
-        element fired too"``); ``""`` if it was not tried.
+        Why the repair did not avert this ``"quality"`` or ``"degenerate"`` re-triangulation
+        (e.g. ``"a narrow-gap element fired too"``); ``""`` if it was not tried.
     fired_at : (k, 2) float
         Where the trigger fired: the centroids of the elements that did (length units, at the
         node positions of this step before a re-triangulation; reasons ``"inverted"``,
@@ -190,7 +191,6 @@ class MeshEvent:
     n_junctions: int = 0
     oscillating: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     n_blocked: int = 0
-    n_repaired: int = 0
     repair_declined: str = ""
     fired_at: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     repaired_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
@@ -205,6 +205,10 @@ class MeshEvent:
     history: str = ""
     transfer_change: float | None = None
     force_change: float | None = None
+
+    @property
+    def n_repaired(self) -> int:
+        return len(self.repaired_nodes)
 
 
 class MovingMesh:

@@ -88,13 +88,14 @@ class MeshParams:
         hard cases assert 15°); a margin of 3° halved the re-triangulations of some dense scenes
         but let elements of 12° stand.
     repair_sweeps : int
-        Before a ``"quality"`` re-triangulation, sweeps of the node repair
+        Before a ``"quality"`` or ``"degenerate"`` re-triangulation, sweeps of the node repair
         (:mod:`fluidem.mesh.repair`): the nodes around the elements that fired are moved to
-        bring them back within their thresholds, and the mesh is re-triangulated only if that
-        fails; 0 (the default): no repair, >= 0; :data:`REPAIR_SWEEPS` (2) is the measured
-        setting, the scene key ``[mesh] repair = true``.  The moved nodes' fields are transferred
-        from the mesh before the move (:func:`fluidem.mesh.transfer.move_with_nodes`), like a
-        re-triangulation on a few elements.
+        bring them back within their thresholds and above ``degenerate_area`` of their area, and
+        the mesh is re-triangulated only if that fails; 0 (the default): no repair, >= 0;
+        :data:`REPAIR_SWEEPS` (2) is the measured setting, the scene key ``[mesh] repair =
+        true``.  The moved nodes' fields are transferred from the mesh before the move
+        (:func:`fluidem.mesh.transfer.move_with_nodes`), like a re-triangulation on a few
+        elements.
     degenerate_area : float
         An element that shrank below this fraction of its area at the last triangulation
         triggers a re-triangulation (``"degenerate"``).

@@ -1,5 +1,5 @@
-"""Repair of the few elements that fire the quality trigger, by moving their nodes, before the
-dragged mesh is re-triangulated for them.
+"""Repair of the few elements that fire the quality trigger (or shrink below ``degenerate_area`` of
+their area), by moving their nodes, before the dragged mesh is re-triangulated for them.
 
 In a settling, piling suspension the quality trigger (:func:`fluidem.mesh.triggers.quality_dropped`)
 is set off by one element at a time, once every 5–10 steps at 100 polygons: an element with one or
@@ -50,6 +50,8 @@ of its four elements to at least 3° within the bounds 15° and 145°:
 from __future__ import annotations
 
 import numpy as np
+
+from .transfer import elements_around
 
 __all__ = ["repair_nodes", "nodes_to_repair", "DIRECTIONS", "STEP_FRACTIONS", "TARGET_MARGIN"]
 
@@ -130,7 +132,7 @@ def repair_nodes(points, triangles, mobility, nodes, lo, hi, floor, size, sweeps
     if not len(nodes):
         return x, 0
     size = np.broadcast_to(np.asarray(size, dtype=float), (len(x),))
-    near = np.flatnonzero(np.isin(tri, nodes).any(axis=1))  # the stars of all nodes, one pass
+    near = elements_around(tri, nodes, 1)  # the stars of all nodes, one pass
     near_tri = tri[near]
     theta = np.linspace(0.0, 2.0 * np.pi, DIRECTIONS, endpoint=False)
     dirs = np.column_stack([np.cos(theta), np.sin(theta)])
@@ -176,6 +178,6 @@ def nodes_to_repair(triangles, fired, movable, narrow) -> np.ndarray:
     own = own[keep[own]]
     if not len(own):
         return own
-    ring = np.unique(tri[np.isin(tri, own).any(axis=1)].ravel())
+    ring = np.unique(tri[elements_around(tri, own, 1)].ravel())
     ring = ring[keep[ring] & ~np.isin(ring, own)]
     return np.concatenate([own, ring])

@@ -35,12 +35,12 @@ def _sheared_lattice(n_steps=200, repair_sweeps=2, **params):
         if ev.retriangulated:
             events.append(ev.reason)
             # a quality re-triangulation says why the repair did not avert it; nothing else does
-            assert bool(ev.repair_declined) == (ev.reason == "quality" and repair_sweeps > 0), ev
+            assert bool(ev.repair_declined) == (ev.reason in ("quality", "degenerate") and repair_sweeps > 0), ev
             _check_fired(ev)
         if ev.n_repaired:
             repaired += 1
             # the connectivity is the same; the moved nodes are named for the field transfer
-            assert np.array_equal(before, mm.triangles) and len(ev.repaired_nodes) == ev.n_repaired
+            assert np.array_equal(before, mm.triangles)
             moved = (mm.points != ev.repaired_from).any(axis=1)
             assert np.array_equal(np.flatnonzero(moved), ev.repaired_nodes)
         worst = min(worst, mm.quality().min_angle)
@@ -103,11 +103,15 @@ def test_a_stretched_mesh_is_retriangulated_instead():
     assert repaired <= 2 and events.count("quality") >= 6, (repaired, events)  # measured 0 and 9 of 13
 
 
-def test_a_squeezed_node_is_moved_back_instead_of_retriangulating():
-    """A free node pushed towards the edge between two neighbours (to a seventh of its height: an element of 14.2°),
-    relaxation off (three sweeps would relax this lone node back): with the repair the same
-    update moves it (nodes moved, no re-triangulation, every angle back above 15°, measured
-    33.1°, 12 nodes moved); without it the update re-triangulates for quality."""
+@pytest.mark.parametrize("height, reason", [(0.15, "quality"), (0.05, "degenerate")])
+def test_a_squeezed_node_is_moved_back_instead_of_retriangulating(height, reason):
+    """A free node pushed towards the edge between two neighbours, relaxation off (three sweeps
+    would relax this lone node back): to 0.15 of its height (an element of 14.2°, above the area
+    floor) or to 0.05 (below ``degenerate_area`` = 0.1 of its area: an element of 5.1°).  With the
+    repair the same update moves it (no re-triangulation, every angle back above 15°: measured one
+    node moved, smallest angle of the mesh 19.0° and 21.9°); without it the update re-triangulates
+    for ``reason``.  (The degenerate case re-triangulated with the repair on before it covered
+    shrunk elements.)"""
     outcomes = {}
     for sweeps in (2, 0):
         mm = MovingMesh((0.0, 1.0, 0.0, 1.0), [rectangle(0.2, 0.1)], [[0.5, 0.5, 0.0]], h=0.05,
@@ -118,11 +122,11 @@ def test_a_squeezed_node_is_moved_back_instead_of_retriangulating():
         tri = mm.triangles[(mm.triangles == far).any(axis=1)][0]
         a, b = (v for v in tri if v != far)
         mid = 0.5 * (mm.points[a] + mm.points[b])
-        mm.points[far] = mid + 0.15 * (mm.points[far] - mid)  # a seventh of its height: above the area floor
-        assert mm.quality().min_angle < 15.0  # measured 14.2°
+        mm.points[far] = mid + height * (mm.points[far] - mid)
+        assert mm.quality().min_angle < 15.0  # measured 14.2° and 5.1°
         ev = mm.update([[0.5, 0.5, 0.0]])
         outcomes[sweeps] = (ev.reason, ev.n_repaired, mm.quality().min_angle)
-    assert outcomes[0][0] == "quality" and outcomes[0][1] == 0, outcomes
+    assert outcomes[0][0] == reason and outcomes[0][1] == 0, outcomes
     assert outcomes[2][0] == "" and outcomes[2][1] >= 1 and outcomes[2][2] >= 15.0, outcomes
 
 
