@@ -10,6 +10,9 @@ References
 ----------
 .. [S93] Saad, Y. (1993). A flexible inner-outer preconditioned GMRES algorithm.
    *SIAM J. Sci. Comput.* 14, 461--469.
+.. [GLR05] Giraud, L., Langou, J., Rozložník, M. (2005). The loss of orthogonality in the
+   Gram-Schmidt orthogonalization process. *Comput. Math. Appl.* 50, 1069--1075.
+.. [S03] Saad, Y. (2003). *Iterative Methods for Sparse Linear Systems*, 2nd ed. SIAM.
 .. [PS75] Paige, C. C., Saunders, M. A. (1975). Solution of sparse indefinite systems of
    linear equations. *SIAM J. Numer. Anal.* 12, 617--629 (MINRES).
 """
@@ -21,7 +24,7 @@ import scipy.sparse.linalg as spla
 
 from ._sparse import _Counter
 
-__all__ = ["run_fgmres", "run_minres"]
+__all__ = ["fgmres_cycle", "run_fgmres", "run_minres"]
 
 
 def _krylov_start(K, b, M, x0):
@@ -35,10 +38,89 @@ def _krylov_start(K, b, M, x0):
     return n, nb, x, Mc, Mop, [np.linalg.norm(b - K @ x) / nb]
 
 
+def fgmres_cycle(K, b, x, M, atol: float, m: int):
+    """One cycle of at most ``m`` iterations of right-preconditioned flexible GMRES ([S93]_,
+    Algorithm 2.2) from ``x``, stopping early when the Krylov estimate of ‖b − K x‖₂ falls to
+    ``atol`` (absolute).
+
+    The Arnoldi basis is orthogonalised by classical Gram–Schmidt applied twice ([GLR05]_: as
+    orthogonal as Householder reflections, with matrix–vector products over the basis), the
+    Hessenberg matrix reduced by Givens rotations ([S03]_, Sec. 6.5.3).  The basis ``V`` and the
+    preconditioned vectors ``Z`` are rows of arrays left uninitialised, so memory is touched
+    only for the iterations made: a solve of 1.6 million unknowns in 5 iterations writes 11
+    vectors, not the ``2 m`` columns a preallocated, zeroed ``(n, m)`` store would.
+
+    Parameters
+    ----------
+    K : (n, n) sparse matrix or operator
+    b, x : (n,) float ndarray
+        Right-hand side and start (``x`` is not changed).
+    M : callable
+        ``M(v)``: the preconditioner applied to ``v`` (may change between calls).
+    atol : float
+        Absolute residual at which the cycle stops.
+    m : int
+        Most iterations of the cycle, >= 1.
+
+    Returns
+    -------
+    x : (n,) float ndarray
+    estimates : list of float
+        ‖r₀‖ and the Krylov estimate of the residual norm after each iteration.
+
+    Examples
+    --------
+    >>> import numpy as np, scipy.sparse as sp
+    >>> K = sp.diags([-1.0, 3.0, -1.0], [-1, 0, 1], shape=(20, 20)).tocsr()
+    >>> x, est = fgmres_cycle(K, np.ones(20), np.zeros(20), lambda v: v, 1e-10, 30)
+    >>> bool(np.linalg.norm(np.ones(20) - K @ x) <= 1e-10), len(est) <= 21
+    (True, True)
+    """
+    r = b - K @ x
+    beta = float(np.linalg.norm(r))
+    estimates = [beta]
+    if beta == 0.0 or beta <= atol:
+        return x.copy(), estimates
+    n = len(b)
+    V = np.empty((m + 1, n))
+    Z = np.empty((m, n))
+    R = np.zeros((m + 1, m))  # the Hessenberg matrix, reduced to upper triangular as it grows
+    cs, sn = np.zeros(m), np.zeros(m)
+    g = np.zeros(m + 1)
+    g[0] = beta
+    V[0] = r / beta
+    k = 0
+    for j in range(m):
+        Z[j] = M(V[j])
+        w = K @ Z[j]
+        h = V[: j + 1] @ w
+        w -= h @ V[: j + 1]
+        h2 = V[: j + 1] @ w  # the second Gram–Schmidt pass
+        w -= h2 @ V[: j + 1]
+        h += h2
+        h_next = float(np.linalg.norm(w))
+        col = np.append(h, h_next)
+        for i in range(j):  # earlier rotations on the new column (i < m: the Krylov dimension)
+            col[i], col[i + 1] = cs[i] * col[i] + sn[i] * col[i + 1], -sn[i] * col[i] + cs[i] * col[i + 1]
+        rho = float(np.hypot(col[j], col[j + 1]))
+        cs[j], sn[j] = (1.0, 0.0) if rho == 0.0 else (col[j] / rho, col[j + 1] / rho)
+        col[j], col[j + 1] = rho, 0.0
+        R[: j + 2, j] = col
+        g[j], g[j + 1] = cs[j] * g[j], -sn[j] * g[j]
+        k = j + 1
+        estimates.append(abs(float(g[k])))
+        if estimates[-1] <= atol or h_next == 0.0:  # converged, or the Krylov space is invariant
+            break
+        V[j + 1] = w / h_next
+    # y = R⁻¹ g; least squares, so that a singular R (K singular) gives the minimum-norm step
+    y = np.linalg.lstsq(R[:k, :k], g[:k], rcond=None)[0]
+    return x + y @ Z[:k], estimates
+
+
 def run_fgmres(K, b, M, x0, rtol, maxiter, restart, stagnation):
     """Restarted right-preconditioned flexible GMRES ([S93]_) stopped on the true residual.
 
-    Runs pyamg's FGMRES one restart cycle at a time so that the true
+    Runs :func:`fgmres_cycle` one restart cycle at a time so that the true
     residual is checked after each cycle and a cycle that does not reduce it
     by at least the factor ``stagnation`` ends the solve.
 
@@ -78,9 +160,7 @@ def run_fgmres(K, b, M, x0, rtol, maxiter, restart, stagnation):
     >>> reason, bool(hist[-1] <= 1e-10)
     ('', True)
     """
-    from pyamg.krylov import fgmres
-
-    n, nb, x, Mc, Mop, history = _krylov_start(K, b, M, x0)
+    n, nb, x, Mc, _, history = _krylov_start(K, b, M, x0)
     if history[-1] <= rtol:
         return x, 0, np.array(history), ""
     restart = max(1, min(restart, n - 1))
@@ -88,15 +168,13 @@ def run_fgmres(K, b, M, x0, rtol, maxiter, restart, stagnation):
     while Mc.count < maxiter:
         inner = min(restart, maxiter - Mc.count)
         start, count = history[-1], Mc.count
-        res: list[float] = []
-        x, _ = fgmres(K, b, x0=x, tol=rtol, restart=inner, maxiter=1, M=Mop, residuals=res)
-        if Mc.count == count:  # FGMRES saw a converged start that our test did not
+        x, estimates = fgmres_cycle(K, b, x, Mc, rtol * nb, inner)
+        if Mc.count == count:  # the cycle saw a converged start that our test did not
             reason = "stagnation: FGMRES made no iteration"
             history.append(np.linalg.norm(b - K @ x) / nb)
             break
-        # tol in pyamg is relative to ||b||; res holds absolute norms
         r_true = np.linalg.norm(b - K @ x) / nb
-        history.extend(np.asarray(res[1:-1]) / nb)
+        history.extend(np.asarray(estimates[1:-1]) / nb)  # one entry per iteration: the last one true
         history.append(r_true)
         if not np.isfinite(r_true):
             reason = "residual is not finite (NaN/inf from the preconditioner?)"
