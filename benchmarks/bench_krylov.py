@@ -23,7 +23,6 @@ writes ``benchmarks/results/krylov.{md,json}``.
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
@@ -31,7 +30,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from results_io import write_results  # noqa: E402
+from results_io import rows_by_bodies, write_results  # noqa: E402
 
 ROUNDS = 7
 STEPS = 6
@@ -121,13 +120,7 @@ def measure(n: int) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--bodies", default="100,300")
-    args = ap.parse_args()
-    rows = []
-    for n in (int(s) for s in args.bodies.split(",")):
-        rows.append(measure(n))
-        print(rows[-1], flush=True)
+    rows = rows_by_bodies(__doc__, measure)
     cells = [[str(r["bodies"]), f"{r['dofs']:,}", f"{r['iterations_pyamg']} / {r['iterations_own']}",
               f"{r['residual_pyamg']:.2e} / {r['residual_own']:.2e}", f"{r['difference']:.1e}",
               f"{r['back_substitution_s']:.3f}", f"{r['solve_pyamg_s']:.3f}", f"{r['solve_own_s']:.3f}",

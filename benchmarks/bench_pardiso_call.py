@@ -20,7 +20,6 @@ writes ``benchmarks/results/pardiso_call.{md,json}``.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
@@ -30,7 +29,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from results_io import write_results  # noqa: E402
+from results_io import rows_by_bodies, write_results  # noqa: E402
 
 ROUNDS = 31
 
@@ -68,13 +67,7 @@ def measure(n: int) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--bodies", default="100,300")
-    args = ap.parse_args()
-    rows = []
-    for n in (int(s) for s in args.bodies.split(",")):
-        rows.append(measure(n))
-        print(rows[-1], flush=True)
+    rows = rows_by_bodies(__doc__, measure)
     cells = [[str(r["bodies"]), f"{r['dofs']:,}", f"{r['nnz'] / 1e6:.1f}M", f"{r['fill'] / 1e6:.0f}M",
               f"{r['solve_pypardiso_s']:.3f}", f"{r['solve_own_s']:.3f}", f"{r['ratio']:.2f}",
               "yes" if r["bit_identical"] else "**no**"] for r in rows]

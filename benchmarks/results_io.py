@@ -75,3 +75,18 @@ def run_or_report(name: str, run, report) -> None:
         machine = machine_description()
         write_json(name, machine, rows)
         report(rows, machine)
+
+
+def rows_by_bodies(doc: str, measure, default: str = "100,300") -> list:
+    """Parse ``--bodies`` (comma-separated body counts, ``default``; ``doc``: the benchmark's
+    docstring) and return ``measure(n)`` for each count, printing each row as it comes."""
+    import argparse
+
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--bodies", default=default)
+    args = ap.parse_args()
+    rows = []
+    for n in (int(s) for s in args.bodies.split(",")):
+        rows.append(measure(n))
+        print(rows[-1], flush=True)
+    return rows
