@@ -4,9 +4,10 @@ A lagged LU (:class:`fluidem.fluid.solvers.LaggedLUSolver`) solves each step's c
 FGMRES preconditioned with the factors of an earlier step: a few back-substitutions a solve, with
 restart length and iteration limit 50.  pyamg's ``fgmres`` (used up to this version) allocates
 its Householder vectors as a zeroed ``(restart, n)`` array and the preconditioned vectors as a
-zeroed ``(n, restart)`` array written by columns, so every solve touches ``2 · 50 · n`` doubles
-(1.3 GB at 1.6 million unknowns) whatever the iterations; :func:`fluidem.fluid.solvers.krylov.fgmres_cycle`
-keeps both as rows that are written only as the iterations are made.
+zeroed ``(n, restart)`` array written by columns, so every solve touches all ``50 · n`` doubles
+of the second (640 MB at 1.6 million unknowns) whatever the iterations;
+:func:`fluidem.fluid.solvers.krylov.fgmres_cycle` keeps both as rows that are written only as the
+iterations are made.
 
 Systems: the settling suspension of ``bench_dense.py`` (N bodies, h ≈ a/3) run 6 steps; the
 coupled matrix of step 1 is factorised by PARDISO and preconditions the system of step 6 (the

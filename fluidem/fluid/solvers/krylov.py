@@ -48,7 +48,7 @@ def fgmres_cycle(K, b, x, M, atol: float, m: int):
     Hessenberg matrix reduced by Givens rotations ([S03]_, Sec. 6.5.3).  The basis ``V`` and the
     preconditioned vectors ``Z`` are rows of arrays left uninitialised, so memory is touched
     only for the iterations made: a solve of 1.6 million unknowns in 5 iterations writes 11
-    vectors, not the ``2 m`` columns a preallocated, zeroed ``(n, m)`` store would.
+    vectors, where a zeroed ``(n, m)`` store written by columns touches all of it.
 
     Parameters
     ----------
