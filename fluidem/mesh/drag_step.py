@@ -69,8 +69,8 @@ from .relax import relax
 from .repair import nodes_to_repair, repair_nodes
 from .seam import SEAM_CODE
 from .triggers import contacts_changed as body_contacts_changed
-from .triggers import (ElementShape, element_shape, fired_elements, outside_opened_gap_bounds, quality_dropped,
-                       retriangulation_reason)
+from .triggers import (ElementShape, element_shape, fired_elements, outside_opened_gap_bounds, past_thresholds,
+                       quality_dropped, retriangulation_reason)
 
 if TYPE_CHECKING:
     from .moving import MeshEvent, MovingMesh
@@ -157,7 +157,8 @@ def repair_step(mesh: MovingMesh, shape: ElementShape, ev: MeshEvent) -> bool:
     ``mesh.points`` moved and ``ev.repaired_nodes`` set; False: nothing changed (re-triangulate), and
     ``ev.repair_declined`` says why."""
     base, p = mesh.baseline, mesh.params
-    shrunk = shape.area < p.degenerate_area * base.area
+    floor = p.degenerate_area * base.area  # the area an element must keep
+    shrunk = shape.area < floor
     if shrunk.any():
         # "degenerate": the reasons after it in retriangulation_reason were not evaluated, and a
         # repair averts none of them
@@ -165,7 +166,7 @@ def repair_step(mesh: MovingMesh, shape: ElementShape, ev: MeshEvent) -> bool:
             return _declined(ev, "a contact changed or the scheduled re-triangulation is due")
         if (shrunk & base.narrow).any():
             return _declined(ev, "a narrow-gap element collapsed")  # its vertices are on outlines
-    fired = np.flatnonzero((shape.cos_max > base.cos_lo) | (shape.cos_min < base.cos_hi) | shrunk)
+    fired = np.flatnonzero(past_thresholds(shape, base) | shrunk)
     if not len(fired):
         return _declined(ev, "only narrow-gap elements fired")  # not repaired here
     if len(fired) > MAX_REPAIR_ELEMENTS:
@@ -184,16 +185,13 @@ def repair_step(mesh: MovingMesh, shape: ElementShape, ev: MeshEvent) -> bool:
         return _declined(ev, "no movable node around the fired elements")
     lo = np.degrees(np.arccos(np.clip(base.cos_lo, -1.0, 1.0)))
     hi = np.degrees(np.arccos(np.clip(base.cos_hi, -1.0, 1.0)))
-    floor = p.degenerate_area * base.area
     x, moved = repair_nodes(mesh.points, mesh.triangles, mesh._mobility, nodes, lo, hi, floor, mesh.h_node,
                             p.repair_sweeps)
     if not moved:
         return _declined(ev, "no move met the bounds")
     after = element_shape(x, mesh.topo)
-    if (after.area < p.degenerate_area * base.area).any() or quality_dropped(after, base,
-                                                                             mesh._anchored_across_gap):
-        still = ((after.cos_max > base.cos_lo) | (after.cos_min < base.cos_hi)
-                 | (after.area < p.degenerate_area * base.area))
+    if (after.area < floor).any() or quality_dropped(after, base, mesh._anchored_across_gap):
+        still = past_thresholds(after, base) | (after.area < floor)
         return _declined(ev, "elements still outside the bounds after the moves" if still.any() else
                          "a narrow-gap element fired too")
     # an element born in a narrow gap whose gap has opened, outside the bounds but no worse than it

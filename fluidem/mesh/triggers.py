@@ -37,7 +37,8 @@ import numpy as np
 import shapely
 
 __all__ = ["ElementShape", "QualityBaseline", "element_shape", "quality_baseline", "quality_dropped",
-           "outside_opened_gap_bounds", "fired_elements", "contacts_changed", "retriangulation_reason"]
+           "outside_opened_gap_bounds", "past_thresholds", "fired_elements", "contacts_changed",
+           "retriangulation_reason"]
 
 
 @dataclass(frozen=True)
@@ -200,11 +201,17 @@ def fired_elements(shape: ElementShape, base: QualityBaseline, reason: str, dege
         return np.flatnonzero(shape.area < degenerate_area * base.area)
     if reason != "quality":
         return np.zeros(0, dtype=np.int64)
-    past = (shape.cos_max > base.cos_lo) | (shape.cos_min < base.cos_hi)
+    past = past_thresholds(shape, base)
     idx = np.flatnonzero(_opened_and_worse(shape, base))
     if len(idx):
         past[idx[~anchored_across_gap(idx)]] = True
     return np.flatnonzero(past)
+
+
+def past_thresholds(shape: ElementShape, base: QualityBaseline) -> np.ndarray:
+    """``(n_triangles,) bool``: elements past their own angle thresholds (``base.cos_lo``,
+    ``base.cos_hi``; narrow-gap elements have none)."""
+    return (shape.cos_max > base.cos_lo) | (shape.cos_min < base.cos_hi)
 
 
 def _opened_and_worse(shape: ElementShape, base: QualityBaseline) -> np.ndarray:
