@@ -1,27 +1,28 @@
 """Will an LU fit?  The memory a sparse LU of an ``n``-DOF fluidem system needs, and the memory free.
 
 The entries of L + U grow faster than the DOFs.  Measured on the coupled systems of settling
-suspensions (P2+bubble/P1dc, ``benchmarks/results/solver_scale.md``):
+suspensions (P2+bubble/P1dc, ``benchmarks/results/solver_scale.md`` and, for PARDISO without weighted
+matching, the default, ``benchmarks/results/pardiso_matching.md``):
 
-=========  ============================  ==============================
-DOFs       SuperLU (COLAMD, 0.01)        PARDISO (METIS)
-=========  ============================  ==============================
-149 285    78.2M entries, 1 877 MiB      19.6M entries, 326 MiB
-446 752    312M entries, 7 173 MiB       64.5M entries, 1 022 MiB
-1 486 304  –                             239M entries
-3 146 586  –                             532M entries, 7 604 MiB
-=========  ============================  ==============================
+=========  ============================  ==============================  ==============================
+DOFs       SuperLU (COLAMD, 0.01)        PARDISO (METIS)                 PARDISO with matching
+=========  ============================  ==============================  ==============================
+149 285    78.2M entries, 1 877 MiB      9.10M entries, 238 MiB          19.6M entries, 326 MiB
+446 752    312M entries, 7 173 MiB       30.1M entries, 737 MiB          64.5M entries, 1 022 MiB
+1 486 304  –                             111M entries, 2 541 MiB         238M entries, 3 583 MiB
+3 146 586  –                             –                               532M entries, 7 604 MiB
+=========  ============================  ==============================  ==============================
 
 (SuperLU: the peak of a process factorising the matrix; PARDISO: MKL's own peak of the analysis and
-factorisation, ``iparm(15..17)``.)  So fill ∝ n^1.26 for SuperLU and ∝ n^1.08–1.10 for PARDISO
-(nested dissection: n log n for 2D meshes, George 1973; 1.08 from 149k to 447k DOFs, 1.10 from
-447k to 1.49M, which predicts 3.15M within 2.7 %).  A factorisation adds about 24 bytes per entry
-of the factors for SuperLU (the values, the indices and the work space) and 17 for PARDISO: MKL's
-peak was 16.6–17.5 bytes per entry at 149k–447k DOFs and 15.0 at 3.15M, where the first step of a
-run (its LU and the step's own arrays) raised the process's peak 16.4 bytes per entry above its
-size after the set-up.  :func:`predicted_lu_bytes` extrapolates from the largest system of each; :func:`lu_fits`
-compares with the memory the operating system says is available (``MemAvailable`` of
-``/proc/meminfo``; unknown elsewhere: assumed to fit).
+factorisation, ``iparm(15..17)``.)  So fill ∝ n^1.26 for SuperLU and ∝ n^1.09 for PARDISO (nested
+dissection: n log n for 2D meshes, George 1973; 1.09 from 149k to 447k DOFs and from 447k to 1.49M
+without matching; with it 1.08 and 1.10, which predicted 3.15M within 2.7 %).  A factorisation adds
+about 24 bytes per entry of the factors for SuperLU (the values, the indices and the work space) and
+25 for PARDISO: MKL's peak was 27.5, 25.7 and 24.0 bytes per entry at 149k, 447k and 1.49M DOFs
+(with matching, whose factors are twice as large for the same analysis work, 15.0–17.5).
+:func:`predicted_lu_bytes` extrapolates from the largest system of each; :func:`lu_fits` compares
+with the memory the operating system says is available (``MemAvailable`` of ``/proc/meminfo``;
+unknown elsewhere: assumed to fit).
 
 Examples
 --------
@@ -41,7 +42,7 @@ __all__ = ["predicted_lu_bytes", "lu_fits", "available_bytes", "LU_FILL_MODEL", 
            "LU_HEADROOM_BYTES_PER_DOF"]
 
 #: per backend: (reference DOFs, entries of L + U there, growth exponent, peak bytes per entry)
-LU_FILL_MODEL = {"superlu": (446_752, 312.2e6, 1.26, 24.0), "pardiso": (1_486_304, 239.4e6, 1.10, 17.0)}
+LU_FILL_MODEL = {"superlu": (446_752, 312.2e6, 1.26, 24.0), "pardiso": (1_486_304, 111.2e6, 1.09, 25.0)}
 #: what a run needs beyond its LU, bytes per DOF, on top of what it holds when the LU is chosen: a
 #: re-triangulation builds the new problem while the old one lives (1 000 and 2 000 settling polygons
 #: with a lagged PARDISO LU, 1.57M and 3.15M DOFs: its step peaked 1.5 and 1.3 kB a DOF above an

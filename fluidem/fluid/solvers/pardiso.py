@@ -14,22 +14,38 @@ whose pressure block is zero:
 8           0      no refinement inside PARDISO: :class:`~.direct.DirectSolver` refines and
                    checks the true residual itself, a lagged LU runs GMRES around it
 10          8      pivot perturbation ε = 1e-8 (MKL's default for unsymmetric matrices is 1e-13)
-11, 13      1, 1   scaling and weighted matching (MC64), which put large entries on the diagonal
+11, 13      0, 0   no scaling and weighted matching (MC64); ``matching=True``: 1, 1
 18          -1     report the entries of the factors
 ==========  =====  ============================================================================
 
-Measured on the coupled system of a settling suspension of 100 polygons (149 285 DOFs,
-P2+bubble/P1dc, one thread): with MKL's default ε = 1e-13 one pivot is perturbed and the solve
-leaves a relative residual of 4.9e-3 after MKL's two refinement steps (1.1 without them); with
-ε = 1e-8 the same pivot leaves 7.8e-6, and GMRES preconditioned by the factors reaches 5e-10 in
-2 iterations.  Without matching (11, 13 = 0) 51 234 pivots are perturbed.
+**Why no matching.**  The pressure block is zero, so without matching PARDISO's static pivoting
+perturbs the pressure pivots (ε ‖K‖ in place of a zero): the factors are those of a slightly
+regularised saddle-point matrix, a solve with them alone leaves a relative residual of 1e-3–1e-2,
+and every use of them in fluidem refines or runs FGMRES around them (:class:`~.direct.DirectSolver`,
+:class:`~.lagged.LaggedLUSolver`).  Weighted matching (MC64) permutes large entries onto the diagonal
+instead, so few pivots are perturbed and the factors alone leave ~1e-7, but the permuted matrix
+loses the symmetric pattern nested dissection orders, and the factors hold twice the entries.
+Measured on the coupled systems of settling suspensions (``benchmarks/bench_pardiso_matching.py``,
+medians, one MKL thread; analysis and factorisation / numerical factorisation / back-substitution,
+entries of L + U, FGMRES iterations of the lagged LU to 1e-6 on the system five steps later):
+
+=========  ============================================  ============================================
+DOFs       with matching                                 without (the default)
+=========  ============================================  ============================================
+149 285    2.13 / 0.35 / 0.035 s, 19.6M, 9 iterations    0.77 / 0.16 / 0.017 s, 9.1M, 11 iterations
+446 752    8.73 / 1.25 / 0.112 s, 64.5M, 9 iterations    2.56 / 0.56 / 0.051 s, 30.1M, 12 iterations
+1 486 304  35.9 / 5.85 / 0.367 s, 238M, 9 iterations     10.5 / 2.33 / 0.176 s, 111M, 13 iterations
+=========  ============================================  ============================================
+
+The lagged solve took 0.68–0.86 of the time despite its two to four iterations more, and a new
+analysis at a re-triangulation of 1 000 settling polygons costs 10.5 s instead of 35.9 s.
 
 Between re-triangulations the coupled matrix keeps its sparsity pattern and only its values
 change: :meth:`PardisoLU.refactor` then repeats the numerical factorisation (phase 22) on the
-ordering, scaling and matching of the analysis (phase 11).  On the 149 285-DOF system: analysis
-and factorisation 5.9 s, the numerical factorisation alone 1.29 s (the analysis 4.1 s of it), a
-solve 0.063 s; after a change of 1e-3 of every value the refactorised solve leaves 3.3e-10 with no
-pivot perturbed (load 3.4 on 2 cores).
+ordering (and scaling and matching, if any) of the analysis (phase 11).  On the 149 285-DOF system
+with matching: analysis and factorisation 5.9 s, the numerical factorisation alone 1.29 s (the
+analysis 4.1 s of it), a solve 0.063 s; after a change of 1e-3 of every value the refactorised solve
+leaves 3.3e-10 with no pivot perturbed (load 3.4 on 2 cores; without matching see the table above).
 
 ``pypardiso``'s own ``solve`` compares the matrix with the factorised one (a copy or a SHA-1
 of its arrays) at every call, and its call into MKL converts the matrix's ``indptr`` and
@@ -49,7 +65,7 @@ Examples
 ...     x = lu.solve(np.array([6.0, 4.0, 1.0]))
 ... else:
 ...     x = np.linalg.solve(K.toarray(), [6.0, 4.0, 1.0])
->>> np.round(x, 12).tolist()
+>>> np.round(x, 6).tolist()  # the pivot of the zero diagonal entry is perturbed
 [1.0, 1.0, 1.0]
 """
 
@@ -62,10 +78,12 @@ import weakref
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["PardisoLU", "pardiso_available", "PARDISO_IPARM"]
+__all__ = ["PardisoLU", "pardiso_available", "PARDISO_IPARM", "PARDISO_MATCHING_IPARM"]
 
 #: PARDISO's parameters for saddle-point systems (1-based ``iparm`` index -> value; module notes)
-PARDISO_IPARM = {1: 1, 2: 2, 8: 0, 10: 8, 11: 1, 13: 1, 18: -1}
+PARDISO_IPARM = {1: 1, 2: 2, 8: 0, 10: 8, 11: 0, 13: 0, 18: -1}
+#: what ``PardisoLU(K, matching=True)`` sets on top: scaling and weighted matching (MC64)
+PARDISO_MATCHING_IPARM = {11: 1, 13: 1}
 
 
 @functools.cache
@@ -86,6 +104,11 @@ class PardisoLU:
     ----------
     K : (n, n) sparse matrix
         Converted to CSR with sorted indices, float64.
+    matching : bool
+        Scaling and weighted matching (MC64) before the ordering: few perturbed pivots, so the
+        factors alone solve to ~1e-7, at twice the entries and about three times the time
+        (module notes).  Default ``False``: the pressure pivots are perturbed, and the factors
+        are meant to be refined or wrapped in FGMRES, as every solver of fluidem does.
 
     Attributes
     ----------
@@ -104,7 +127,7 @@ class PardisoLU:
         PARDISO's error code, e.g. -2 (not enough memory) or -4 (zero pivot).
     """
 
-    def __init__(self, K):
+    def __init__(self, K, matching: bool = False):
         import pypardiso
 
         K = sp.csr_matrix(K, dtype=np.float64)
@@ -116,7 +139,8 @@ class PardisoLU:
         # (a solver dropped without free() kept its factors until the process ended)
         self._release = weakref.finalize(self, _release, self._ps)
         self._ps.set_statistical_info_off()
-        for i, v in PARDISO_IPARM.items():
+        self.matching = bool(matching)
+        for i, v in {**PARDISO_IPARM, **(PARDISO_MATCHING_IPARM if self.matching else {})}.items():
             self._ps.set_iparm(i, v)
         self._ps.set_iparm(12, 0)  # CSR, no transpose
         # 1-based 32-bit CSR indices, made once: every later phase reads this pattern (refactor checks it)
