@@ -96,7 +96,7 @@ def test_direct_info_and_refactorize(stokes_p2b, backend):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_direct_as_preconditioner_one_iteration(stokes_p2b, backend):
+def test_direct_as_preconditioner_in_a_few_iterations(stokes_p2b, backend):
     P = stokes_p2b
     M = DirectSolver(backend=backend).factorize(P.K).as_preconditioner()
     count = []

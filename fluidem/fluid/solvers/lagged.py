@@ -45,8 +45,12 @@ MOVING_MESH_STEPPING = {"rtol": 1e-6, "max_iterations_before_refactor": 25}
 #: :attr:`LaggedLUSolver.refactor_after`.  Measured in 40-step runs of the coupled free-body systems
 #: (one MKL thread, the two runs side by side): the numerical factorisations took 11.6-15.9 times
 #: the median GMRES iteration at 54k DOFs (``column-collapse-fluid``, 0.22-0.31 s against 0.019 s)
-#: and 10.2-14.4 times at 152k (100 settling polygons, 0.64-0.91 s against 0.063 s).  A count, not a
-#: clock: the rule decides alike on a busy and an idle machine, so a run repeats to the last bit.
+#: and 10.2-14.4 times at 152k (100 settling polygons, 0.64-0.91 s against 0.063 s), with weighted
+#: matching.  Without it (the default since) the ratio of a numerical factorisation to a lagged
+#: iteration measured 7.0, 7.7 and 9.0 at 149k, 447k and 1.49M DOFs (0.16, 0.56 and 2.33 s against
+#: 0.023, 0.073 and 0.26 s, ``benchmarks/results/pardiso_matching.md``): not re-measured over whole
+#: runs, the count is kept.  A count, not a clock: the rule decides alike on a busy and an idle
+#: machine, so a run repeats to the last bit.
 PARDISO_REFACTOR_ITERATIONS = 12
 
 
