@@ -37,33 +37,20 @@ GAPS = (0.5, 0.25, 0.1)
 BANDS = ((0.5, 1.01), (0.2, 0.5), (0.0, 0.2))
 
 
-def _mesh(h: float, delta: float, x: float = 0.0):
-    from fluidem.geometry import regular_polygon
-    from fluidem.mesh import MovingMesh
-
-    disk = regular_polygon(A, SEGMENTS)
-    y = delta - disk[:, 1].min()
-    L = 20.0 * A
-    return MovingMesh((-L, L, 0.0, L), [disk], [[x, y, 0.0]], h=h,
-                      grading={"region": (x - 3 * A, x + 3 * A, 0.0, 3 * A), "growth": 1.2, "h_max": 2 * A}), y
-
-
-def force_over_exact(mm, x: float, y: float, delta: float) -> float:
-    """F⊥ on the disk of ``mm`` at (x, y) moving down at unit speed, over the exact force at gap ``delta``."""
-    from fluidem.cases.narrow_gap import bipolar_force
+def force_over_exact(mm, centre, delta: float) -> float:
+    """F⊥ on the disk of ``mm`` at ``centre`` moving down at unit speed, over the exact force at gap ``delta``."""
+    from fluidem.cases.narrow_gap import approach_load, bipolar_force
     from fluidem.dem.lubrication import equal_area_radius
-    from fluidem.fluid import FlowProblem, FlowSpace, RigidMotion, VelocityBC, solve_stokes
-    from fluidem.fluid.forces import RigidModes
     from fluidem.geometry import polygon_area, regular_polygon
 
-    space = FlowSpace(mm.skfem_mesh(), ELEMENT)
-    bcs = [VelocityBC(["left", "right", "bottom", "top"], (0.0, 0.0)),
-           VelocityBC("body0", RigidMotion((0.0, -1.0), 0.0, (x, y)))]
-    problem = FlowProblem(space, 1.0, bcs)
-    state = solve_stokes(problem)
-    F, _ = RigidModes(space, ["body0"], [[x, y]]).loads(problem.steady_residual(state.x, convection=False))
     r = float(equal_area_radius(polygon_area(regular_polygon(A, SEGMENTS))))
-    return float(F[0, 1]) / float(bipolar_force(delta, r))
+    return approach_load(mm, ELEMENT, centre)[0] / float(bipolar_force(delta, r))
+
+
+def _mesh(h: float, delta: float, x: float = 0.0):
+    from fluidem.cases.narrow_gap import wall_approach_mesh
+
+    return wall_approach_mesh(h, delta, A, SEGMENTS, x)
 
 
 def measure(a_over_h: float) -> dict:
@@ -73,19 +60,18 @@ def measure(a_over_h: float) -> dict:
     for frac in GAPS:
         values = []
         for s in SHIFTS:
-            mm, y = _mesh(h, frac * h, s * h)
-            values.append(force_over_exact(mm, s * h, y, frac * h))
+            mm, centre = _mesh(h, frac * h, s * h)
+            values.append(force_over_exact(mm, centre, frac * h))
         fresh[frac] = values
         print(a_over_h, frac, np.round(values, 3).tolist(), flush=True)
     approach = []
     mm, _ = _mesh(h, h)
     for frac in np.round(np.arange(1.0, 0.049, -0.025), 4):
         delta = float(frac) * h
-        y = delta - (-A)  # the regular polygon's lowest vertex is at −a
-        event = mm.update(np.array([[0.0, y, 0.0]]))
-        moved = force_over_exact(mm, 0.0, y, delta)
-        new, y_new = _mesh(h, delta)
-        approach.append({"delta_over_h": float(frac), "moved": moved, "fresh": force_over_exact(new, 0.0, y_new, delta),
+        new, centre = _mesh(h, delta)
+        event = mm.update(np.array([[centre[0], centre[1], 0.0]]))
+        moved = force_over_exact(mm, centre, delta)
+        approach.append({"delta_over_h": float(frac), "moved": moved, "fresh": force_over_exact(new, centre, delta),
                          "retriangulated": bool(getattr(event, "retriangulated", False))})
     return {"a_over_h": a_over_h, "h": h, "fresh": {str(k): v for k, v in fresh.items()}, "approach": approach}
 

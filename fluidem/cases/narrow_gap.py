@@ -28,7 +28,7 @@ from scipy.optimize import brentq
 from ..dem.lubrication import equal_area_radius
 from ..geometry import polygon_area, regular_polygon
 
-__all__ = ["bipolar_force", "wall_approach_force", "resolved_film_length"]
+__all__ = ["bipolar_force", "wall_approach_mesh", "approach_load", "wall_approach_force", "resolved_film_length"]
 
 
 def bipolar_force(delta, a):
@@ -42,7 +42,51 @@ def bipolar_force(delta, a):
     return 4.0 * np.pi / (alpha - np.tanh(alpha))
 
 
-def wall_approach_force(element: str, h: float, delta: float, a: float = 0.1, segments: int = 96) -> dict:
+def wall_approach_mesh(h: float, delta: float, a: float = 0.1, segments: int = 96, x: float = 0.0):
+    """The moving mesh of the module docstring with the disk's closest vertex ``delta`` above the floor.
+
+    Parameters
+    ----------
+    h, delta, a : float
+        Mesh size at the disk, gap, circumradius of the polygon (lengths).
+    segments : int
+        Vertices of the polygon (a multiple of 4 puts a vertex at the bottom).
+    x : float
+        Abscissa of the disk's centre, length (another triangulation of the same gap).
+
+    Returns
+    -------
+    (MovingMesh, ndarray)
+        The mesh and the disk's centre ``(x, y)``, shape (2,).
+    """
+    from ..mesh import MovingMesh
+
+    disk = regular_polygon(a, segments)
+    y = delta - disk[:, 1].min()
+    L = 20.0 * a
+    mm = MovingMesh((-L, L, 0.0, L), [disk], [[x, y, 0.0]], h=h,
+                    grading={"region": (x - 3 * a, x + 3 * a, 0.0, 3 * a), "growth": 1.2, "h_max": 2 * a})
+    return mm, np.array([x, y])
+
+
+def approach_load(mm, element: str, centre) -> tuple[float, int]:
+    """Resolved F⊥/(μV) (the force's y component) on the disk ``body0`` of ``mm`` at ``centre``, shape (2,),
+    moving down at unit speed in Stokes flow of unit viscosity, walls at rest; and the DOFs."""
+    from ..fluid import FlowProblem, FlowSpace, RigidMotion, VelocityBC, solve_stokes
+    from ..fluid.forces import RigidModes
+
+    centre = (float(centre[0]), float(centre[1]))
+    space = FlowSpace(mm.skfem_mesh(), element)
+    bcs = [VelocityBC(["left", "right", "bottom", "top"], (0.0, 0.0)),
+           VelocityBC("body0", RigidMotion((0.0, -1.0), 0.0, centre))]
+    problem = FlowProblem(space, 1.0, bcs)
+    state = solve_stokes(problem)
+    F, _ = RigidModes(space, ["body0"], [centre]).loads(problem.steady_residual(state.x, convection=False))
+    return float(F[0, 1]), int(problem.B.shape[0] + problem.B.shape[1])
+
+
+def wall_approach_force(element: str, h: float, delta: float, a: float = 0.1, segments: int = 96,
+                        x: float = 0.0) -> dict:
     """Resolved force F⊥/(μV) on the disk of the module docstring.
 
     Parameters
@@ -57,6 +101,8 @@ def wall_approach_force(element: str, h: float, delta: float, a: float = 0.1, se
         Circumradius of the polygon, length.
     segments : int
         Vertices of the polygon (a multiple of 4 puts a vertex at the bottom).
+    x : float
+        Abscissa of the disk's centre, length (:func:`wall_approach_mesh`).
 
     Returns
     -------
@@ -64,24 +110,10 @@ def wall_approach_force(element: str, h: float, delta: float, a: float = 0.1, se
         ``force`` (resolved F⊥/(μV)), ``exact`` (:func:`bipolar_force` with the equal-area radius),
         ``radius`` (that radius), ``dofs``.
     """
-    from ..fluid import FlowProblem, FlowSpace, RigidMotion, VelocityBC, solve_stokes
-    from ..fluid.forces import RigidModes
-    from ..mesh import MovingMesh
-
-    disk = regular_polygon(a, segments)
-    y = delta - disk[:, 1].min()
-    L = 20.0 * a
-    mm = MovingMesh((-L, L, 0.0, L), [disk], [[0.0, y, 0.0]], h=h,
-                    grading={"region": (-3 * a, 3 * a, 0.0, 3 * a), "growth": 1.2, "h_max": 2 * a})
-    space = FlowSpace(mm.skfem_mesh(), element)
-    bcs = [VelocityBC(["left", "right", "bottom", "top"], (0.0, 0.0)),
-           VelocityBC("body0", RigidMotion((0.0, -1.0), 0.0, (0.0, y)))]
-    problem = FlowProblem(space, 1.0, bcs)
-    state = solve_stokes(problem)
-    F, _ = RigidModes(space, ["body0"], [[0.0, y]]).loads(problem.steady_residual(state.x, convection=False))
-    r = float(equal_area_radius(polygon_area(disk)))
-    return {"force": float(F[0, 1]), "exact": float(bipolar_force(delta, r)), "radius": r,
-            "dofs": int(problem.B.shape[0] + problem.B.shape[1])}
+    mm, centre = wall_approach_mesh(h, delta, a, segments, x)
+    force, dofs = approach_load(mm, element, centre)
+    r = float(equal_area_radius(polygon_area(regular_polygon(a, segments))))
+    return {"force": force, "exact": float(bipolar_force(delta, r)), "radius": r, "dofs": dofs}
 
 
 def resolved_film_length(force: float, delta: float, a: float) -> float:
