@@ -18,7 +18,9 @@ Everything here is read from what the run computes anyway; nothing dense is ever
   ``numpy.linalg.cond(K, 1)`` to 1e-12 on 94 of 100 random sparse matrices (the others low by at most
   20 %), on Taylor–Hood Stokes systems and a Navier–Stokes channel step (2514 DOFs); low by 4.6 % on
   one P2-bubble/P1dc system (624 DOFs).  The estimator's random start columns are seeded, so a
-  run's estimates are reproducible.  It is computed only when an LU is computed (cost below).
+  run's estimates are reproducible.  It is computed only when an LU is computed, and of the
+  numerical refactorisations of a PARDISO LU on an unchanged pattern only every
+  :data:`CONDITION_REFACTOR_STRIDE`-th (cost below).
 * **Krylov effort**: the iterations and the true relative residual of every solve.
 * **Interpolation noise**: the relative L2 change of u a field transfer makes at a
   re-triangulation (:func:`fluidem.coupling.moving_flow.transfer_change`, paper Sec. 3.3, Fig. 5),
@@ -42,7 +44,10 @@ a factorisation that costs 40-60 solves (``fluidem.fluid.solvers.lagged``).  In 
 (``benchmarks/bench_diagnostics.py``, one thread): 2.5 % of the step time for the settling-disk
 example (12.8k DOFs, 2 LUs in 40 steps), 3.7 % for ten settling disks (51.7k DOFs, 3 LUs in 30
 steps), 2.1 % for the first 24 steps of the suspension example (162k DOFs, 2 LUs, 1.4 s an estimate
-against 5.6 s a step); a run that re-triangulates every 3-4 steps would pay about 7 %.
+against 5.6 s a step); a run that re-triangulates every 3-4 steps would pay about 7 %.  A PARDISO
+refactorisation costs only 7-9 solves: estimating every one took 10.3 % of a settling pile of 100
+polygons (sampled over 50 steps of ``bench_pile_resolution.py``, 27 LUs in its first 83 steps), hence
+the stride.
 
 Examples
 --------
@@ -64,8 +69,9 @@ import numpy as np
 
 __all__ = ["condition_estimate", "lu_condition", "inf_sup_constant", "flow_inf_sup", "oscillation_text",
            "recently_retriangulated", "gap_elements", "GAP_LOCKING_ELEMENTS",
-           "StepHealth", "RunDiagnostics", "CONDITION_GROWTH", "KRYLOV_RISE", "KRYLOV_MIN_ITERATIONS",
-           "KRYLOV_WINDOW", "NOISE_WINDOW", "NOISE_BOUND", "NOISE_MIN_TRANSFERS", "SERIES_POINTS", "MECHANISMS"]
+           "StepHealth", "RunDiagnostics", "CONDITION_GROWTH", "CONDITION_REFACTOR_STRIDE", "KRYLOV_RISE",
+           "KRYLOV_MIN_ITERATIONS", "KRYLOV_WINDOW", "NOISE_WINDOW", "NOISE_BOUND", "NOISE_MIN_TRANSFERS",
+           "SERIES_POINTS", "MECHANISMS"]
 
 #: Warn when the condition estimate has grown by this factor since the run's first factorisation.
 #: The viscous block of a mesh with smallest element size h_min has κ ∝ h_min⁻² (κ of the whole
@@ -73,6 +79,13 @@ __all__ = ["condition_estimate", "lu_condition", "inf_sup_constant", "flow_inf_s
 #: than at the start: a near-contact gap meshed by a few tiny elements, or a pocket of fluid closed by
 #: touching bodies, whose volume cannot change while they move (paper Sec. 3 and 5).
 CONDITION_GROWTH = 1e3
+
+#: Of the numerical refactorisations on the pattern of the previous LU (a PARDISO LU refactorised on the
+#: same mesh, :attr:`DirectSolver.numeric_only`), estimate every this many; every other LU (a new
+#: analysis: the first on each mesh) is estimated.  A refactorisation costs 7-9 solves with the factors
+#: (``fluidem.fluid.solvers.pardiso``), an estimate up to 20 (its 2 columns, with ``Kᵀ`` too): estimating
+#: them all was 10 % of a settling pile of 100 polygons (27 LUs in 83 steps; module docstring, Cost).
+CONDITION_REFACTOR_STRIDE = 4
 
 #: Warn when the mean Krylov iterations per solve over the last :data:`KRYLOV_WINDOW` steps exceeds
 #: this factor times their mean over the first such window.  Consecutive matrices of a run differ a
@@ -394,6 +407,7 @@ class RunDiagnostics:
         self.warnings: list[str] = []
         self._warned: set = set()
         self._conditions: list[float] = []
+        self._refactors_since_estimate = 0
         self._infos: list = []
         self._steps = 0
         self._stride = 1
@@ -412,13 +426,19 @@ class RunDiagnostics:
 
     # -- the solvers' reports ------------------------------------------------------------------
     def factorized(self, solver) -> None:
-        """An LU was just computed by ``solver`` (a DirectSolver): estimate its condition."""
+        """An LU was just computed by ``solver`` (a DirectSolver): estimate its condition (of a numerical
+        refactorisation on the previous pattern, every :data:`CONDITION_REFACTOR_STRIDE`-th only)."""
+        self._counts["factorizations"] += 1
+        if getattr(solver, "numeric_only", False):
+            self._refactors_since_estimate += 1
+            if self._refactors_since_estimate < CONDITION_REFACTOR_STRIDE:
+                return
+        self._refactors_since_estimate = 0
         t0 = time.perf_counter()
         try:
             c = lu_condition(solver)
         except Exception:  # an estimate must never stop a run (a singular LU raises in its solve)
             c = None
-        self._counts["factorizations"] += 1
         if c is not None and np.isfinite(c):
             self._conditions.append(c)
         self.seconds += time.perf_counter() - t0

@@ -188,6 +188,31 @@ def test_pardiso_condition_estimate_matches_superlu(saddle):
         assert abs(est[1] / est[0] - 1.0) < 2e-4
 
 
+def test_refactorisations_on_one_pattern_are_estimated_every_stride(saddle):
+    """A run's diagnostics estimate every new analysis and, of the numerical refactorisations on the
+    pattern of the LU before, the CONDITION_REFACTOR_STRIDE-th (4): of one analysis and eight
+    refactorisations the 1st, 5th and 9th; another pattern is estimated at once.  Every LU is counted."""
+    from fluidem.diagnostics import CONDITION_REFACTOR_STRIDE, RunDiagnostics
+
+    K = saddle.K.tocsr().copy()
+    K.sort_indices()
+    rng = np.random.default_rng(3)
+    d, solver = RunDiagnostics(), DirectSolver(backend="pardiso")
+    estimated, factorizations = [], []
+    K3 = K.tolil()
+    K3[0, K.shape[0] - 1] = 1e-3  # one entry more: another pattern
+    with d.watching():
+        for k in range(11):
+            Kk = (K if k < 10 else K3).tocsr().copy()
+            Kk.data *= 1.0 + 0.01 * rng.standard_normal(Kk.nnz)
+            solver.factorize(Kk)
+            h = d.finish_step(k + 1, 0.1 * (k + 1))
+            estimated.append(h.condition is not None)
+            factorizations.append(h.factorizations)
+    assert CONDITION_REFACTOR_STRIDE == 4
+    assert [k + 1 for k, e in enumerate(estimated) if e] == [1, 5, 9, 11] and factorizations == [1] * 11
+
+
 def test_auto_is_pardiso_from_its_threshold_and_the_memory_model():
     assert default_direct_backend(PARDISO_MIN_DOFS - 1) == "superlu"
     assert default_direct_backend(PARDISO_MIN_DOFS) == "pardiso"
