@@ -17,7 +17,7 @@ Run (an hour or more; the runs may go side by side, the load is written)::
 
     python benchmarks/bench_pile_resolution.py --scene H FILE.toml      # the pile, size H at the outlines
     OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 fluidem run FILE.toml --out OUT -v > RUN.LOG
-    python benchmarks/bench_pile_resolution.py OUT RUN.LOG [OUT RUN.LOG ...] [--steps A B]
+    python benchmarks/bench_pile_resolution.py OUT RUN.LOG [OUT RUN.LOG ...] [--steps A B] [--load "IN WORDS"]
 
 writes ``benchmarks/results/pile_resolution.{md,json}``.
 
@@ -86,12 +86,18 @@ def jumps(out_dir, log_path, window=WINDOW) -> dict:
     reasons: dict = {}
     for k in retri:
         reasons[run["retri"][k][0]] = reasons.get(run["retri"][k][0], 0) + 1
+    from fluidem.scene import Scene
+
+    mesh = Scene.from_toml(pathlib.Path(out_dir) / "scene.toml").mesh
+    graded = f", graded ×{mesh.grading['growth']:g} to {mesh.grading['h_max']:g}" if mesh.grading else ""
     return {"out": str(out_dir), "scene": json.loads((pathlib.Path(out_dir) / "run.json").read_text()).get("scene"),
+            "mesh": f"h = {mesh.h:g} at the outlines{graded}",
             "dofs": run["dofs"], "window": [lo, hi], "steps": len(change),
             "ordinary_median_pct": 100 * med, "ordinary_p90_over_median": float(np.percentile(ordinary, 90)) / med,
             "retriangulations": len(retri), "reasons": reasons,
             "retri_over_ordinary": [float(c / med) for c in at],
             "retri_over_ordinary_median": float(np.median(at) / med) if len(at) else None,
+            "retri_median_pct": 100 * float(np.median(at)) if len(at) else None,
             "s_per_step_median": float(np.median([s["total"] for s in steps.values()])) if steps else None,
             "s_per_step_mean": float(np.mean([s["total"] for s in steps.values()])) if steps else None,
             "dem_share": (sum(s["dem"] for s in steps.values()) / sum(s["total"] for s in steps.values())
@@ -149,24 +155,29 @@ def main(argv: list[str]) -> None:
     if argv[:1] == ["--bed"]:
         bed_against_apart(*argv[1:6])
         return
-    window = WINDOW
+    window, load = WINDOW, None
+    if "--load" in argv:
+        i = argv.index("--load")
+        load, argv = argv[i + 1], argv[:i] + argv[i + 2:]
     if "--steps" in argv:
         i = argv.index("--steps")
         window, argv = (int(argv[i + 1]), int(argv[i + 2])), argv[:i] + argv[i + 3:]
     rows = [jumps(out, log, window) for out, log in zip(argv[::2], argv[1::2])]
-    cells = [[r["out"], f"{r['dofs']:,}", f"{r['window'][0]}–{r['window'][1]}",
+    cells = [[r["mesh"], f"{r['dofs']:,}", f"{r['window'][0]}–{r['window'][1]}",
               f"{r['ordinary_median_pct']:.2f} % (p90 {r['ordinary_p90_over_median']:.1f}×)",
               f"{r['retriangulations']} ({', '.join(f'{k} {v}' for k, v in sorted(r['reasons'].items()))})",
-              (f"{r['retri_over_ordinary_median']:.1f}× ({min(r['retri_over_ordinary']):.1f}–"
-               f"{max(r['retri_over_ordinary']):.1f}×)") if r["retriangulations"] else "—",
+              (f"{r['retri_median_pct']:.2f} %: {r['retri_over_ordinary_median']:.1f}× "
+               f"({min(r['retri_over_ordinary']):.1f}–{max(r['retri_over_ordinary']):.1f}×)")
+              if r["retriangulations"] else "—",
               f"{r['s_per_step_median']:.2f} / {r['s_per_step_mean']:.2f}",
               f"{r['dem_share']:.1%} ({r['dem_substeps_per_step']:.0f})"] for r in rows]
     write_results("pile_resolution", rows, "Force jumps of a settling pile against the mesh size at the outlines",
                   "The pile of 100 polygons of `bench_dense.py` (a = 0.025–0.04), node repair on; "
                   "‖ΔF‖/‖F‖ of all bodies’ hydrodynamic forces from step to step; "
-                  "one BLAS and one MKL thread per run; `benchmarks/bench_pile_resolution.py`.",
-                  ["run", "DOFs at the start", "steps", "ordinary change, median", "re-triangulations",
-                   "change at them / ordinary median: median (range)", "s a step: median / mean",
+                  "one BLAS and one MKL thread per run" + (f" ({load})" if load else "")
+                  + "; `benchmarks/bench_pile_resolution.py`.",
+                  ["mesh", "DOFs at the start", "steps", "ordinary change, median", "re-triangulations",
+                   "change at them, median: over the ordinary median (range)", "s a step: median / mean",
                    "DEM share of the time (sub-steps a step)"], cells)
 
 
