@@ -168,3 +168,32 @@ def test_a_dry_scene_without_contacts_whose_body_reaches_the_floor_is_warned(tmp
     stays = tmp_path / "stays.toml"
     stays.write_text(TEMPLATE.format(t_end=0.12, every=1))  # falls 0.07: never reaches the floor, no warning
     assert Scene.from_toml(stays).plan().warnings == []
+
+
+def test_a_recorded_step_evaluates_the_residual_once_for_the_body_and_the_sides(channel, tmp_path, monkeypatch):
+    """The bodies' loads and the sides' forces of a recorded step come from one residual (a pass over all
+    elements; two before), and a later fresh evaluation gives the same sides.csv and history.csv rows bit
+    for bit."""
+    import csv
+
+    from fluidem.fluid.forces import side_loads
+    from fluidem.fluid.navier_stokes import BDFStepper
+
+    calls = []
+    original = BDFStepper.last_residual
+
+    def counted(self):
+        calls.append(1)
+        return original(self)
+
+    monkeypatch.setattr(BDFStepper, "last_residual", counted)
+    sim = Simulation(Scene.from_toml(channel))
+    sim.run(out_dir=tmp_path / "o")
+    assert len(calls) == 6  # six steps, each recorded (history every step): one residual each
+    rows = [r for r in csv.DictReader(open(tmp_path / "o" / "sides.csv")) if int(r["step"]) == 6]
+    names = [r["side"] for r in rows]
+    fresh = side_loads(sim.flow.space, sim.flow.residual(), names, rho=sim.scene.fluid.density)
+    assert np.array_equal(np.array([[float(r["fx"]), float(r["fy"])] for r in rows]), fresh)
+    F, _ = sim.flow.loads()
+    last = [r for r in csv.DictReader(open(tmp_path / "o" / "history.csv")) if int(r["step"]) == 6]
+    assert np.array_equal(np.array([[float(r["fx"]), float(r["fy"])] for r in last]), F)
