@@ -575,7 +575,8 @@ class FluidContacts:
         origin = f" (half the closest gap {req['seen'][r]:.3g} of the step's last pass)" if req["from_seen"][r] else ""
         if req["by_repulsion"][r]:
             return (f"the repulsion's stiffness at the gap floor {req['floor'][r]:.3g}{origin}: "
-                    f"{req['stiffness'][r]:.3g} force/length")
+                    f"{req['stiffness'][r]:.3g} force/length, softer with a larger contact.repulsion_epsilon "
+                    "or repulsion_range")
         return f"the gaps' change: a quarter of a gap per sub-step{origin}"
 
     def repulsion_linearised(self, poses: np.ndarray):

@@ -134,6 +134,7 @@ def test_the_next_pass_of_a_step_takes_its_sub_steps_from_the_gap_the_last_one_m
     assert c.substeps - n_first < 0.7 * n_first and c.redone == 0                  # measured 21 of 35
     by = c.last_set_by
     assert by.startswith("the repulsion's stiffness at the gap floor") and "half the closest gap" in by
+    assert "softer with a larger contact.repulsion_epsilon or repulsion_range" in by  # the keys to change
     ref = contacts()
     at_bound = ref.load_function(0.0, dt, poses, vel)(vel, first)                    # a first pass: the bound
     assert ref.substeps == 35
