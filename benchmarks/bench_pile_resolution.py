@@ -13,7 +13,7 @@ steps (neither re-triangulated nor right after one) and at each re-triangulation
 that median; the cost per step (the verbose log's split), the DEM's share of it and its sub-steps
 (``dem`` and "DEM n sub-steps" of the verbose lines), and the DOFs.
 
-Run (an hour or more; the runs may go side by side, the load is written)::
+Run (an hour or more; the runs may go side by side: give their load in words with ``--load``)::
 
     python benchmarks/bench_pile_resolution.py --scene H FILE.toml      # the pile, size H at the outlines
     OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 fluidem run FILE.toml --out OUT -v > RUN.LOG
@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 import pathlib
 import sys
 
@@ -102,8 +101,7 @@ def jumps(out_dir, log_path, window=WINDOW) -> dict:
             "s_per_step_mean": float(np.mean([s["total"] for s in steps.values()])) if steps else None,
             "dem_share": (sum(s["dem"] for s in steps.values()) / sum(s["total"] for s in steps.values())
                           if steps else None),
-            "dem_substeps_per_step": float(np.mean([s["substeps"] for s in steps.values()])) if steps else None,
-            "load": os.getloadavg()[0]}
+            "dem_substeps_per_step": float(np.mean([s["substeps"] for s in steps.values()])) if steps else None}
 
 
 def step_costs(out_dir, log_path) -> dict:
@@ -162,7 +160,7 @@ def main(argv: list[str]) -> None:
     if "--steps" in argv:
         i = argv.index("--steps")
         window, argv = (int(argv[i + 1]), int(argv[i + 2])), argv[:i] + argv[i + 3:]
-    rows = [jumps(out, log, window) for out, log in zip(argv[::2], argv[1::2])]
+    rows = [dict(jumps(out, log, window), load_while_running=load) for out, log in zip(argv[::2], argv[1::2])]
     cells = [[r["mesh"], f"{r['dofs']:,}", f"{r['window'][0]}–{r['window'][1]}",
               f"{r['ordinary_median_pct']:.2f} % (p90 {r['ordinary_p90_over_median']:.1f}×)",
               f"{r['retriangulations']} ({', '.join(f'{k} {v}' for k, v in sorted(r['reasons'].items()))})",
